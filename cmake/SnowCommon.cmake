@@ -1,0 +1,13 @@
+# Per-target defaults: C++17, warnings, optional sanitizers. No global flags.
+function(snow_target_defaults target)
+  target_compile_features(${target} PUBLIC cxx_std_17)
+  set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wno-missing-field-initializers)
+  if(SNOW_WERROR)
+    target_compile_options(${target} PRIVATE -Werror)
+  endif()
+  if(SNOW_SANITIZE)
+    target_compile_options(${target} PUBLIC -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
+    target_link_options(${target} PUBLIC -fsanitize=address,undefined)
+  endif()
+endfunction()

@@ -1,0 +1,26 @@
+#pragma once
+// File-system helpers that never leave a half-written output behind.
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace snow {
+
+/// Calls write(tmp_path) to produce the file at a temporary name in the
+/// target's folder, then renames it onto `path` (atomic on POSIX). If write
+/// throws, or the rename fails, the temporary file is removed and the target
+/// is left untouched. Throws IOError naming `path` when the folder is not
+/// writable.
+void write_file_atomically(const std::filesystem::path& path,
+                           const std::function<void(const std::filesystem::path& tmp_path)>& write);
+
+/// Convenience: writes `bytes` atomically.
+void write_bytes_atomically(const std::filesystem::path& path, const void* data, size_t size);
+void write_text_atomically(const std::filesystem::path& path, const std::string& text);
+
+/// Reads a whole file; throws IOError naming the path on failure.
+std::vector<uint8_t> read_file_bytes(const std::filesystem::path& path);
+
+}  // namespace snow

@@ -1,0 +1,45 @@
+#pragma once
+// Shader programs built from the sources embedded at build time (shaders/).
+// Shader files may `#include "name"` another file of shaders/ (one level,
+// e.g. the binding header shared with C++); the loader splices it in after
+// the #version line.
+#include <initializer_list>
+#include <string>
+
+#include <glm/glm.hpp>
+
+#include "gl/objects.h"
+
+namespace snow::gl {
+
+/// Source text of an embedded shader file, e.g. "peel.frag".
+/// Throws GLError if there is no such file.
+const std::string& shader_source(const std::string& name);
+
+class Program {
+ public:
+  Program() = default;
+  /// Compiles and links the named files; the stage comes from the extension
+  /// (.vert .geom .frag .comp). Throws GLError naming the file with the
+  /// driver's log on a compile or link error.
+  explicit Program(std::initializer_list<std::string> files);
+
+  GLuint id() const { return handle_.id(); }
+  void use() const { glUseProgram(handle_.id()); }
+
+  /// Uniform setters by name (cached location; unknown names are ignored,
+  /// since drivers drop unused uniforms).
+  void set(const char* name, int v) const;
+  void set(const char* name, float v) const;
+  void set(const char* name, const glm::vec2& v) const;
+  void set(const char* name, const glm::vec3& v) const;
+  void set(const char* name, const glm::vec4& v) const;
+  void set(const char* name, const glm::ivec2& v) const;
+  void set(const char* name, const glm::mat4& v) const;
+
+ private:
+  ProgramHandle handle_;
+  std::string name_;
+};
+
+}  // namespace snow::gl

@@ -1,0 +1,84 @@
+#pragma once
+// The scene as every stage sees it: world-space triangles grouped by object.
+// Units are metres, +Y is up (glTF's frame). Front faces wind counter-
+// clockwise seen from outside, also for mirrored instances (the loader flips
+// the winding of nodes whose world matrix has a negative determinant).
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace snow {
+
+/// Axis-aligned box. An empty box has min > max.
+struct Bounds {
+  glm::vec3 min{std::numeric_limits<float>::max()};
+  glm::vec3 max{-std::numeric_limits<float>::max()};
+
+  bool empty() const { return min.x > max.x || min.y > max.y || min.z > max.z; }
+  void extend(const glm::vec3& p) {
+    min = glm::min(min, p);
+    max = glm::max(max, p);
+  }
+  glm::vec3 size() const { return empty() ? glm::vec3(0) : max - min; }
+  glm::vec3 center() const { return (min + max) * 0.5f; }
+};
+
+/// Decoded RGBA8 image (a baseColor texture).
+struct Image {
+  std::string name;
+  int width = 0;
+  int height = 0;
+  std::vector<uint8_t> rgba;  // width * height * 4, rows top to bottom
+};
+
+struct Material {
+  std::string name;
+  glm::vec4 base_color{1.0f};  // linear baseColorFactor
+  int base_color_image = -1;   // index into Scene::images, or -1
+};
+
+/// One glTF primitive instanced by one node: a contiguous triangle range.
+struct SceneObject {
+  std::string name;        // node name, else mesh name, else "mesh<M>.prim<P>"
+  std::string node_path;   // "/Root/House/Roof" (node names, or node<N>)
+  int node = -1;           // glTF node index
+  int mesh = -1;           // glTF mesh index
+  int primitive = -1;      // primitive index within the mesh
+  int material = -1;       // index into Scene::materials, or -1
+  uint32_t first_triangle = 0;
+  uint32_t triangle_count = 0;
+};
+
+struct SceneStats {
+  uint64_t triangles_read = 0;        // before degenerate ones are dropped
+  uint64_t degenerate_dropped = 0;    // zero-area or repeated-index triangles
+  uint64_t primitives_skipped = 0;    // POINTS, LINES, ... (each warned)
+  uint64_t nodes = 0;                 // nodes visited in the scene graph
+  uint64_t instances = 0;             // (node, mesh) pairs
+};
+
+/// World-space triangle soup, grouped by object. Triangle t has corners
+/// positions[3t..3t+2]; normals and uvs follow the same layout (uvs may be
+/// empty when no primitive had TEXCOORD_0; normals are always filled, with
+/// flat normals where the file had none). Objects' triangle ranges are
+/// contiguous, in order, and cover every triangle.
+struct Scene {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec3> normals;
+  std::vector<glm::vec2> uvs;
+  std::vector<SceneObject> objects;
+  std::vector<Material> materials;
+  std::vector<Image> images;
+  Bounds bounds;
+  SceneStats stats;
+  std::vector<std::string> warnings;  // also logged as they happen
+
+  size_t triangle_count() const { return positions.size() / 3; }
+  /// Object index of triangle t (binary search over the ranges).
+  int object_of_triangle(size_t t) const;
+};
+
+}  // namespace snow

@@ -1,0 +1,64 @@
+#pragma once
+// Snow amount maps: the scene seen from straight above as up to L stacked
+// surfaces per texel (Tokoi 2006; height spans after Onoue and Nishita).
+//
+// Grid: texel (i, j) covers world x in [origin.x + i*texel, +texel) and world
+// z in [origin.y + j*texel, +texel); its centre is grid.center(i, j).
+// Layers are ordered top-down: layer 0 is the highest surface under the sky.
+// Every per-layer array has layers*height*width entries, index(l, i, j).
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace snow {
+
+struct MapGrid {
+  glm::vec2 origin{0.0f};  // world (x, z) of texel (0,0)'s corner, metres
+  float texel = 0.1f;      // texel edge, metres
+  int width = 0;           // texels along +x
+  int height = 0;          // texels along +z
+
+  glm::vec2 center(int i, int j) const {
+    return origin + glm::vec2((float(i) + 0.5f) * texel, (float(j) + 0.5f) * texel);
+  }
+  size_t texels() const { return size_t(width) * size_t(height); }
+};
+
+constexpr float kNoSurface = std::numeric_limits<float>::quiet_NaN();
+constexpr float kOpenSky = std::numeric_limits<float>::infinity();
+
+struct SnowMaps {
+  MapGrid grid;
+  int layers = 0;  // L
+
+  // Per layer texel (size layers * grid.texels()):
+  std::vector<float> ground;      // surface height (world y, m); NaN where no surface
+  std::vector<float> ceiling;     // height of the surface above; +inf for layer 0
+  std::vector<glm::vec3> normal;  // geometric normal as wound (may face down); 0 if none
+  std::vector<int32_t> object;    // scene object index; -1 where no surface
+
+  uint64_t overflow_columns = 0;  // columns holding more than `layers` surfaces
+
+  size_t index(int l, int i, int j) const {
+    return (size_t(l) * size_t(grid.height) + size_t(j)) * size_t(grid.width) + size_t(i);
+  }
+  bool has_surface(int l, int i, int j) const { return !std::isnan(ground[index(l, i, j)]); }
+  /// Allocates every array for `layers` layers of `grid`, all empty.
+  void allocate(const MapGrid& g, int layer_count);
+};
+
+inline void SnowMaps::allocate(const MapGrid& g, int layer_count) {
+  grid = g;
+  layers = layer_count;
+  const size_t n = size_t(layers) * grid.texels();
+  ground.assign(n, kNoSurface);
+  ceiling.assign(n, kOpenSky);
+  normal.assign(n, glm::vec3(0.0f));
+  object.assign(n, -1);
+  overflow_columns = 0;
+}
+
+}  // namespace snow

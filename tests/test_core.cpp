@@ -1,0 +1,54 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/error.h"
+#include "core/fs.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+fs::path temp_dir(const char* name) {
+  fs::path dir = fs::temp_directory_path() / ("snow_test_core_" + std::string(name));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+}  // namespace
+
+TEST(AtomicWrite, WritesAndLeavesNoTemporary) {
+  const fs::path dir = temp_dir("write");
+  snow::write_text_atomically(dir / "out.txt", "hello");
+  std::ifstream in(dir / "out.txt");
+  std::string text;
+  in >> text;
+  EXPECT_EQ(text, "hello");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
+}
+
+TEST(AtomicWrite, FailureKeepsOldFileAndRemovesTemporary) {
+  const fs::path dir = temp_dir("fail");
+  snow::write_text_atomically(dir / "out.txt", "old");
+  EXPECT_THROW(snow::write_file_atomically(dir / "out.txt",
+                                           [](const fs::path& tmp) {
+                                             std::ofstream(tmp) << "partial";
+                                             throw snow::IOError("disk full");
+                                           }),
+               snow::IOError);
+  std::ifstream in(dir / "out.txt");
+  std::string text;
+  in >> text;
+  EXPECT_EQ(text, "old");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
+}
+
+TEST(AtomicWrite, MissingFolderIsIOError) {
+  EXPECT_THROW(snow::write_text_atomically("/nonexistent_snow_dir/x.txt", "x"), snow::IOError);
+}
+
+TEST(Errors, ExitCodes) {
+  EXPECT_EQ(snow::InputError("x").exit_code(), snow::kExitBadInput);
+  EXPECT_EQ(snow::GLError("x").exit_code(), snow::kExitNoGL);
+  EXPECT_EQ(snow::IOError("x").exit_code(), snow::kExitIO);
+}
