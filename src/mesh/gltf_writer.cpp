@@ -1,0 +1,1 @@
+// Placeholder: this file is written by the module's issue.
