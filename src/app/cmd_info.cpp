@@ -1,0 +1,33 @@
+// `snowmodel info [SCENE] [--json]`: the GL context in use, and a scene summary.
+#include <cstdio>
+
+#include "app/commands.h"
+#include "scene/load_gltf.h"
+
+namespace snow::app {
+
+void register_info(CLI::App& app, const GlobalOptions& global) {
+  struct Options {
+    std::string scene;
+    bool json = false;
+    bool no_gl = false;
+  };
+  auto options = std::make_shared<Options>();
+  CLI::App* cmd = app.add_subcommand("info", "Print the OpenGL context in use and a summary of a scene");
+  cmd->add_option("scene", options->scene, "glTF 2.0 scene (.gltf or .glb)");
+  cmd->add_flag("--json", options->json, "Print the scene summary as JSON");
+  cmd->add_flag("--no-gl", options->no_gl, "Do not create an OpenGL context");
+  cmd->callback([options, &global] {
+    if (!options->no_gl && !options->json) {
+      auto context = make_headless_context(global);
+      std::printf("OpenGL: %s (%s)\n", context->description().c_str(),
+                  gl::to_string(context->backend()).c_str());
+    }
+    if (options->scene.empty()) return;
+    const Scene scene = load_scene(options->scene);
+    std::printf("%s\n", options->json ? scene_summary_json(scene).c_str()
+                                      : scene_summary_text(scene).c_str());
+  });
+}
+
+}  // namespace snow::app
