@@ -1,0 +1,41 @@
+#pragma once
+// glTF 2.0 writing with tinygltf: appends TriMeshes to a tinygltf::Model and
+// saves .glb/.gltf atomically. Output is deterministic (same input, same
+// bytes).
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "mesh/mesh.h"
+
+namespace tinygltf {
+class Model;
+}
+
+namespace snow {
+
+/// Appends `meshes` as one node each (named after the mesh, one mesh with one
+/// TRIANGLES primitive) under a new root node `root_name`, which is added to
+/// the model's default scene (a scene is created and made default if there is
+/// none). Adds one PBR material per MeshMaterial (baseColorFactor,
+/// roughnessFactor, metallicFactor; double-sided false); TriMesh::material
+/// indexes `materials` (out of range: InputError naming the mesh). Writes
+/// POSITION (with min/max), NORMAL when the mesh has normals (one per
+/// position, else InputError), TEXCOORD_0 when it has uvs, and indices as
+/// uint16 when every index fits, else uint32. All data goes to buffer 0
+/// (created if the model has none; appended, 4-byte aligned, otherwise) in
+/// one buffer view per accessor. Meshes without triangles are skipped with a
+/// warning naming them. Sets asset.version "2.0" and asset.generator when
+/// empty. Throws InputError for indices out of range.
+void append_meshes(tinygltf::Model& model, const std::vector<TriMesh>& meshes,
+                   const std::vector<MeshMaterial>& materials, const std::string& root_name);
+
+/// Writes `model` as binary .glb or as .gltf JSON, chosen by the extension of
+/// `path` (case-insensitive; anything else: InputError). For .gltf every
+/// buffer without a data URI is written beside it as "<stem>.bin" (buffer 0)
+/// or "<stem><i>.bin" (buffer i > 0), and referenced by that relative URI.
+/// Every file is written atomically (snow::write_file_atomically); failures
+/// throw IOError naming the path.
+void save_gltf(const tinygltf::Model& model, const std::filesystem::path& path);
+
+}  // namespace snow
