@@ -25,8 +25,8 @@ struct ContextOptions {
   Backend backend = Backend::Auto;  // SNOWMODEL_GL_BACKEND overrides Auto
   bool debug = false;               // KHR_debug output (on in debug builds)
   // Glfw only:
-  int window_width = 1280;   // pixels
-  int window_height = 800;   // pixels
+  int window_width = 1280;  // pixels
+  int window_height = 800;  // pixels
   bool visible = true;
   std::string title = "snowmodel";
 };

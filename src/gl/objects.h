@@ -59,6 +59,8 @@ Buffer create_buffer();
 Framebuffer create_framebuffer();
 Renderbuffer create_renderbuffer();
 VertexArray create_vertex_array();
+/// A query object of `target` (GL_TIME_ELAPSED, GL_SAMPLES_PASSED, ...).
+Query create_query(GLenum target);
 
 /// Allocates immutable storage for a 2D texture array (glTextureStorage3D)
 /// and sets nearest filtering and clamp-to-edge. Throws GLError on failure

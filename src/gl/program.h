@@ -5,6 +5,9 @@
 // the #version line.
 #include <initializer_list>
 #include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
 
 #include <glm/glm.hpp>
 
@@ -16,6 +19,11 @@ namespace snow::gl {
 /// Throws GLError if there is no such file.
 const std::string& shader_source(const std::string& name);
 
+/// `source` with every `#include "file"` line replaced by that embedded file
+/// (nested includes too, up to 8 deep), wrapped in #line directives so the
+/// driver's log line numbers stay right. `name` is used in errors.
+std::string resolve_includes(const std::string& name, const std::string& source);
+
 class Program {
  public:
   Program() = default;
@@ -23,6 +31,14 @@ class Program {
   /// (.vert .geom .frag .comp). Throws GLError naming the file with the
   /// driver's log on a compile or link error.
   explicit Program(std::initializer_list<std::string> files);
+
+  /// Same from source text given here: (file name, source) pairs, the stage
+  /// from each name's extension, `#include` resolved against the embedded
+  /// files. For tests and tools; passes use the embedded files.
+  static Program from_sources(const std::vector<std::pair<std::string, std::string>>& sources);
+
+  /// "peel.vert+peel.frag": the files the program was built from.
+  const std::string& name() const { return name_; }
 
   GLuint id() const { return handle_.id(); }
   void use() const { glUseProgram(handle_.id()); }
@@ -36,10 +52,15 @@ class Program {
   void set(const char* name, const glm::vec4& v) const;
   void set(const char* name, const glm::ivec2& v) const;
   void set(const char* name, const glm::mat4& v) const;
+  void set(const char* name, const glm::mat3& v) const;
+
+  /// Cached glGetUniformLocation; -1 for unknown (or optimised-out) names.
+  GLint uniform_location(const char* name) const;
 
  private:
   ProgramHandle handle_;
   std::string name_;
+  mutable std::unordered_map<std::string, GLint> locations_;
 };
 
 }  // namespace snow::gl

@@ -1,0 +1,267 @@
+// EGL backends: EGL_EXT_platform_device (a GPU without a display server) and
+// EGL_MESA_platform_surfaceless (Mesa, e.g. llvmpipe on a machine without a
+// GPU). Both make a GL 4.5 core context current without any surface
+// (EGL_KHR_surfaceless_context), or with a tiny pbuffer where that extension
+// is missing; all rendering goes to framebuffer objects.
+#define EGL_NO_X11
+#define MESA_EGL_NO_X11_HEADERS
+#include <EGL/egl.h>
+#include <EGL/eglext.h>
+
+#include <cstring>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "gl/context_internal.h"
+
+namespace snow::gl::detail {
+namespace {
+
+const char* egl_error_name(EGLint error) {
+  switch (error) {
+    case EGL_SUCCESS:
+      return "EGL_SUCCESS";
+    case EGL_NOT_INITIALIZED:
+      return "EGL_NOT_INITIALIZED";
+    case EGL_BAD_ACCESS:
+      return "EGL_BAD_ACCESS";
+    case EGL_BAD_ALLOC:
+      return "EGL_BAD_ALLOC";
+    case EGL_BAD_ATTRIBUTE:
+      return "EGL_BAD_ATTRIBUTE";
+    case EGL_BAD_CONFIG:
+      return "EGL_BAD_CONFIG";
+    case EGL_BAD_CONTEXT:
+      return "EGL_BAD_CONTEXT";
+    case EGL_BAD_CURRENT_SURFACE:
+      return "EGL_BAD_CURRENT_SURFACE";
+    case EGL_BAD_DISPLAY:
+      return "EGL_BAD_DISPLAY";
+    case EGL_BAD_MATCH:
+      return "EGL_BAD_MATCH";
+    case EGL_BAD_NATIVE_PIXMAP:
+      return "EGL_BAD_NATIVE_PIXMAP";
+    case EGL_BAD_NATIVE_WINDOW:
+      return "EGL_BAD_NATIVE_WINDOW";
+    case EGL_BAD_PARAMETER:
+      return "EGL_BAD_PARAMETER";
+    case EGL_BAD_SURFACE:
+      return "EGL_BAD_SURFACE";
+    case EGL_CONTEXT_LOST:
+      return "EGL_CONTEXT_LOST";
+    default:
+      return "EGL error";
+  }
+}
+
+std::string egl_error() { return egl_error_name(eglGetError()); }
+
+bool has_extension(const char* list, const char* name) {
+  if (!list) return false;
+  const size_t n = std::strlen(name);
+  for (const char* p = list; (p = std::strstr(p, name)) != nullptr; p += n) {
+    const bool starts = p == list || p[-1] == ' ';
+    const bool ends = p[n] == '\0' || p[n] == ' ';
+    if (starts && ends) return true;
+  }
+  return false;
+}
+
+ProcAddressFn egl_loader() { return reinterpret_cast<ProcAddressFn>(&eglGetProcAddress); }
+
+// One eglInitialize per display, however many contexts use it; the last
+// context to go terminates it (eglTerminate would pull the display from
+// under the others).
+std::map<EGLDisplay, int>& display_users() {
+  static std::map<EGLDisplay, int> users;
+  return users;
+}
+
+void acquire_display(EGLDisplay display) {
+  int& users = display_users()[display];
+  if (users == 0) {
+    EGLint major = 0;
+    EGLint minor = 0;
+    if (!eglInitialize(display, &major, &minor)) {
+      display_users().erase(display);
+      throw GLError("eglInitialize failed (" + egl_error() + ")");
+    }
+  }
+  ++users;
+}
+
+void release_display(EGLDisplay display) {
+  auto it = display_users().find(display);
+  if (it == display_users().end()) return;
+  if (--it->second == 0) {
+    eglTerminate(display);
+    display_users().erase(it);
+  }
+}
+
+class EglContext final : public Context {
+ public:
+  EglContext(Backend backend, EGLDisplay display) : backend_(backend), display_(display) {
+    acquire_display(display_);
+  }
+  ~EglContext() override {
+    if (context_ != EGL_NO_CONTEXT) {
+      if (eglGetCurrentContext() == context_) {
+        eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+      }
+      eglDestroyContext(display_, context_);
+    }
+    if (surface_ != EGL_NO_SURFACE) eglDestroySurface(display_, surface_);
+    release_display(display_);
+  }
+
+  Backend backend() const override { return backend_; }
+
+  void make_current() override {
+    // Another backend (OSMesa) may have taken the thread since; libglvnd
+    // skips an eglMakeCurrent of the context it thinks is current, so
+    // release first to make Mesa really bind this one again.
+    if (eglGetCurrentContext() == context_ && !functions_loaded_from(egl_loader())) {
+      eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+    }
+    if (!eglMakeCurrent(display_, surface_, surface_, context_)) {
+      throw GLError(to_string(backend_) + ": eglMakeCurrent failed (" + egl_error() + ")");
+    }
+    load_functions(egl_loader(), backend_);
+  }
+
+  // Creates the context (GL 4.5 core, else 4.4, else 4.3) and makes it current.
+  void create(const ContextOptions& options) {
+    const char* extensions = eglQueryString(display_, EGL_EXTENSIONS);
+    const bool surfaceless = has_extension(extensions, "EGL_KHR_surfaceless_context");
+    const bool no_config = has_extension(extensions, "EGL_KHR_no_config_context");
+    if (!eglBindAPI(EGL_OPENGL_API)) {
+      throw GLError("no desktop OpenGL on this EGL display (" + egl_error() + ")");
+    }
+
+    EGLConfig config = nullptr;
+    if (!(surfaceless && no_config)) {
+      const EGLint attribs[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_SURFACE_TYPE,
+                                EGL_PBUFFER_BIT, EGL_NONE};
+      EGLint count = 0;
+      if (!eglChooseConfig(display_, attribs, &config, 1, &count) || count < 1) {
+        throw GLError("no EGL config with OpenGL and pbuffers");
+      }
+    }
+
+    std::string last_error;
+    for (EGLint minor : {5, 4, 3}) {
+      std::vector<EGLint> attribs = {
+          EGL_CONTEXT_MAJOR_VERSION,       4,
+          EGL_CONTEXT_MINOR_VERSION,       minor,
+          EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT};
+      if (want_debug(options)) {
+        attribs.push_back(EGL_CONTEXT_OPENGL_DEBUG);
+        attribs.push_back(EGL_TRUE);
+      }
+      attribs.push_back(EGL_NONE);
+      context_ = eglCreateContext(display_, config ? config : EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT,
+                                  attribs.data());
+      if (context_ != EGL_NO_CONTEXT) break;
+      last_error = egl_error();
+    }
+    if (context_ == EGL_NO_CONTEXT) {
+      throw GLError("eglCreateContext for OpenGL 4.3+ core failed (" + last_error + ")");
+    }
+    if (!surfaceless) {
+      const EGLint attribs[] = {EGL_WIDTH, 16, EGL_HEIGHT, 16, EGL_NONE};
+      surface_ = eglCreatePbufferSurface(display_, config, attribs);
+      if (surface_ == EGL_NO_SURFACE) {
+        throw GLError("eglCreatePbufferSurface failed (" + egl_error() + ")");
+      }
+    }
+    if (!eglMakeCurrent(display_, surface_, surface_, context_)) {
+      throw GLError("eglMakeCurrent failed (" + egl_error() + ")");
+    }
+    init_new_context(egl_loader(), backend_, options);
+  }
+
+ private:
+  Backend backend_;
+  EGLDisplay display_;
+  EGLContext context_ = EGL_NO_CONTEXT;
+  EGLSurface surface_ = EGL_NO_SURFACE;
+};
+
+template <typename Fn>
+Fn egl_function(const char* name) {
+  return reinterpret_cast<Fn>(eglGetProcAddress(name));
+}
+
+}  // namespace
+
+std::unique_ptr<Context> create_egl_device_context(const ContextOptions& options) {
+  const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+  if (!has_extension(client, "EGL_EXT_platform_device") ||
+      !has_extension(client, "EGL_EXT_device_enumeration")) {
+    throw GLError("EGL has no EGL_EXT_platform_device/EGL_EXT_device_enumeration");
+  }
+  auto query_devices = egl_function<PFNEGLQUERYDEVICESEXTPROC>("eglQueryDevicesEXT");
+  auto query_device_string =
+      egl_function<PFNEGLQUERYDEVICESTRINGEXTPROC>("eglQueryDeviceStringEXT");
+  auto get_platform_display =
+      egl_function<PFNEGLGETPLATFORMDISPLAYEXTPROC>("eglGetPlatformDisplayEXT");
+  if (!query_devices || !query_device_string || !get_platform_display) {
+    throw GLError("EGL device functions missing");
+  }
+  EGLDeviceEXT devices[16];
+  EGLint count = 0;
+  if (!query_devices(16, devices, &count) || count < 1) {
+    throw GLError("no EGL devices");
+  }
+
+  // Hardware devices only: a software device (EGL_MESA_device_software) is
+  // what egl-surfaceless gives too, so Auto moves on to that instead.
+  std::string reasons;
+  int software = 0;
+  for (EGLint i = 0; i < count; ++i) {
+    const char* exts = query_device_string(devices[i], EGL_EXTENSIONS);
+    if (has_extension(exts, "EGL_MESA_device_software")) {
+      ++software;
+      continue;
+    }
+    EGLDisplay display = get_platform_display(EGL_PLATFORM_DEVICE_EXT, devices[i], nullptr);
+    if (display == EGL_NO_DISPLAY) {
+      reasons += " device " + std::to_string(i) + ": no display (" + egl_error() + ")";
+      continue;
+    }
+    try {
+      auto context = std::make_unique<EglContext>(Backend::EglDevice, display);
+      context->create(options);
+      return context;
+    } catch (const GLError& e) {
+      reasons += std::string(" device ") + std::to_string(i) + ": " + e.what();
+    }
+  }
+  if (reasons.empty()) {
+    throw GLError("no hardware EGL device (" + std::to_string(software) + " software only)");
+  }
+  throw GLError("no EGL device worked:" + reasons);
+}
+
+std::unique_ptr<Context> create_egl_surfaceless_context(const ContextOptions& options) {
+  const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+  if (!has_extension(client, "EGL_MESA_platform_surfaceless")) {
+    throw GLError("EGL has no EGL_MESA_platform_surfaceless");
+  }
+  auto get_platform_display =
+      egl_function<PFNEGLGETPLATFORMDISPLAYEXTPROC>("eglGetPlatformDisplayEXT");
+  if (!get_platform_display) throw GLError("eglGetPlatformDisplayEXT missing");
+  EGLDisplay display =
+      get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
+  if (display == EGL_NO_DISPLAY) {
+    throw GLError("no surfaceless EGL display (" + egl_error() + ")");
+  }
+  auto context = std::make_unique<EglContext>(Backend::EglSurfaceless, display);
+  context->create(options);
+  return context;
+}
+
+}  // namespace snow::gl::detail
