@@ -135,11 +135,11 @@ class SceneBuilder {
 
 struct TopologyReport {
   size_t triangles = 0;
-  size_t vertices = 0;            // after welding exactly equal positions
-  size_t edges = 0;               // undirected
-  size_t boundary_edges = 0;      // used by one triangle
-  size_t nonmanifold_edges = 0;   // used by three or more triangles
-  size_t misoriented_edges = 0;   // used twice in the same direction
+  size_t vertices = 0;              // after welding exactly equal positions
+  size_t edges = 0;                 // undirected
+  size_t boundary_edges = 0;        // used by one triangle
+  size_t nonmanifold_edges = 0;     // used by three or more triangles
+  size_t misoriented_edges = 0;     // used twice in the same direction
   size_t degenerate_triangles = 0;  // two equal corners after welding
   /// Closed, oriented 2-manifold.
   bool closed() const {
@@ -188,9 +188,9 @@ Scene make_table_scene(float table_height = 0.75f, float table_size = 1.0f,
                        float floor_size = 4.0f);
 
 struct ClosedBoxDims {
-  float size = 1.0f;         // metres, outer side of the cube, standing on y = 0, centred in x,z
-  float wall = 0.1f;         // metres, thickness of all six sides
-  float floor_size = 4.0f;   // metres
+  float size = 1.0f;        // metres, outer side of the cube, standing on y = 0, centred in x,z
+  float wall = 0.1f;        // metres, thickness of all six sides
+  float floor_size = 4.0f;  // metres
 };
 /// Objects: 0 "Floor", 1 "Box": one closed object made of the outer cube
 /// [-size/2, size/2] x [0, size] x [-size/2, size/2] and an inward-facing
@@ -233,11 +233,11 @@ Scene make_house_scene(const HouseDims& dims);
 Scene make_house_scene(float roof_pitch_deg, float eaves_overhang = 0.5f);
 
 struct StairsDims {
-  int steps = 6;             // count
-  float step_width = 1.2f;   // metres, along x, centred at x = 0
-  float tread = 0.3f;        // metres, along z
-  float riser = 0.18f;       // metres
-  float floor_size = 6.0f;   // metres
+  int steps = 6;            // count
+  float step_width = 1.2f;  // metres, along x, centred at x = 0
+  float tread = 0.3f;       // metres, along z
+  float riser = 0.18f;      // metres
+  float floor_size = 6.0f;  // metres
 };
 /// Objects: 0 "Floor", 1 "Stairs" (add_stairs with origin (-step_width/2, 0,
 /// -steps*tread/2): z in [-steps*tread/2, +steps*tread/2], top tread at
