@@ -1,0 +1,80 @@
+#pragma once
+// glTF 2.0 loader: reads a .gltf (with external or data-URI buffers and
+// images) or a .glb and flattens the default scene into the world-space
+// triangle soup of scene/scene.h. Every number read from the file is
+// validated before use; hostile or broken files give one InputError.
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+#include "scene/scene.h"
+
+namespace snow {
+
+/// Resource limits of the loader. Exceeding one is an InputError naming the
+/// limit (except max_image_pixels, which skips the image with a warning).
+struct LoadLimits {
+  // Triangles in the whole scene (count), before degenerate ones are dropped,
+  // after strips/fans are expanded; a mesh instanced N times counts N times.
+  uint64_t max_triangles = 50'000'000;
+  // Size of any one file read: the .gltf/.glb, each .bin, each image (bytes).
+  uint64_t max_file_bytes = uint64_t(4) << 30;
+  // Size of the JSON part of a .gltf or .glb (bytes).
+  uint64_t max_json_bytes = uint64_t(256) << 20;
+  // Pixels (width * height) of one decoded image; larger ones are skipped
+  // with a warning (pixels).
+  uint64_t max_image_pixels = uint64_t(1) << 26;
+};
+
+struct LoadSettings {
+  bool load_images = true;  // decode baseColor textures into Scene::images (bool)
+  LoadLimits limits;        // resource limits (see LoadLimits)
+};
+
+/// Loads the glTF 2.0 file at `path` (.gltf or .glb, detected by content)
+/// and returns its default scene (`scene`, else scene 0, else every root
+/// node when the file has no scenes) as world-space triangles in metres,
+/// +Y up, front faces counter-clockwise (mirrored instances are re-wound).
+///
+/// - Node hierarchy with matrix or TRS transforms, instancing (one mesh in
+///   many nodes) and EXT_mesh_gpu_instancing; the traversal is iterative.
+/// - Primitive modes TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN; POINTS and
+///   LINES* are skipped with a warning naming mesh and primitive.
+/// - uint8/16/32 or no indices; float or (KHR_mesh_quantization) 8/16-bit
+///   normalized or integer attributes; sparse accessors; byteStride.
+/// - KHR_draco_mesh_compression when built with Draco (see
+///   gltf_draco_supported()); EXT_meshopt_compression is refused.
+/// - Normals: the file's, transformed by the inverse transpose; flat face
+///   normals where the file has none (or a normal is zero/non-finite).
+/// - UVs: the texture coordinate set of the material's baseColorTexture
+///   (TEXCOORD_0 by default) with KHR_texture_transform applied, so they
+///   sample Material::base_color_image directly; zeros for objects without
+///   that set; empty when no object has one.
+/// - Materials: one per glTF material (same index); baseColorFactor, and the
+///   baseColorTexture decoded to RGBA8 when settings.load_images and the
+///   material is used. A missing or undecodable image is a warning.
+/// - Degenerate triangles (repeated index, or zero area: height below 1e-7
+///   of the longest edge in world space) are dropped and counted.
+///
+/// Throws InputError (one line: file and element at fault) for broken or
+/// hostile input: bad GLB header/chunks, broken JSON, missing or short
+/// buffers, out-of-range views/accessors/indices, counts beyond the limits,
+/// non-finite positions or transforms, node cycles or shared children,
+/// URIs that are absolute or leave the scene's folder ("../"), unsupported
+/// required extensions, a scene without triangles. Throws IOError when the
+/// scene file itself cannot be read.
+Scene load_scene(const std::filesystem::path& path, const LoadSettings& settings = {});
+
+/// True when this build decodes KHR_draco_mesh_compression.
+bool gltf_draco_supported();
+
+/// Machine-readable summary (for `snowmodel info --json`): triangle count,
+/// stats, bounds in metres, objects (name, node path, node, mesh, primitive,
+/// material, triangles), materials, images and warnings. Pretty-printed JSON.
+std::string scene_summary_json(const Scene& scene);
+
+/// Human-readable summary of the same (for `snowmodel info`); lists at most
+/// the first 50 objects. Ends without a trailing newline.
+std::string scene_summary_text(const Scene& scene);
+
+}  // namespace snow
