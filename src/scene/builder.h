@@ -255,23 +255,29 @@ struct BowlDims {
 Scene make_bowl_scene(const BowlDims& dims = {});
 
 /// The demo courtyard (assets/scenes/courtyard.glb is written from it by
-/// tools/gen_assets.cpp). About 24 x 24 m, centred at the origin, on a
-/// ground slab whose top is y = 0 ("Ground": closed box x,z in [-12, 12],
-/// y in [-0.3, 0]). Objects, by name (see builder.cpp for every dimension):
+/// tools/gen_assets.cpp): 34 closed objects, 956 triangles, 9 materials with
+/// distinct colours, every object on its own material slot (none uses -1).
+/// 24 x 24 m, centred at the origin, on a ground slab whose top is y = 0
+/// ("Ground": box x,z in [-12, 12], y in [-0.3, 0]). Groups (object names;
+/// footprints in x, z), at least 1 m apart so none shelters another:
 ///   House: "HouseWalls", "HouseSlab", "HouseGableWest", "HouseGableEast",
-///          "HouseRoof" (footprint x in [-10, -3], z in [-10, -5], walls 3 m,
-///          roof pitch 42 deg, eaves 0.5 m);
-///   Shed: "ShedWalls", "ShedRoof" (flat slab with 0.2 m overhang), "ShedSlab"
-///         (footprint x in [6, 9], z in [-10, -7.5], walls 2.2 m);
-///   Table: "TableTop", "TableLeg0".."TableLeg3" (top at y = 0.75, 1.5 x 1 m,
-///          centred at (2, -, 3));
-///   Bench: "BenchSeat", "BenchLeg0", "BenchLeg1", "BenchBack";
-///   Stairs: "Stairs" (6 steps, riser 0.18 m, tread 0.3 m, 1.2 m wide),
-///           "Terrace" (platform whose top is the landing at 6*0.18 m),
-///           railing "RailPost*", "StairRail", "TerraceRail*";
-///   Fountain: "FountainBasin" (bowl), "FountainColumn";
-///   Lamp: "LampPole", "LampHead".
-/// Materials have distinct colours.
+///          "HouseRoof": walls x [-10, -3], z [-10, -5], 3 m high, 0.25 m
+///          thick; roof pitch 42 deg, ridge along x, eaves 0.5 m (roof x
+///          [-10.5, -2.5], z [-10.5, -4.5], ridge top about 5.52 m).
+///   Shed: "ShedWalls" (x [6, 9], z [-10, -7.5], 2.2 m), "ShedRoof" (flat
+///         slab x [5.8, 9.2], z [-10.2, -7.3], y [2.2, 2.35]), "ShedSlab".
+///   Table: "TableTop" (x [1.25, 2.75], z [2.5, 3.5], y [0.7, 0.75]),
+///          "TableLeg0".."TableLeg3".
+///   Bench: "BenchSeat" (x [-6.8, -5.2], z [-0.2, 0.2], top y = 0.45),
+///          "BenchLeg0", "BenchLeg1", "BenchBack" (up to y = 0.9 on -z).
+///   Stairs: "Stairs" (5 steps, riser 0.18, tread 0.3, x [8, 9.2], z [2, 3.5],
+///           rising along +z), "Terrace" (x [7.5, 11], z [3.5, 7], top
+///           y = 1.08: the landing, one riser above the top step), railing
+///           "RailPost0".."RailPost6" (0.9 m), "StairRail", "TerraceRailEast",
+///           "TerraceRailNorth".
+///   Fountain: "FountainBasin" (add_bowl at (-5, 0, 6), radius 1.5, rim
+///             0.5 m, wall 0.15), "FountainColumn".
+///   Lamp: "LampPole" (at (4, -4), 3 m), "LampHead" (y [3, 3.35]).
 SceneBuilder make_courtyard();
 
 }  // namespace snow
