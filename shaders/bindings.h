@@ -16,4 +16,17 @@
 #define SNOW_PREVIEW_BASE_COLOR_TEXTURE 0  // sampler2D, sRGB baseColor
 #define SNOW_PREVIEW_UBO 0                 // uniform block PreviewFrame
 
+// --- Depth peeling (peel.vert/.frag, src/snow/peel.cpp) --------------------
+#define SNOW_PEEL_PREV_TEXTURE 0  // sampler2D RGBA32F: previous layer (height, normal)
+#define SNOW_PEEL_TRIANGLES 0     // SSBO vec4 per triangle: unit normal as wound, object id bits
+
+// --- Shadow maps (shadow.vert/.frag, shadow_snow.vert, src/snow/coverage.cpp)
+#define SNOW_SHADOW_SNOW_TEXTURE 0  // sampler2DArray RG32F per layer: (ground + depth, depth)
+
+// --- Coverage counting (coverage.comp, src/snow/coverage.cpp) --------------
+#define SNOW_COVERAGE_SHADOW_TEXTURE 0  // sampler2DArray DEPTH32F: the batch's shadow maps
+#define SNOW_COVERAGE_RECEIVERS 0       // SSBO uvec4 per receiver (texel, height, normal)
+#define SNOW_COVERAGE_COUNTS 1          // SSBO uint per receiver: lit directions so far
+#define SNOW_COVERAGE_DIRECTIONS 2      // SSBO vec4 per direction: (shear a, b, origin u0, v0)
+
 #endif  // SNOW_SHADERS_BINDINGS_H

@@ -39,13 +39,15 @@ const char* debug_type_name(GLenum type) {
   }
 }
 
-void GLAD_API_PTR debug_callback(GLenum /*source*/, GLenum type, GLuint id, GLenum severity,
+void GLAD_API_PTR debug_callback(GLenum source, GLenum type, GLuint id, GLenum severity,
                                  GLsizei length, const GLchar* message, const void* /*user*/) {
   std::string text(message, length > 0 ? static_cast<size_t>(length) : std::strlen(message));
   while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
   const std::string line =
       std::string("GL ") + debug_type_name(type) + " " + std::to_string(id) + ": " + text;
-  if (type == GL_DEBUG_TYPE_ERROR || severity == GL_DEBUG_SEVERITY_HIGH) {
+  // Shader compile errors come back as GLError with the log: no warning twice.
+  const bool reported_elsewhere = source == GL_DEBUG_SOURCE_SHADER_COMPILER;
+  if (!reported_elsewhere && (type == GL_DEBUG_TYPE_ERROR || severity == GL_DEBUG_SEVERITY_HIGH)) {
     log_warn(line);
   } else {
     log_debug(line);
