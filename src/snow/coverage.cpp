@@ -1,1 +1,486 @@
-// Placeholder: this file is written by the module's issue.
+// Stage 2: snow coverage from jittered multi-direction shadow maps.
+// Tokoi, "A Shadow Buffer Technique for Simulating Snow-Covered Shapes"
+// (2006), section 4 (shadow buffers from many directions, composited);
+// flake flutter and wind after Fearing, "Computer Modelling of Fallen Snow"
+// (SIGGRAPH 2000), section 4.1. Direction sampling: stratified in cos(angle)
+// with a golden-ratio azimuth sequence (a jittered spherical Fibonacci
+// pattern), uniform in solid angle over the cone.
+#include "snow/coverage.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <new>
+#include <string>
+
+#include <glm/gtc/packing.hpp>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "gl/gl.h"
+#include "gl/objects.h"
+#include "gl/program.h"
+#include "shaders/bindings.h"
+#include "snow/gpu_scene.h"
+
+namespace snow {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kGoldenFraction = 0.6180339887498949;  // frac of the golden ratio
+constexpr uint64_t kJitterStream = 0xD1B54A32D192ED03ull;
+constexpr float kNoSnowSurface = -3.0e38f;  // "no surface" in the snow-surface texture
+constexpr int kLocalSize = 64;              // coverage.comp's local_size_x
+constexpr int kMaxShadowSide = 16384;       // texels, also capped by GL_MAX_TEXTURE_SIZE
+constexpr float kMaxBiasTexels = 3.0f;      // cap of the slope bias, shadow texels of height
+
+/// splitmix64 (Steele, Lea and Flood 2014): tiny, fast, same stream everywhere.
+class SplitMix64 {
+ public:
+  explicit SplitMix64(uint64_t seed) : state_(seed) {}
+  uint64_t next() {
+    uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  /// Uniform in [0, 1), 53 bits.
+  double uniform() { return double(next() >> 11) * (1.0 / 9007199254740992.0); }
+
+ private:
+  uint64_t state_;
+};
+
+std::string number(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
+
+void validate(const CoverageSettings& s) {
+  if (s.directions < 1 || s.directions > 4096) {
+    throw InputError("directions must be in 1..4096, got " + std::to_string(s.directions));
+  }
+  if (!(s.flutter_deg >= 0.0f && s.flutter_deg <= 60.0f)) {
+    throw InputError("flutter must be in 0..60 degrees, got " + number(s.flutter_deg));
+  }
+  if (s.batch < 1 || s.batch > 64) {
+    throw InputError("shadow-map batch must be in 1..64, got " + std::to_string(s.batch));
+  }
+  if (!std::isfinite(s.bias)) throw InputError("shadow bias must be finite");
+  if (!(s.slope_bias >= 0.0f) || !std::isfinite(s.slope_bias)) {
+    throw InputError("slope bias must be a finite number >= 0, got " + number(s.slope_bias));
+  }
+  const glm::dvec3 m(mean_fall_direction(s));
+  const double tilt = std::acos(std::clamp(-m.y, -1.0, 1.0)) * 180.0 / kPi;
+  if (tilt + s.flutter_deg > kMaxFallAngleDeg) {
+    throw InputError("wind of " + number(glm::length(s.wind)) + " m/s against a fall speed of " +
+                     number(s.fall_speed) + " m/s tilts the snow by " + number(tilt) +
+                     " degrees; with " + number(s.flutter_deg) +
+                     " degrees of flutter that exceeds " + number(kMaxFallAngleDeg) +
+                     " degrees from the vertical");
+  }
+}
+
+glm::vec3 gradient_normal(const SnowMaps& maps, const std::vector<float>& top, int l, int i,
+                          int j) {
+  // Snow-surface normal from one-sided height differences on the same layer:
+  // per axis, the steeper available side (bias must cover both triangles).
+  const MapGrid& g = maps.grid;
+  const float cut = kSnowSurfaceCutTexels * g.texel;
+  const float h = top[maps.index(l, i, j)];
+  const auto slope = [&](int di, int dj) {
+    float best = 0.0f;
+    for (int side : {-1, 1}) {
+      const int ni = i + side * di, nj = j + side * dj;
+      if (ni < 0 || nj < 0 || ni >= g.width || nj >= g.height) continue;
+      const float hn = top[maps.index(l, ni, nj)];
+      if (std::isnan(hn) || std::abs(hn - h) > cut) continue;
+      const float s = (hn - h) * float(side) / g.texel;
+      if (std::abs(s) > std::abs(best)) best = s;
+    }
+    return best;
+  };
+  return glm::normalize(glm::vec3(-slope(1, 0), 1.0f, -slope(0, 1)));
+}
+
+}  // namespace
+
+glm::vec3 mean_fall_direction(const CoverageSettings& s) {
+  if (!(s.fall_speed > 0.0f) || !std::isfinite(s.fall_speed)) {
+    throw InputError("flake fall speed must be a finite number > 0 m/s, got " +
+                     number(s.fall_speed));
+  }
+  if (!std::isfinite(s.wind.x) || !std::isfinite(s.wind.y)) {
+    throw InputError("wind must be finite");
+  }
+  const glm::dvec3 v(s.wind.x, -double(s.fall_speed), s.wind.y);
+  return glm::vec3(v / glm::length(v));
+}
+
+std::vector<glm::vec3> fall_directions(const CoverageSettings& s) {
+  validate(s);
+  const glm::dvec3 m(mean_fall_direction(s));
+  // Orthonormal frame (m, e1, e2).
+  const glm::dvec3 ref = std::abs(m.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 0, 1);
+  const glm::dvec3 e1 = glm::normalize(glm::cross(m, ref));
+  const glm::dvec3 e2 = glm::cross(m, e1);
+  const double cos_max = std::cos(double(s.flutter_deg) * kPi / 180.0);
+  SplitMix64 rng(s.seed);
+  const double rotation = rng.uniform();
+  const int k_count = s.directions;
+  std::vector<glm::vec3> out;
+  out.reserve(size_t(k_count));
+  for (int k = 0; k < k_count; ++k) {
+    const double u1 = (k + rng.uniform()) / k_count;  // stratum k, jittered
+    const double cos_t = 1.0 - u1 * (1.0 - cos_max);
+    const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
+    double turn = k * kGoldenFraction + rotation + (rng.uniform() - 0.5) / k_count;
+    turn -= std::floor(turn);
+    const double phi = 2.0 * kPi * turn;
+    const glm::dvec3 d = cos_t * m + sin_t * (std::cos(phi) * e1 + std::sin(phi) * e2);
+    out.push_back(glm::vec3(glm::normalize(d)));
+  }
+  return out;
+}
+
+std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& s) {
+  SplitMix64 rng(s.seed ^ kJitterStream);
+  std::vector<glm::vec2> out(size_t(std::max(0, s.directions)));
+  for (glm::vec2& j : out) {
+    const double x = rng.uniform();
+    const double y = rng.uniform();
+    j = glm::vec2(float(x), float(y));
+    // float rounding of values just below 1 must not reach 1.
+    j = glm::min(j, glm::vec2(std::nextafter(1.0f, 0.0f)));
+  }
+  return out;
+}
+
+// --- CoverageRenderer --------------------------------------------------------
+
+struct CoverageRenderer::Impl {
+  explicit Impl(const Scene& scene)
+      : gpu(scene),
+        bounds(scene.bounds),
+        shadow({"shadow.vert", "shadow.frag"}),
+        shadow_snow({"shadow_snow.vert", "shadow.frag"}),
+        composite({"coverage.comp"}),
+        empty_vao(gl::create_vertex_array()) {}
+
+  GpuScene gpu;
+  Bounds bounds;
+  gl::Program shadow;
+  gl::Program shadow_snow;
+  gl::Program composite;
+  gl::VertexArray empty_vao;
+
+  gl::Texture shadow_maps;  // DEPTH32F array
+  glm::ivec2 shadow_size{0};
+  int shadow_layers = 0;
+  std::vector<gl::Framebuffer> fbos;
+  gl::Texture snow_surface;  // RG32F array (top, depth)
+  glm::ivec3 snow_size{0};
+  gl::Buffer receivers, counts, directions;
+
+  Timings timings;
+  bool profiling = false;
+
+  void ensure_shadow_maps(glm::ivec2 size, int layers) {
+    if (shadow_maps && size == shadow_size && layers == shadow_layers) return;
+    fbos.clear();
+    shadow_maps.reset();
+    shadow_maps = gl::create_texture_2d_array(GL_DEPTH_COMPONENT32F, size.x, size.y, layers,
+                                              "coverage shadow maps");
+    glTextureParameteri(shadow_maps.id(), GL_TEXTURE_COMPARE_MODE, GL_NONE);
+    shadow_size = size;
+    shadow_layers = layers;
+    for (int k = 0; k < layers; ++k) {
+      gl::Framebuffer fbo = gl::create_framebuffer();
+      glNamedFramebufferTextureLayer(fbo.id(), GL_DEPTH_ATTACHMENT, shadow_maps.id(), 0, k);
+      glNamedFramebufferDrawBuffer(fbo.id(), GL_NONE);
+      glNamedFramebufferReadBuffer(fbo.id(), GL_NONE);
+      gl::check_framebuffer(fbo, "coverage shadow framebuffer");
+      fbos.push_back(std::move(fbo));
+    }
+  }
+
+  static void upload(gl::Buffer& buffer, const void* data, size_t bytes, const char* what) {
+    if (!buffer) buffer = gl::create_buffer();
+    glNamedBufferData(buffer.id(), GLsizeiptr(std::max<size_t>(bytes, 4)), data, GL_DYNAMIC_DRAW);
+    gl::check_error(what);
+  }
+};
+
+CoverageRenderer::CoverageRenderer(const Scene& scene) : impl_(std::make_unique<Impl>(scene)) {}
+CoverageRenderer::~CoverageRenderer() = default;
+
+const CoverageRenderer::Timings& CoverageRenderer::timings() const { return impl_->timings; }
+void CoverageRenderer::set_profiling(bool on) { impl_->profiling = on; }
+glm::ivec2 CoverageRenderer::shadow_map_size() const { return impl_->shadow_size; }
+
+std::vector<float> CoverageRenderer::compute(const SnowMaps& maps, const CoverageSettings& settings,
+                                             const std::vector<float>* snow_depth) {
+  Impl& im = *impl_;
+  im.timings = Timings{};
+  const double t_start = now_seconds();
+  const std::vector<glm::vec3> dirs = fall_directions(settings);  // validates settings
+  const std::vector<glm::vec2> jitter = shadow_origin_jitter(settings);
+  const MapGrid& grid = maps.grid;
+  const size_t texels = grid.texels();
+  const size_t total = size_t(std::max(maps.layers, 0)) * texels;
+  if (maps.ground.size() != total || maps.normal.size() != total || grid.width < 1 ||
+      grid.height < 1 || !(grid.texel > 0.0f)) {
+    throw InputError("coverage: the snow maps are inconsistent (arrays do not match the grid)");
+  }
+  if (grid.width > 65536 || grid.height > 65536) {
+    throw InputError("coverage: maps wider than 65536 texels are not supported");
+  }
+  if (snow_depth && snow_depth->size() != total) {
+    throw InputError("coverage: snow depth has " + std::to_string(snow_depth->size()) +
+                     " values, the maps have " + std::to_string(total));
+  }
+
+  std::vector<float> coverage;
+  std::vector<glm::uvec4> recv;
+  std::vector<uint32_t> recv_index;  // layer texel index of each receiver
+  std::vector<float> top;            // ground + depth per layer texel (snow-on-snow only)
+  std::vector<int> snowy_layers;
+  float y_lo = kOpenSky, y_hi = -kOpenSky;
+  try {
+    coverage.assign(total, 0.0f);
+    if (total > size_t(std::numeric_limits<uint32_t>::max())) {
+      throw InputError("coverage: more than 2^32 layer texels");
+    }
+    if (snow_depth) {
+      top.assign(total, kNoSurface);
+      for (size_t k = 0; k < total; ++k) {
+        const float s = (*snow_depth)[k];
+        if (!std::isnan(maps.ground[k])) {
+          top[k] = maps.ground[k] + (std::isfinite(s) && s > 0.0f ? s : 0.0f);
+        }
+      }
+    }
+    for (int l = 0; l < maps.layers; ++l) {
+      bool layer_has_snow = false;
+      for (int j = 0; j < grid.height; ++j) {
+        for (int i = 0; i < grid.width; ++i) {
+          const size_t k = maps.index(l, i, j);
+          const float g = maps.ground[k];
+          if (std::isnan(g)) continue;
+          float y = g;
+          glm::vec3 n = maps.normal[k];
+          if (snow_depth) {
+            const float s = (*snow_depth)[k];
+            if (std::isfinite(s) && s > 0.0f) {
+              y = top[k];
+              n = gradient_normal(maps, top, l, i, j);
+              layer_has_snow = true;
+            }
+          }
+          y_lo = std::min(y_lo, y);
+          y_hi = std::max(y_hi, y);
+          uint32_t y_word;
+          std::memcpy(&y_word, &y, sizeof y);
+          recv.push_back(glm::uvec4(uint32_t(i) | (uint32_t(j) << 16), y_word,
+                                    glm::packHalf2x16(glm::vec2(n.x, n.y)),
+                                    glm::packHalf2x16(glm::vec2(n.z, 0.0f))));
+          recv_index.push_back(uint32_t(k));
+        }
+      }
+      if (layer_has_snow) snowy_layers.push_back(l);
+    }
+  } catch (const std::bad_alloc&) {
+    throw InputError("coverage: out of memory for " + std::to_string(total) +
+                     " layer texels; use a coarser texel size");
+  }
+  if (recv.empty()) return coverage;
+  if (recv.size() > size_t(std::numeric_limits<int32_t>::max())) {
+    throw InputError("coverage: more than 2^31 surface texels; use a coarser texel size");
+  }
+
+  // Depth range: the scene and every receiver (snow tops may rise above the scene).
+  const float scene_lo = im.bounds.empty() ? y_lo : std::min(im.bounds.min.y, y_lo);
+  const float scene_hi = im.bounds.empty() ? y_hi : std::max(im.bounds.max.y, y_hi);
+  const double pad = 1e-3 * std::max(1.0, double(scene_hi) - scene_lo) + 1e-3;
+  const float y_top = float(scene_hi + pad);
+  const float y_range = float(double(scene_hi) - scene_lo + 2 * pad);
+
+  // Shadow-map regions: each direction's map covers the receivers' box
+  // projected along it, origin jittered by a sub-texel offset.
+  GLint max_texture = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_texture);
+  const int limit = std::min(kMaxShadowSide, max_texture > 0 ? int(max_texture) : kMaxShadowSide);
+  const double gx0 = grid.origin.x, gz0 = grid.origin.y;
+  const double gx1 = gx0 + double(grid.width) * grid.texel;
+  const double gz1 = gz0 + double(grid.height) * grid.texel;
+  const size_t k_count = dirs.size();
+  std::vector<glm::dvec2> shear(k_count);
+  double span_u = 0, span_v = 0;
+  for (size_t k = 0; k < k_count; ++k) {
+    shear[k] = glm::dvec2(double(dirs[k].x) / dirs[k].y, double(dirs[k].z) / dirs[k].y);
+    span_u = std::max(span_u, gx1 - gx0 + std::abs(shear[k].x) * (double(y_hi) - y_lo));
+    span_v = std::max(span_v, gz1 - gz0 + std::abs(shear[k].y) * (double(y_hi) - y_lo));
+  }
+  double st = grid.texel;
+  const double longest = std::max(span_u, span_v);
+  if (longest / st + 2 > limit) st = longest / (limit - 2);
+  const glm::ivec2 size(int(std::ceil(span_u / st)) + 2, int(std::ceil(span_v / st)) + 2);
+  std::vector<glm::vec4> dir_params(k_count);
+  for (size_t k = 0; k < k_count; ++k) {
+    const double a = shear[k].x, b = shear[k].y;
+    const double u_min = gx0 - std::max(a * y_lo, a * y_hi);
+    const double v_min = gz0 - std::max(b * y_lo, b * y_hi);
+    dir_params[k] = glm::vec4(float(a), float(b), float(u_min - jitter[k].x * st),
+                              float(v_min - jitter[k].y * st));
+  }
+  const int batch = std::min(settings.batch, int(k_count));
+  const float bias =
+      settings.bias >= 0.0f ? settings.bias : float(0.05 * grid.texel + 1e-5 * y_range);
+
+  GlStateGuard state;
+  im.ensure_shadow_maps(size, batch);
+  Impl::upload(im.receivers, recv.data(), recv.size() * sizeof(glm::uvec4), "coverage receivers");
+  Impl::upload(im.counts, nullptr, recv.size() * sizeof(uint32_t), "coverage counts");
+  const GLuint zero = 0;
+  glClearNamedBufferData(im.counts.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+  Impl::upload(im.directions, dir_params.data(), dir_params.size() * sizeof(glm::vec4),
+               "coverage directions");
+  if (!snowy_layers.empty()) {
+    std::vector<glm::vec2> surface(total);
+    for (size_t k = 0; k < total; ++k) {
+      const float s = (*snow_depth)[k];
+      surface[k] = std::isnan(top[k]) ? glm::vec2(kNoSnowSurface, 0.0f)
+                                      : glm::vec2(top[k], std::isfinite(s) && s > 0.0f ? s : 0.0f);
+    }
+    const glm::ivec3 snow_size(grid.width, grid.height, maps.layers);
+    if (!im.snow_surface || im.snow_size != snow_size) {
+      im.snow_surface.reset();
+      im.snow_surface = gl::create_texture_2d_array(GL_RG32F, grid.width, grid.height, maps.layers,
+                                                    "coverage snow surface");
+      im.snow_size = snow_size;
+    }
+    glTextureSubImage3D(im.snow_surface.id(), 0, 0, 0, 0, grid.width, grid.height, maps.layers,
+                        GL_RG, GL_FLOAT, surface.data());
+    gl::check_error("coverage snow surface upload");
+  }
+
+  const glm::vec2 map_extent(float(size.x * st), float(size.y * st));
+  for (gl::Program* p : {&im.shadow, &im.shadow_snow}) {
+    p->set("map_extent", map_extent);
+    p->set("y_top", y_top);
+    p->set("y_range", y_range);
+  }
+  im.shadow_snow.set("grid_size", glm::ivec2(grid.width, grid.height));
+  im.shadow_snow.set("grid_origin", grid.origin);
+  im.shadow_snow.set("texel", grid.texel);
+  im.shadow_snow.set("cut", kSnowSurfaceCutTexels * grid.texel);
+  gl::Program& comp = im.composite;
+  comp.set("receiver_count", int(recv.size()));
+  comp.set("grid_origin", grid.origin);
+  comp.set("texel", grid.texel);
+  comp.set("shadow_texel", float(st));
+  comp.set("shadow_size", size);
+  comp.set("y_top", y_top);
+  comp.set("y_range", y_range);
+  comp.set("bias", bias);
+  comp.set("slope_bias", settings.slope_bias);
+  comp.set("max_bias", float(kMaxBiasTexels * st));
+
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_BLEND);
+  glDisable(GL_SCISSOR_TEST);
+  glViewport(0, 0, size.x, size.y);
+  if (im.profiling) glFinish();
+  double t_mark = now_seconds();
+  im.timings.setup = t_mark - t_start;
+
+  const int quads = (grid.width - 1) * (grid.height - 1);
+  const int max_groups = 65535;
+  Progress progress("coverage", double(k_count));
+  for (size_t b0 = 0; b0 < k_count; b0 += size_t(batch)) {
+    const int n = int(std::min(size_t(batch), k_count - b0));
+    for (int k = 0; k < n; ++k) {
+      glBindFramebuffer(GL_FRAMEBUFFER, im.fbos[size_t(k)].id());
+      const GLfloat clear_depth = 1.0f;
+      glClearBufferfv(GL_DEPTH, 0, &clear_depth);
+      im.shadow.set("shear_origin", dir_params[b0 + size_t(k)]);
+      im.shadow.use();
+      im.gpu.draw();
+      if (!snowy_layers.empty() && quads > 0) {
+        im.shadow_snow.set("shear_origin", dir_params[b0 + size_t(k)]);
+        im.shadow_snow.use();
+        glBindTextureUnit(SNOW_SHADOW_SNOW_TEXTURE, im.snow_surface.id());
+        glBindVertexArray(im.empty_vao.id());
+        for (int l : snowy_layers) {
+          im.shadow_snow.set("layer", l);
+          glDrawArrays(GL_TRIANGLES, 0, 6 * quads);
+        }
+      }
+    }
+    gl::check_error("coverage shadow pass");
+    if (im.profiling) {
+      glFinish();
+      const double t = now_seconds();
+      im.timings.shadow += t - t_mark;
+      t_mark = t;
+    }
+    comp.use();
+    comp.set("first_direction", int(b0));
+    comp.set("direction_count", n);
+    glBindTextureUnit(SNOW_COVERAGE_SHADOW_TEXTURE, im.shadow_maps.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_RECEIVERS, im.receivers.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_COUNTS, im.counts.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_DIRECTIONS, im.directions.id());
+    for (size_t first = 0; first < recv.size(); first += size_t(max_groups) * kLocalSize) {
+      const size_t left = recv.size() - first;
+      const GLuint groups =
+          GLuint(std::min<size_t>(max_groups, (left + kLocalSize - 1) / kLocalSize));
+      comp.set("first_receiver", int(first));
+      glDispatchCompute(groups, 1, 1);
+    }
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    gl::check_error("coverage counting pass");
+    if (im.profiling) {
+      glFinish();
+      const double t = now_seconds();
+      im.timings.composite += t - t_mark;
+      t_mark = t;
+    }
+    progress.update(double(b0 + size_t(n)));
+  }
+  if (!im.profiling) {
+    glFinish();
+    const double t = now_seconds();
+    im.timings.shadow = t - t_mark;  // shadow and counting together when not profiling
+    t_mark = t;
+  }
+
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  std::vector<uint32_t> counts(recv.size());
+  glGetNamedBufferSubData(im.counts.id(), 0, GLsizeiptr(counts.size() * sizeof(uint32_t)),
+                          counts.data());
+  gl::check_error("coverage readback");
+  glBindTextureUnit(SNOW_COVERAGE_SHADOW_TEXTURE, 0);
+  glBindTextureUnit(SNOW_SHADOW_SNOW_TEXTURE, 0);
+  for (size_t r = 0; r < counts.size(); ++r) {
+    coverage[recv_index[r]] =
+        float(std::min<uint32_t>(counts[r], uint32_t(k_count))) / float(k_count);
+  }
+  progress.finish();
+  im.timings.readback = now_seconds() - t_mark;
+  return coverage;
+}
+
+std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
+                                    const CoverageSettings& settings,
+                                    const std::vector<float>* snow_depth) {
+  CoverageRenderer renderer(scene);
+  return renderer.compute(maps, settings, snow_depth);
+}
+
+}  // namespace snow

@@ -1,1 +1,337 @@
-// Placeholder: this file is written by the module's issue.
+// Stage 1: snow amount maps by depth peeling from straight above.
+// Tokoi, "A Shadow Buffer Technique for Simulating Snow-Covered Shapes"
+// (2006), section 3; depth peeling after Everitt, "Interactive
+// Order-Independent Transparency" (2001); one surface per layer, top down,
+// as the height spans of Onoue and Nishita (2004).
+#include "snow/peel.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <new>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "gl/gl.h"
+#include "gl/objects.h"
+#include "gl/program.h"
+#include "shaders/bindings.h"
+#include "snow/gpu_scene.h"
+
+namespace snow {
+namespace {
+
+constexpr double kMaxSide = double(1 << 30);  // texels; beyond this a grid is absurd
+constexpr float kEmptyHeight = -3.0e38f;      // "no surface" in the peel targets
+
+std::string format_gib(double bytes) {
+  char text[64];
+  const double gib = bytes / double(1ull << 30);
+  if (gib >= 1e5) {
+    std::snprintf(text, sizeof text, "%.3g GiB", gib);
+  } else if (gib == std::floor(gib)) {
+    std::snprintf(text, sizeof text, "%.0f GiB", gib);
+  } else {
+    std::snprintf(text, sizeof text, "%.1f GiB", gib);
+  }
+  return text;
+}
+
+std::string format_metres(double m) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", m);
+  return text;
+}
+
+// The smallest 1, 2 or 5 times a power of ten that is >= x.
+double nice_ceil(double x) {
+  if (!(x > 0) || !std::isfinite(x)) return x;
+  const double p = std::pow(10.0, std::floor(std::log10(x)));
+  for (double m : {1.0, 2.0, 5.0, 10.0}) {
+    if (m * p >= x * (1 - 1e-9)) return m * p;
+  }
+  return 10 * p;
+}
+
+// Bytes per unit, see estimate_memory's contract.
+constexpr double kMapsPerLayerTexel = 24 + 4;          // SnowMaps + coverage
+constexpr double kPeelPerTexel = 2 * 20 + 4 + 16;      // ping-pong targets, depth, readback
+constexpr double kCoveragePerLayerTexel = 16 + 4 + 8;  // receivers, counts, snow surface
+constexpr double kLaterPerLayerTexel = 48;             // stabilizer, depth, polygonize scratch
+
+void validate_peel_settings(const PeelSettings& s) {
+  if (s.layers < 1 || s.layers > 64) {
+    throw InputError("layers must be in 1..64, got " + std::to_string(s.layers));
+  }
+  if (!(s.merge_distance >= 0.0f) || !std::isfinite(s.merge_distance)) {
+    throw InputError("merge distance must be a finite number >= 0 m, got " +
+                     format_metres(s.merge_distance));
+  }
+}
+
+}  // namespace
+
+MapGrid make_grid(const Bounds& bounds, const PeelSettings& settings) {
+  validate_peel_settings(settings);
+  if (bounds.empty()) throw InputError("the scene is empty: there is nothing to make maps of");
+  for (int a = 0; a < 3; ++a) {
+    if (!std::isfinite(bounds.min[a]) || !std::isfinite(bounds.max[a])) {
+      throw InputError("the scene's bounds are not finite (a vertex is NaN or infinite)");
+    }
+  }
+  if (!(settings.texel >= 0.0f) || !std::isfinite(settings.texel)) {
+    throw InputError("texel size must be a finite number > 0 m (or 0 for automatic), got " +
+                     format_metres(settings.texel));
+  }
+  if (!std::isfinite(settings.margin)) throw InputError("margin must be finite");
+  const double ex = double(bounds.max.x) - bounds.min.x;
+  const double ez = double(bounds.max.z) - bounds.min.z;
+  double longest = std::max(ex, ez);
+  if (!(longest > 0)) longest = 1.0;  // a scene with no horizontal extent: 1 m around it
+  double texel = settings.texel;
+  double margin = settings.margin;
+  if (texel == 0) {
+    if (settings.max_side < 1 || settings.max_side > 65536) {
+      throw InputError("maximum map side must be in 1..65536 texels, got " +
+                       std::to_string(settings.max_side));
+    }
+    if (margin < 0) margin = 0.02 * longest;
+    texel = (longest + 2 * margin) / settings.max_side;
+    if (!(texel > 0)) texel = 1e-3;
+  } else if (margin < 0) {
+    margin = std::max(0.02 * longest, 2 * texel);
+  }
+  const double w = std::ceil((ex + 2 * margin) / texel * (1 - 1e-6));
+  const double h = std::ceil((ez + 2 * margin) / texel * (1 - 1e-6));
+  if (!(w <= kMaxSide) || !(h <= kMaxSide)) {
+    throw InputError("a map of " + format_metres(ex + 2 * margin) + " x " +
+                     format_metres(ez + 2 * margin) + " m at texel " + format_metres(texel) +
+                     " m is absurdly large; use a coarser texel size");
+  }
+  MapGrid grid;
+  grid.texel = float(texel);
+  grid.width = std::max(1, int(w));
+  grid.height = std::max(1, int(h));
+  const double cx = 0.5 * (double(bounds.min.x) + bounds.max.x);
+  const double cz = 0.5 * (double(bounds.min.z) + bounds.max.z);
+  grid.origin =
+      glm::vec2(float(cx - 0.5 * grid.width * texel), float(cz - 0.5 * grid.height * texel));
+  return grid;
+}
+
+uint64_t estimate_memory(const MapGrid& grid, int layers, const CoverageSettings& coverage,
+                         float scene_height) {
+  const double texels = double(std::max(grid.width, 0)) * double(std::max(grid.height, 0));
+  const double layer_texels = texels * std::max(layers, 1);
+  // Shadow map: the grid grown by the shear of the steepest direction.
+  const double angle = std::min(
+      double(kMaxFallAngleDeg),
+      std::atan2(double(glm::length(coverage.wind)), std::max(1e-6f, coverage.fall_speed)) * 180.0 /
+              M_PI +
+          std::max(0.0f, coverage.flutter_deg));
+  const double grow =
+      grid.texel > 0 ? std::max(0.0f, scene_height) * std::tan(angle * M_PI / 180.0) / grid.texel
+                     : 0.0;
+  const double shadow_texels =
+      (double(grid.width) + 2 * grow + 2) * (double(grid.height) + 2 * grow + 2);
+  const double batch = std::clamp(coverage.batch, 1, std::max(1, coverage.directions));
+  const double bytes =
+      layer_texels * (kMapsPerLayerTexel + kCoveragePerLayerTexel + kLaterPerLayerTexel) +
+      texels * kPeelPerTexel + batch * shadow_texels * 4;
+  if (!(bytes < 1.8e19)) return std::numeric_limits<uint64_t>::max();
+  return uint64_t(bytes);
+}
+
+void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings& coverage,
+                         uint64_t budget, float scene_height) {
+  const uint64_t need = estimate_memory(grid, layers, coverage, scene_height);
+  if (need <= budget) return;
+  // Memory grows with 1 / texel^2: suggest a texel that fits.
+  const double ratio = double(need) / double(std::max<uint64_t>(budget, 1));
+  const double suggest = nice_ceil(grid.texel * std::sqrt(ratio) * 1.05);
+  throw InputError("maps of " + std::to_string(grid.width) + " x " + std::to_string(grid.height) +
+                   " texels x " + std::to_string(layers) + " layers need " +
+                   format_gib(double(need)) + ", over the " + format_gib(double(budget)) +
+                   " budget; use a coarser texel size, e.g. --texel " + format_metres(suggest));
+}
+
+SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings) {
+  return peel_layers(scene, make_grid(scene.bounds, settings), settings);
+}
+
+SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings& settings) {
+  validate_peel_settings(settings);
+  if (grid.width < 1 || grid.height < 1 || !(grid.texel > 0.0f)) {
+    throw InputError("peel: empty map grid");
+  }
+  const float scene_height = scene.bounds.empty() ? 0.0f : scene.bounds.size().y;
+  check_memory_budget(grid, settings.layers, CoverageSettings{}, settings.memory_budget,
+                      scene_height);
+  GLint max_size = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+  if (max_size > 0 && (grid.width > max_size || grid.height > max_size)) {
+    const double suggest =
+        nice_ceil(grid.texel * double(std::max(grid.width, grid.height)) / max_size * 1.05);
+    throw InputError("maps of " + std::to_string(grid.width) + " x " + std::to_string(grid.height) +
+                     " texels exceed this GL's largest texture (" + std::to_string(max_size) +
+                     "); use a coarser texel size, e.g. --texel " + format_metres(suggest));
+  }
+
+  SnowMaps maps;
+  std::vector<glm::vec4> surface;
+  std::vector<int32_t> object;
+  try {
+    maps.allocate(grid, settings.layers);
+    surface.resize(grid.texels());
+    object.resize(grid.texels());
+  } catch (const std::bad_alloc&) {
+    throw InputError("out of memory allocating maps of " + std::to_string(grid.width) + " x " +
+                     std::to_string(grid.height) + " texels x " + std::to_string(settings.layers) +
+                     " layers; use a coarser texel size");
+  }
+  if (scene.triangle_count() == 0 || scene.bounds.empty()) return maps;
+
+  GlStateGuard state;
+  GpuScene gpu(scene, /*with_triangle_info=*/true);
+  gl::Program program({"peel.vert", "peel.frag"});
+
+  gl::Texture surface_tex[2];
+  gl::Texture object_tex[2];
+  gl::Framebuffer fbo[2];
+  gl::Renderbuffer depth = gl::create_renderbuffer();
+  glNamedRenderbufferStorage(depth.id(), GL_DEPTH_COMPONENT32F, grid.width, grid.height);
+  gl::check_error("peel depth buffer");
+  for (int s = 0; s < 2; ++s) {
+    surface_tex[s] = gl::create_texture_2d(GL_RGBA32F, grid.width, grid.height, "peel surface");
+    object_tex[s] = gl::create_texture_2d(GL_R32I, grid.width, grid.height, "peel object ids");
+    fbo[s] = gl::create_framebuffer();
+    glNamedFramebufferTexture(fbo[s].id(), GL_COLOR_ATTACHMENT0, surface_tex[s].id(), 0);
+    glNamedFramebufferTexture(fbo[s].id(), GL_COLOR_ATTACHMENT1, object_tex[s].id(), 0);
+    glNamedFramebufferRenderbuffer(fbo[s].id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id());
+    const GLenum buffers[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+    glNamedFramebufferDrawBuffers(fbo[s].id(), 2, buffers);
+    gl::check_framebuffer(fbo[s], "peel framebuffer");
+  }
+  gl::Query query = gl::create_query(GL_ANY_SAMPLES_PASSED);
+
+  const double pad = 1e-3 * std::max(1.0f, scene.bounds.size().y) + 1e-3;
+  const float y_top = float(scene.bounds.max.y + pad);
+  const float y_range = float(double(scene.bounds.max.y) - scene.bounds.min.y + 2 * pad);
+  program.set("grid_origin", grid.origin);
+  program.set("grid_extent", glm::vec2(grid.width * grid.texel, grid.height * grid.texel));
+  program.set("y_top", y_top);
+  program.set("y_range", y_range);
+  program.set("merge_distance", settings.merge_distance);
+
+  glViewport(0, 0, grid.width, grid.height);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_BLEND);
+  glDisable(GL_SCISSOR_TEST);
+  glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  program.use();
+
+  Progress progress("peel", settings.layers);
+  const size_t texels = grid.texels();
+  const GLsizei surface_bytes = GLsizei(texels * sizeof(glm::vec4));
+  const GLsizei object_bytes = GLsizei(texels * sizeof(int32_t));
+  if (texels * sizeof(glm::vec4) > size_t(0x7fffffff)) {
+    throw InputError("maps of " + std::to_string(grid.width) + " x " + std::to_string(grid.height) +
+                     " texels are too large to read back; use a coarser texel size");
+  }
+  for (int l = 0; l <= settings.layers; ++l) {
+    const int cur = l % 2;
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo[cur].id());
+    const float clear_surface[4] = {kEmptyHeight, 0.0f, 0.0f, 0.0f};
+    const GLint clear_object[4] = {-1, 0, 0, 0};
+    const GLfloat clear_depth = 1.0f;
+    glClearBufferfv(GL_COLOR, 0, clear_surface);
+    glClearBufferiv(GL_COLOR, 1, clear_object);
+    glClearBufferfv(GL_DEPTH, 0, &clear_depth);
+    glBindTextureUnit(SNOW_PEEL_PREV_TEXTURE, surface_tex[1 - cur].id());
+    program.set("first_layer", l == 0 ? 1 : 0);
+    glBeginQuery(GL_ANY_SAMPLES_PASSED, query.id());
+    gpu.draw();
+    glEndQuery(GL_ANY_SAMPLES_PASSED);
+    gl::check_error("peel pass");
+    GLuint any = 0;
+    glGetQueryObjectuiv(query.id(), GL_QUERY_RESULT, &any);
+    if (!any) break;  // this and every lower layer is empty
+
+    if (l == settings.layers) {
+      // One layer too many: count the columns that hold it.
+      std::vector<float> heights(texels);
+      glGetTextureImage(surface_tex[cur].id(), 0, GL_RED, GL_FLOAT, GLsizei(texels * sizeof(float)),
+                        heights.data());
+      gl::check_error("peel overflow readback");
+      for (float h : heights) maps.overflow_columns += h > 0.5f * kEmptyHeight ? 1 : 0;
+      break;
+    }
+    glGetTextureImage(surface_tex[cur].id(), 0, GL_RGBA, GL_FLOAT, surface_bytes, surface.data());
+    glGetTextureImage(object_tex[cur].id(), 0, GL_RED_INTEGER, GL_INT, object_bytes, object.data());
+    gl::check_error("peel readback");
+    const size_t base = size_t(l) * texels;
+    for (size_t t = 0; t < texels; ++t) {
+      const glm::vec4& s = surface[t];
+      if (!(s.x > 0.5f * kEmptyHeight)) continue;
+      maps.ground[base + t] = s.x;
+      maps.normal[base + t] = glm::vec3(s.y, s.z, s.w);
+      maps.object[base + t] = object[t];
+      if (l > 0) maps.ceiling[base + t] = maps.ground[base - texels + t];
+    }
+    progress.update(l + 1);
+  }
+  progress.finish();
+  glBindTextureUnit(SNOW_PEEL_PREV_TEXTURE, 0);
+  if (maps.overflow_columns > 0) {
+    log_warn(std::to_string(maps.overflow_columns) + " map columns hold more than " +
+             std::to_string(settings.layers) +
+             " surfaces; the lowest ones are dropped (raise --layers to keep them)");
+  }
+  return maps;
+}
+
+double time_depth_passes(const Scene& scene, int width, int height, int passes) {
+  if (width < 1 || height < 1 || passes < 1 || scene.bounds.empty()) return 0.0;
+  GlStateGuard state;
+  GpuScene gpu(scene);
+  gl::Program program({"shadow.vert", "shadow.frag"});
+  gl::Renderbuffer depth = gl::create_renderbuffer();
+  glNamedRenderbufferStorage(depth.id(), GL_DEPTH_COMPONENT32F, width, height);
+  gl::check_error("depth pass buffer");
+  gl::Framebuffer fbo = gl::create_framebuffer();
+  glNamedFramebufferRenderbuffer(fbo.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id());
+  glNamedFramebufferDrawBuffer(fbo.id(), GL_NONE);
+  gl::check_framebuffer(fbo, "depth pass framebuffer");
+  const Bounds& b = scene.bounds;
+  program.set("shear_origin", glm::vec4(0.0f, 0.0f, b.min.x, b.min.z));
+  program.set("map_extent", glm::vec2(std::max(1e-6f, b.size().x), std::max(1e-6f, b.size().z)));
+  program.set("y_top", b.max.y + 1e-3f);
+  program.set("y_range", b.size().y + 2e-3f);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo.id());
+  glViewport(0, 0, width, height);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_CULL_FACE);
+  program.use();
+  glFinish();
+  const double start = now_seconds();
+  for (int p = 0; p < passes; ++p) {
+    const GLfloat clear_depth = 1.0f;
+    glClearBufferfv(GL_DEPTH, 0, &clear_depth);
+    gpu.draw();
+  }
+  glFinish();
+  const double seconds = now_seconds() - start;
+  gl::check_error("depth passes");
+  return seconds;
+}
+
+}  // namespace snow

@@ -1,0 +1,127 @@
+// Bounding volume hierarchy for the CPU reference passes; ray-triangle test
+// after Moller and Trumbore, "Fast, minimum storage ray-triangle
+// intersection" (1997).
+#include "snow/bvh.h"
+
+#include <algorithm>
+#include <limits>
+
+namespace snow {
+namespace {
+
+constexpr uint32_t kLeafSize = 4;
+
+bool hit_box(const glm::vec3& min, const glm::vec3& max, const glm::vec3& origin,
+             const glm::vec3& inv_dir, float t_min, float t_max) {
+  for (int a = 0; a < 3; ++a) {
+    float t0 = (min[a] - origin[a]) * inv_dir[a];
+    float t1 = (max[a] - origin[a]) * inv_dir[a];
+    if (t0 > t1) std::swap(t0, t1);
+    // NaN (0 * inf on a slab boundary) must not reject: the comparisons below
+    // keep the previous bounds when t0 or t1 is NaN.
+    if (t0 > t_min) t_min = t0;
+    if (t1 < t_max) t_max = t1;
+    if (t_min > t_max) return false;
+  }
+  return true;
+}
+
+bool hit_triangle(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c,
+                  const glm::vec3& origin, const glm::vec3& dir, float t_min, float t_max) {
+  const glm::vec3 e1 = b - a;
+  const glm::vec3 e2 = c - a;
+  const glm::vec3 p = glm::cross(dir, e2);
+  const float det = glm::dot(e1, p);
+  if (det == 0.0f) return false;
+  const float inv = 1.0f / det;
+  const glm::vec3 s = origin - a;
+  const float u = glm::dot(s, p) * inv;
+  if (u < 0.0f || u > 1.0f) return false;
+  const glm::vec3 q = glm::cross(s, e1);
+  const float v = glm::dot(dir, q) * inv;
+  if (v < 0.0f || u + v > 1.0f) return false;
+  const float t = glm::dot(e2, q) * inv;
+  return t > t_min && t < t_max;
+}
+
+}  // namespace
+
+Bvh::Bvh(std::vector<glm::vec3> corners) : corners_(std::move(corners)) {
+  const uint32_t n = static_cast<uint32_t>(corners_.size() / 3);
+  corners_.resize(size_t(n) * 3);
+  order_.resize(n);
+  std::vector<glm::vec3> centroids(n);
+  for (uint32_t t = 0; t < n; ++t) {
+    order_[t] = t;
+    centroids[t] = (corners_[3 * t] + corners_[3 * t + 1] + corners_[3 * t + 2]) / 3.0f;
+  }
+  if (n == 0) return;
+  nodes_.reserve(2 * (n / 2 + 1));
+  build(0, n, centroids);
+}
+
+uint32_t Bvh::build(uint32_t first, uint32_t count, std::vector<glm::vec3>& centroids) {
+  // Depth-first layout: an inner node's left child follows it directly.
+  const uint32_t index = static_cast<uint32_t>(nodes_.size());
+  nodes_.emplace_back();
+  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+  glm::vec3 clo = lo, chi = hi;
+  for (uint32_t k = first; k < first + count; ++k) {
+    const uint32_t t = order_[k];
+    for (int c = 0; c < 3; ++c) {
+      lo = glm::min(lo, corners_[3 * t + c]);
+      hi = glm::max(hi, corners_[3 * t + c]);
+    }
+    clo = glm::min(clo, centroids[t]);
+    chi = glm::max(chi, centroids[t]);
+  }
+  nodes_[index].min = lo;
+  nodes_[index].max = hi;
+  const glm::vec3 extent = chi - clo;
+  const int axis =
+      extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+  if (count <= kLeafSize || extent[axis] <= 0.0f) {
+    nodes_[index].first = first;
+    nodes_[index].count = count;
+    return index;
+  }
+  const uint32_t half = count / 2;
+  std::nth_element(order_.begin() + first, order_.begin() + first + half,
+                   order_.begin() + first + count,
+                   [&](uint32_t a, uint32_t b) { return centroids[a][axis] < centroids[b][axis]; });
+  build(first, half, centroids);
+  const uint32_t right = build(first + half, count - half, centroids);
+  nodes_[index].first = right;
+  nodes_[index].count = 0;
+  return index;
+}
+
+bool Bvh::occluded(const glm::vec3& origin, const glm::vec3& direction, float t_min,
+                   float t_max) const {
+  if (nodes_.empty()) return false;
+  const glm::vec3 inv_dir = 1.0f / direction;
+  uint32_t stack[64];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    if (!hit_box(node.min, node.max, origin, inv_dir, t_min, t_max)) continue;
+    if (node.count > 0) {
+      for (uint32_t k = node.first; k < node.first + node.count; ++k) {
+        const uint32_t t = order_[k];
+        if (hit_triangle(corners_[3 * t], corners_[3 * t + 1], corners_[3 * t + 2], origin,
+                         direction, t_min, t_max)) {
+          return true;
+        }
+      }
+    } else {
+      const uint32_t self = static_cast<uint32_t>(&node - nodes_.data());
+      if (top + 2 > 64) return true;  // cannot happen for median splits of < 2^60 triangles
+      stack[top++] = node.first;
+      stack[top++] = self + 1;
+    }
+  }
+  return false;
+}
+
+}  // namespace snow

@@ -1,0 +1,120 @@
+#pragma once
+// Stage 2: snow coverage from jittered multi-direction shadow maps (Tokoi
+// 2006, section 4; flake flutter after Fearing 2000, section 4.1).
+//
+// Snow falls along directions d (unit vectors pointing down, along the
+// flakes' travel). A flake's velocity is the wind plus its fall speed:
+// v = (wind.x, -fall_speed, wind.y), so the mean direction is tilted
+// downwind by tilt = atan(|wind| / fall_speed) from the vertical; flutter
+// spreads the directions uniformly (in solid angle) over a cone of half-angle
+// flutter_deg around it. Coverage p of a surface point = the share of the K
+// directions from which the point sees the sky (nothing above it along -d).
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "scene/scene.h"
+#include "snow/maps.h"
+
+namespace snow {
+
+struct CoverageSettings {
+  int directions = 64;        // K, shadow maps (1..4096)
+  float flutter_deg = 15.0f;  // degrees, half-angle of the cone of fall directions (0..60)
+  glm::vec2 wind{0.0f};       // m/s, horizontal wind along world x and z
+  float fall_speed = 1.0f;    // m/s, flakes' still-air fall speed (dry snow about 1, wet 1.5..2)
+  uint64_t seed = 1;          // seed of the direction and shadow-origin jitter; same seed, same
+                              // result bit for bit
+  int batch = 8;              // shadow maps per GPU batch (1..64); memory: batch * 4 B per
+                              // shadow texel
+  float bias = -1.0f;         // metres, constant shadow depth bias; < 0 = automatic: 0.05 texel
+                              // plus 1e-5 of the scene's height range
+  float slope_bias = 1.5f;    // factor (>= 0) on the receiver's height change across half a
+                              // shadow texel (slope-scaled bias); capped at 3 texels of height
+};
+
+/// Largest tilt + flutter allowed (degrees): directions closer than 15
+/// degrees to the horizon would need shadow maps many times the scene's size.
+constexpr float kMaxFallAngleDeg = 75.0f;
+
+/// Mean fall direction (unit, pointing down) for the settings' wind and fall
+/// speed. Throws InputError for fall_speed <= 0 or a non-finite wind.
+glm::vec3 mean_fall_direction(const CoverageSettings& settings);
+
+/// K unit vectors pointing down along the flakes' travel, in a cone of
+/// half-angle flutter_deg around mean_fall_direction. Stratified jittered
+/// sampling, uniform in solid angle: direction k has cos(angle) in stratum k
+/// of [cos(flutter), 1] (jittered within it) and azimuth 2*pi*frac(k * golden
+/// ratio + rotation), with a random rotation per seed. Uses its own RNG
+/// (splitmix64), so the same settings give bit-identical directions.
+/// Throws InputError for directions outside 1..4096, flutter outside 0..60,
+/// bad wind or fall speed, or tilt + flutter over kMaxFallAngleDeg.
+std::vector<glm::vec3> fall_directions(const CoverageSettings& settings);
+
+/// Sub-texel jitter of each shadow map's origin, in [0, 1)^2 shadow texels,
+/// one per direction; deterministic in the seed (a stream separate from the
+/// directions').
+std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& settings);
+
+/// Shadow-map renderer kept between calls (the live preview recomputes
+/// coverage every few frames while snow accumulates): owns the uploaded
+/// scene, the shadow-map array, the programs and the receiver buffers. Needs
+/// the GL context that was current at construction to be current in every
+/// call, including destruction.
+class CoverageRenderer {
+ public:
+  /// Uploads the scene (one vertex buffer, one draw call per shadow map).
+  /// Throws GLError when GL fails (GL_OUT_OF_MEMORY included).
+  explicit CoverageRenderer(const Scene& scene);
+  ~CoverageRenderer();
+  CoverageRenderer(const CoverageRenderer&) = delete;
+  CoverageRenderer& operator=(const CoverageRenderer&) = delete;
+
+  /// Coverage per layer texel in [0,1] (the maps' layout, size
+  /// maps.layers * maps.grid.texels()); 0 where there is no surface. Renders
+  /// K orthographic depth maps along fall_directions(settings), texel matched
+  /// to the snow map (coarser only where the shadow map would exceed
+  /// GL_MAX_TEXTURE_SIZE), origin jittered by shadow_origin_jitter, in
+  /// batches of settings.batch into a 2D array texture; a compute pass per
+  /// batch adds, for every surface texel, the number of directions that see
+  /// it (receiver-slope-scaled bias); one readback at the end.
+  /// With snow_depth (the maps' layout, metres, >= 0) the snow surface
+  /// ground + depth (a heightfield per layer through the texel centres, cut
+  /// where neighbours differ by more than 6 texels or lack a surface) is also
+  /// drawn into the shadow maps, and points are evaluated at ground + depth.
+  /// Throws InputError for bad settings or a snow_depth of the wrong size,
+  /// GLError for GL trouble.
+  std::vector<float> compute(const SnowMaps& maps, const CoverageSettings& settings,
+                             const std::vector<float>* snow_depth = nullptr);
+
+  /// Wall seconds of the last compute(), by stage (glFinish at each stage
+  /// boundary only when profiling is on, since it stalls the pipeline).
+  struct Timings {
+    double setup = 0;      // receivers, buffers, uploads
+    double shadow = 0;     // K shadow-map depth passes
+    double composite = 0;  // lit counting (compute passes)
+    double readback = 0;   // one readback of the counts
+  };
+  const Timings& timings() const;
+  void set_profiling(bool on);
+  /// Size (texels) of each shadow map in the last compute().
+  glm::ivec2 shadow_map_size() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// One-off coverage: CoverageRenderer(scene).compute(maps, settings,
+/// snow_depth). Needs a current GL context.
+std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
+                                    const CoverageSettings& settings,
+                                    const std::vector<float>* snow_depth = nullptr);
+
+/// Cut of the snow-surface heightfield (texels of height difference within
+/// one heightfield triangle), shared by the GPU pass and the reference.
+constexpr float kSnowSurfaceCutTexels = 6.0f;
+
+}  // namespace snow

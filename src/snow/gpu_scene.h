@@ -1,0 +1,53 @@
+#pragma once
+// Internal to the GPU passes of stages 1 and 2 (peel.cpp, coverage.cpp): the
+// scene uploaded once and drawn with one call, and a guard that restores
+// the GL state those passes change. Includes GL: not for other modules.
+#include <cstddef>
+
+#include "gl/objects.h"
+#include "scene/scene.h"
+
+namespace snow {
+
+/// The scene's triangles in one vertex buffer (positions at
+/// SNOW_ATTR_POSITION, triangle soup, the Scene's order, so gl_PrimitiveID
+/// is the triangle index), and on request a storage buffer with one vec4 per
+/// triangle: its unit geometric normal as wound and its object index (int
+/// bits in w). Needs a current context for its whole life.
+class GpuScene {
+ public:
+  /// Uploads the positions. Throws GLError on GL_OUT_OF_MEMORY.
+  explicit GpuScene(const Scene& scene, bool with_triangle_info = false);
+
+  /// Draws every triangle (one glDrawArrays) with the bound program;
+  /// binds the triangle buffer at SNOW_PEEL_TRIANGLES when it exists.
+  void draw() const;
+  size_t triangle_count() const { return triangles_; }
+
+ private:
+  gl::VertexArray vao_;
+  gl::Buffer positions_;
+  gl::Buffer triangle_info_;
+  size_t triangles_ = 0;
+};
+
+/// Saves the GL state the map passes change (framebuffer, viewport, program,
+/// vertex array, depth, cull, blend and scissor state, clip depth mode is
+/// left at the default) and restores it on destruction.
+class GlStateGuard {
+ public:
+  GlStateGuard();
+  ~GlStateGuard();
+  GlStateGuard(const GlStateGuard&) = delete;
+  GlStateGuard& operator=(const GlStateGuard&) = delete;
+
+ private:
+  GLint draw_fbo_ = 0, read_fbo_ = 0, program_ = 0, vao_ = 0, depth_func_ = 0;
+  GLint viewport_[4] = {0, 0, 0, 0};
+  GLboolean depth_test_ = 0, depth_mask_ = 0, cull_ = 0, blend_ = 0, scissor_ = 0;
+};
+
+/// Seconds on a steady clock (for stage timings).
+double now_seconds();
+
+}  // namespace snow

@@ -1,0 +1,76 @@
+#pragma once
+// Stage 1: snow amount maps by depth peeling from straight above (Tokoi
+// 2006, section 3; height spans after Onoue and Nishita 2004). The result is
+// the SnowMaps contract of snow/maps.h.
+#include <cstdint>
+
+#include "scene/scene.h"
+#include "snow/coverage.h"
+#include "snow/maps.h"
+
+namespace snow {
+
+struct PeelSettings {
+  float texel = 0.0f;    // metres, texel edge; 0 = automatic: the longer horizontal side of the
+                         // scene plus margins divided by max_side
+  int max_side = 1024;   // texels, longest map side when texel is automatic (1..65536)
+  int layers = 8;        // L, surfaces kept per texel from the top down (1..64)
+  float margin = -1.0f;  // metres, border around the scene's horizontal bounds; < 0 = automatic:
+                         // 2 % of the longer horizontal side, at least 2 texels
+  float merge_distance = 1e-3f;  // metres: a surface less than this below the one above it is
+                                 // the same layer (coplanar duplicates, decals); >= 0
+  uint64_t memory_budget = 4ull << 30;  // bytes; peel_layers throws InputError before
+                                        // allocating when estimate_memory exceeds it
+};
+
+/// The map grid over the scene's horizontal (x, z) bounds plus the margin,
+/// centred on them. With settings.texel > 0 the texel is that size; with 0
+/// it is chosen so that the longer side has max_side texels. Throws
+/// InputError for an empty or non-finite scene, bad settings (negative texel
+/// or margin, max_side < 1, layers outside 1..64) or an absurd grid (a side
+/// over 2^30 texels). Large but representable grids pass: the memory check is
+/// check_memory_budget's job.
+MapGrid make_grid(const Bounds& scene_bounds, const PeelSettings& settings);
+
+/// Bytes that the maps pipeline needs for `grid` with `layers` layers, CPU
+/// and GPU memory together (on a software rasterizer both are host memory):
+/// the SnowMaps (24 B per layer texel) and coverage (4 B), the peel's GPU
+/// targets (2 ping-pong sets of 20 B + depth 4 B + readback 16 B per texel),
+/// coverage's receivers, counts and snow-surface textures (28 B per layer
+/// texel), one batch of shadow maps (4 B per shadow texel; the shadow map
+/// is the grid grown by scene_height * tan(tilt + flutter) on each side),
+/// and later stages (stabilizer ping-pong and snow depth, polygonize
+/// scratch: 48 B per layer texel). An upper bound, saturating at
+/// UINT64_MAX; it never overflows.
+uint64_t estimate_memory(const MapGrid& grid, int layers, const CoverageSettings& coverage,
+                         float scene_height = 0.0f);
+
+/// Throws InputError("maps of W x H texels x L layers need 37.2 GiB, over
+/// the 4 GiB budget; use a coarser texel size, e.g. --texel 0.05") when
+/// estimate_memory(...) > budget. Allocates nothing.
+void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings& coverage,
+                         uint64_t budget, float scene_height = 0.0f);
+
+/// GPU depth peeling. Needs a current GL context (snow::gl::create_context).
+/// Makes the grid with make_grid, checks the memory budget (with default
+/// CoverageSettings) before allocating anything, then renders L+1 passes of
+/// the scene from straight above: pass l keeps, per texel, the highest
+/// surface lying more than merge_distance below layer l-1 (every triangle
+/// counts, whatever its winding). Fills ground, ceiling (ceiling[l] =
+/// ground[l-1], +inf on layer 0), the geometric normal as wound (unit,
+/// possibly facing down) and the object index; counts the columns holding
+/// more than L surfaces in overflow_columns and warns once if any. Reports
+/// progress. Throws InputError (grid, budget, a side over GL_MAX_TEXTURE_SIZE)
+/// or GLError (GL_OUT_OF_MEMORY, shaders).
+SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings);
+
+/// Same on a given grid (settings.texel, max_side and margin are ignored).
+SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings& settings);
+
+/// Benchmark helper: renders the whole scene `passes` times from straight
+/// above into a depth-only target of width x height texels (no peeling test,
+/// no readback) and returns the wall seconds up to glFinish. This is the raw
+/// rasterization work a peel pass or a shadow pass of that size costs.
+double time_depth_passes(const Scene& scene, int width, int height, int passes);
+
+}  // namespace snow

@@ -1,0 +1,34 @@
+#pragma once
+// CPU reference of the coverage pass (snow/coverage.h), for tests.
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "scene/scene.h"
+#include "snow/maps.h"
+
+namespace snow::reference {
+
+/// Coverage per layer texel (the maps' layout) by ray casting: for every
+/// texel centre with a surface, at height ground (+ depth when snow_depth is
+/// given), the share of `directions` (unit, pointing down) along which the
+/// ray towards the sky (-d) hits nothing higher than 1e-4 m (+1e-6 of the
+/// height) above the point. Occluders: the scene's triangles (BVH) and, with
+/// snow_depth, snow_surface_triangles(maps, *snow_depth). 0 where no surface.
+/// Throws InputError when directions is empty or snow_depth has the wrong size.
+std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
+                                    const std::vector<glm::vec3>& directions,
+                                    const std::vector<float>* snow_depth = nullptr);
+
+/// The snow surface as triangles (a soup, 3 corners each), the rule the GPU
+/// shadow pass (shaders/shadow_snow.vert) mirrors: per layer, a heightfield
+/// through the texel centres at height ground + depth; quad (i, j) of corners
+/// c00 = (i, j), c10 = (i+1, j), c11 = (i+1, j+1), c01 = (i, j+1) splits into
+/// (c00, c10, c11) and (c00, c11, c01); a triangle exists when its three
+/// corners have a surface on that layer, at least one has depth > 0, and
+/// their heights differ by at most kSnowSurfaceCutTexels texels. Depth that
+/// is NaN or negative counts as 0.
+std::vector<glm::vec3> snow_surface_triangles(const SnowMaps& maps,
+                                              const std::vector<float>& snow_depth);
+
+}  // namespace snow::reference
