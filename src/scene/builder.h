@@ -197,6 +197,7 @@ struct ClosedBoxDims {
 /// cavity cube shrunk by `wall` on every side (two closed shells; signed
 /// volume size^3 - (size - 2 wall)^3).
 Scene make_closed_box_scene(const ClosedBoxDims& dims);
+/// Same with wall = min(0.1, 0.1 * size) and floor_size = max(4, 4 * size).
 Scene make_closed_box_scene(float size = 1.0f);
 
 struct WallDims {
