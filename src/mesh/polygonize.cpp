@@ -1,1 +1,788 @@
-// Placeholder: this file is written by the module's issue.
+// Polygonize fallen snow (DESIGN.md, "Polygonize").
+//
+// 1. Patches: snowy layer texels joined across layers by the stabilizer's
+//    landing rule (snow::landing_layer; height spans after Onoue and
+//    Nishita), so a floor running under a table is one patch.
+// 2. Per patch, a thickness field s and a ground field g on texel centres;
+//    the top is g + s, the outline the marching-squares contour of s at
+//    min_thickness (Lorensen and Cline 1987, the 2D case; saddles resolved by
+//    the cell average), where the snow tapers to zero thickness; the bottom
+//    is g - bottom_offset. Top and bottom share the outline vertices, so the
+//    result is a closed 2-manifold by construction.
+//    Inside the outline the grid is triangulated adaptively as a right-
+//    triangulated irregular network (Evans, Kirkpatrick and Townsend 2001,
+//    error pass after mapbox/martini) within half the error budget, so that
+//    large flat snow fields never reach the decimator at full resolution.
+// 3. Edge-collapse decimation with OpenMesh's Decimater within the other
+//    half, the priority and bound being the quadric error of Garland and
+//    Heckbert (SIGGRAPH 1997) over unweighted planes, i.e. a sum of squared
+//    distances in metres.
+#include "mesh/polygonize.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <limits>
+#include <map>
+#include <set>
+#include <string>
+#include <unordered_map>
+
+// OpenMesh's properties copy default-constructed (uninitialized) vectors,
+// which GCC flags inside its headers.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+// QuadricT needs vector_traits from the mesh headers above.
+#include <OpenMesh/Core/Geometry/QuadricT.hh>
+#include <OpenMesh/Tools/Decimater/DecimaterT.hh>
+#include <OpenMesh/Tools/Decimater/ModBaseT.hh>
+#include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
+#pragma GCC diagnostic pop
+
+#include "core/error.h"
+#include "core/log.h"
+#include "snow/column.h"
+
+namespace snow {
+namespace {
+
+// ---------------------------------------------------------------------------
+// OpenMesh types
+
+struct SnowMeshTraits : public OpenMesh::DefaultTraits {
+  typedef OpenMesh::Vec3d Point;
+  typedef OpenMesh::Vec3d Normal;
+  VertexAttributes(OpenMesh::Attributes::Status);
+  FaceAttributes(OpenMesh::Attributes::Status | OpenMesh::Attributes::Normal);
+  EdgeAttributes(OpenMesh::Attributes::Status);
+  HalfedgeAttributes(OpenMesh::Attributes::PrevHalfedge);
+};
+using OMesh = OpenMesh::TriMesh_ArrayKernelT<SnowMeshTraits>;
+
+/// Decimation priority and bound: the quadric error of Garland and Heckbert
+/// over the planes of the original faces, each with weight one (OpenMesh's
+/// ModQuadricT weights them by area, which makes the bound unitless). The
+/// error of a collapse is the sum of squared distances (m^2) of the kept
+/// vertex to every plane merged into it, so a bound err^2 keeps every vertex
+/// within err metres of each original plane around it.
+template <class MeshT>
+class ModPlaneErrorT : public OpenMesh::Decimater::ModBaseT<MeshT> {
+ public:
+  DECIMATING_MODULE(ModPlaneErrorT, MeshT, PlaneError);
+
+  explicit ModPlaneErrorT(MeshT& mesh) : Base(mesh, false) { mesh.add_property(quadrics_); }
+  ~ModPlaneErrorT() override { Base::mesh().remove_property(quadrics_); }
+
+  void set_max_err(double max_err_m2) { max_err_ = max_err_m2; }
+
+  void initialize() override {
+    Mesh& m = Base::mesh();
+    for (auto v : m.vertices()) m.property(quadrics_, v).clear();
+    for (auto f : m.faces()) {
+      auto fv = m.fv_iter(f);
+      const auto v0 = *fv++;
+      const auto v1 = *fv++;
+      const auto v2 = *fv;
+      const OpenMesh::Vec3d p0 = m.point(v0);
+      OpenMesh::Vec3d n = (m.point(v1) - p0) % (m.point(v2) - p0);
+      const double len = n.norm();
+      if (!(len > 1e-300)) continue;  // degenerate face: no plane
+      n /= len;
+      const OpenMesh::Geometry::Quadricd q(n[0], n[1], n[2], -(p0 | n));
+      m.property(quadrics_, v0) += q;
+      m.property(quadrics_, v1) += q;
+      m.property(quadrics_, v2) += q;
+    }
+  }
+
+  float collapse_priority(const CollapseInfo& ci) override {
+    // Flat regions would otherwise collapse into a few vertices of huge
+    // valence, which makes every later collapse test slow and the
+    // triangles needle-thin.
+    if (Base::mesh().valence(ci.v0) + Base::mesh().valence(ci.v1) > kMaxValence + 4) {
+      return float(Base::ILLEGAL_COLLAPSE);
+    }
+    OpenMesh::Geometry::Quadricd q = Base::mesh().property(quadrics_, ci.v0);
+    q += Base::mesh().property(quadrics_, ci.v1);
+    const double err = q(ci.p1);
+    return err < max_err_ ? float(err) : float(Base::ILLEGAL_COLLAPSE);
+  }
+
+  void postprocess_collapse(const CollapseInfo& ci) override {
+    Base::mesh().property(quadrics_, ci.v1) += Base::mesh().property(quadrics_, ci.v0);
+  }
+
+ private:
+  static constexpr unsigned kMaxValence = 12;
+  double max_err_ = 0.0;
+  OpenMesh::VPropHandleT<OpenMesh::Geometry::Quadricd> quadrics_;
+};
+
+// ---------------------------------------------------------------------------
+// Patch finding
+
+/// Layer texels of one patch (indices into the maps' per-layer arrays).
+struct PatchTexels {
+  std::vector<size_t> texels;
+};
+
+struct TexelCoord {
+  int l, i, j;
+};
+
+TexelCoord coord_of(const SnowMaps& maps, size_t k) {
+  const size_t per_layer = maps.grid.texels();
+  const size_t rem = k % per_layer;
+  return {int(k / per_layer), int(rem % size_t(maps.grid.width)),
+          int(rem / size_t(maps.grid.width))};
+}
+
+/// Connected components of snowy texels; see polygonize()'s contract.
+std::vector<PatchTexels> find_patches(const SnowMaps& maps, const std::vector<float>& depth,
+                                      float min_thickness, float max_step) {
+  const size_t n = depth.size();
+  const size_t per_layer = maps.grid.texels();
+  const int w = maps.grid.width;
+  const int h = maps.grid.height;
+  auto snowy = [&](size_t k) { return depth[k] > min_thickness; };
+  auto top = [&](size_t k) { return maps.ground[k] + depth[k]; };
+
+  std::vector<int32_t> label(n, -1);
+  std::vector<int32_t> column_stamp(per_layer, -1);
+  std::vector<PatchTexels> patches;
+  std::deque<size_t> queue;
+  static const int kDi[4] = {1, -1, 0, 0};
+  static const int kDj[4] = {0, 0, 1, -1};
+
+  for (size_t seed = 0; seed < n; ++seed) {
+    if (label[seed] >= 0 || !snowy(seed)) continue;
+    const int32_t id = int32_t(patches.size());
+    patches.emplace_back();
+    PatchTexels& patch = patches.back();
+    auto claim = [&](size_t k) {
+      label[k] = id;
+      column_stamp[k % per_layer] = id;
+      patch.texels.push_back(k);
+      queue.push_back(k);
+    };
+    claim(seed);
+    while (!queue.empty()) {
+      const size_t a = queue.front();
+      queue.pop_front();
+      const TexelCoord ca = coord_of(maps, a);
+      const float ha = top(a);
+      for (int d = 0; d < 4; ++d) {
+        const int ni = ca.i + kDi[d];
+        const int nj = ca.j + kDj[d];
+        if (ni < 0 || nj < 0 || ni >= w || nj >= h) continue;
+        const size_t col = size_t(nj) * size_t(w) + size_t(ni);
+        if (column_stamp[col] == id) continue;  // one layer per column and patch
+        auto consider = [&](size_t b) {
+          if (label[b] < 0 && snowy(b) && column_stamp[col] != id) claim(b);
+        };
+        // Snow leaving a lands on b (b lies at most max_step lower) ...
+        const int lb = landing_layer(maps, depth.data(), ni, nj, ha);
+        if (lb >= 0) {
+          const size_t b = maps.index(lb, ni, nj);
+          if (ha - top(b) <= max_step) consider(b);
+        }
+        // ... or snow leaving b lands on a (b lies at most max_step higher).
+        for (int l = 0; l < maps.layers; ++l) {
+          const size_t b = maps.index(l, ni, nj);
+          if (std::isnan(maps.ground[b])) break;
+          const float hb = top(b);
+          if (hb < ha || hb - ha > max_step || !snowy(b)) continue;
+          if (landing_layer(maps, depth.data(), ca.i, ca.j, hb) == ca.l) consider(b);
+        }
+      }
+    }
+  }
+  return patches;
+}
+
+// ---------------------------------------------------------------------------
+// Per-patch fields on texel centres
+
+/// The patch's window: its bounding box of columns plus one sample of margin
+/// on every side, so every cell touching a patch sample exists.
+struct PatchField {
+  int i0 = 0, j0 = 0;  // map column of window sample (0, 0)
+  int w = 0, h = 0;    // window size in samples
+  std::vector<uint8_t> member;
+  std::vector<float> s;       // snow thickness, m (0 outside the patch)
+  std::vector<float> g;       // ground height, m (extrapolated outside; NaN far away)
+  std::vector<float> gx, gz;  // ground slope dy/dx, dy/dz (members)
+
+  size_t at(int wi, int wj) const { return size_t(wj) * size_t(w) + size_t(wi); }
+};
+
+PatchField build_field(const SnowMaps& maps, const std::vector<float>& depth,
+                       const PatchTexels& patch) {
+  PatchField f;
+  int i1 = -1, j1 = -1;
+  f.i0 = maps.grid.width;
+  f.j0 = maps.grid.height;
+  for (size_t k : patch.texels) {
+    const TexelCoord c = coord_of(maps, k);
+    f.i0 = std::min(f.i0, c.i);
+    f.j0 = std::min(f.j0, c.j);
+    i1 = std::max(i1, c.i);
+    j1 = std::max(j1, c.j);
+  }
+  f.i0 -= 1;
+  f.j0 -= 1;
+  f.w = i1 - f.i0 + 2;
+  f.h = j1 - f.j0 + 2;
+  const size_t count = size_t(f.w) * size_t(f.h);
+  f.member.assign(count, 0);
+  f.s.assign(count, 0.0f);
+  f.g.assign(count, kNoSurface);
+  f.gx.assign(count, 0.0f);
+  f.gz.assign(count, 0.0f);
+  for (size_t k : patch.texels) {
+    const TexelCoord c = coord_of(maps, k);
+    const size_t a = f.at(c.i - f.i0, c.j - f.j0);
+    f.member[a] = 1;
+    f.s[a] = depth[k];
+    f.g[a] = maps.ground[k];
+  }
+  // Ground slope of members: from the surface normal where it is not too
+  // steep, else from differences with member neighbours.
+  const float texel = maps.grid.texel;
+  const float kMaxSlope = 4.0f;
+  for (size_t k : patch.texels) {
+    const TexelCoord c = coord_of(maps, k);
+    const int wi = c.i - f.i0, wj = c.j - f.j0;
+    const size_t a = f.at(wi, wj);
+    const glm::vec3 n = maps.normal[k];
+    float sx = 0.0f, sz = 0.0f;
+    if (std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z) &&
+        std::abs(n.y) > 0.25f * glm::length(n)) {
+      sx = -n.x / n.y;
+      sz = -n.z / n.y;
+    } else {
+      auto diff = [&](int di, int dj) {
+        const size_t p = f.at(wi + di, wj + dj);
+        const size_t m = f.at(wi - di, wj - dj);
+        if (f.member[p] && f.member[m]) return (f.g[p] - f.g[m]) / (2.0f * texel);
+        if (f.member[p]) return (f.g[p] - f.g[a]) / texel;
+        if (f.member[m]) return (f.g[a] - f.g[m]) / texel;
+        return 0.0f;
+      };
+      sx = diff(1, 0);
+      sz = diff(0, 1);
+    }
+    f.gx[a] = std::clamp(sx, -kMaxSlope, kMaxSlope);
+    f.gz[a] = std::clamp(sz, -kMaxSlope, kMaxSlope);
+  }
+  // Ground of non-member samples next to members: the members' ground planes
+  // extrapolated to the sample, averaged.
+  for (int wj = 0; wj < f.h; ++wj) {
+    for (int wi = 0; wi < f.w; ++wi) {
+      const size_t a = f.at(wi, wj);
+      if (f.member[a]) continue;
+      double sum = 0.0;
+      int n = 0;
+      for (int dj = -1; dj <= 1; ++dj) {
+        for (int di = -1; di <= 1; ++di) {
+          const int ni = wi + di, nj = wj + dj;
+          if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) continue;
+          const size_t b = f.at(ni, nj);
+          if (!f.member[b]) continue;
+          sum += f.g[b] - (f.gx[b] * float(di) + f.gz[b] * float(dj)) * texel;
+          ++n;
+        }
+      }
+      if (n > 0) f.g[a] = float(sum / n);
+    }
+  }
+  return f;
+}
+
+/// Mass-conserving smoothing of the snow surface g + s: explicit diffusion
+/// between 4-neighbour members, each flux limited so no member falls under
+/// min_thickness.
+void smooth_field(PatchField& f, int iterations, float min_thickness) {
+  const float kRate = 0.125f;
+  std::vector<float> delta(f.s.size());
+  for (int it = 0; it < iterations; ++it) {
+    std::fill(delta.begin(), delta.end(), 0.0f);
+    for (int wj = 0; wj < f.h - 1; ++wj) {
+      for (int wi = 0; wi < f.w - 1; ++wi) {
+        const size_t a = f.at(wi, wj);
+        if (!f.member[a]) continue;
+        for (const size_t b : {f.at(wi + 1, wj), f.at(wi, wj + 1)}) {
+          if (!f.member[b]) continue;
+          float flux = kRate * ((f.g[a] + f.s[a]) - (f.g[b] + f.s[b]));  // a -> b
+          flux = std::clamp(flux, -0.25f * std::max(f.s[b] - min_thickness, 0.0f),
+                            0.25f * std::max(f.s[a] - min_thickness, 0.0f));
+          delta[a] -= flux;
+          delta[b] += flux;
+        }
+      }
+    }
+    for (size_t a = 0; a < f.s.size(); ++a) f.s[a] += delta[a];
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Top surface by marching squares
+
+struct TopMesh {
+  std::vector<glm::dvec3> positions;
+  std::vector<int32_t> sample;  // window sample of a member vertex, -1 for outline vertices
+  std::vector<uint32_t> tris;   // counter-clockwise seen from above (+Y normals)
+};
+
+double plan_area2(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+  // Twice the signed area in the (z, x) plane: positive when the triangle's
+  // normal points up (+Y) in a right-handed frame.
+  return (b.z - a.z) * (c.x - a.x) - (b.x - a.x) * (c.z - a.z);
+}
+
+/// The top surface: vertices at patch samples (height g + s) and on the
+/// outline (height g); see the comments inside for the two triangulations.
+/// tolerance < 0: every cell at full resolution.
+TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thickness,
+                        double tolerance) {
+  TopMesh top;
+  std::vector<int32_t> sample_vertex(f.member.size(), -1);
+  std::unordered_map<uint64_t, int32_t> edge_vertex;
+  const double texel = grid.texel;
+  auto sample_pos = [&](size_t a) {
+    const int wi = int(a % size_t(f.w)), wj = int(a / size_t(f.w));
+    return glm::dvec2(grid.origin.x + (double(f.i0 + wi) + 0.5) * texel,
+                      grid.origin.y + (double(f.j0 + wj) + 0.5) * texel);
+  };
+  auto vertex_at_sample = [&](size_t a) {
+    if (sample_vertex[a] < 0) {
+      const glm::dvec2 p = sample_pos(a);
+      sample_vertex[a] = int32_t(top.positions.size());
+      top.positions.emplace_back(p.x, double(f.g[a]) + double(f.s[a]), p.y);
+      top.sample.push_back(int32_t(a));
+    }
+    return uint32_t(sample_vertex[a]);
+  };
+  auto vertex_on_edge = [&](size_t in, size_t out) {
+    const uint64_t key =
+        (uint64_t(std::min(in, out)) << 1) | (std::max(in, out) - std::min(in, out) == 1 ? 0u : 1u);
+    auto it = edge_vertex.find(key);
+    if (it != edge_vertex.end()) return uint32_t(it->second);
+    const double si = f.s[in], so = f.s[out];
+    const double t = std::clamp((si - min_thickness) / std::max(si - so, 1e-12), 0.01, 0.99);
+    const glm::dvec2 p = glm::mix(sample_pos(in), sample_pos(out), t);
+    const double y = double(f.g[in]) + (double(f.g[out]) - double(f.g[in])) * t;
+    const int32_t v = int32_t(top.positions.size());
+    top.positions.emplace_back(p.x, y, p.y);
+    top.sample.push_back(-1);
+    edge_vertex.emplace(key, v);
+    return uint32_t(v);
+  };
+  auto emit = [&](const std::vector<uint32_t>& poly) {
+    // poly is convex and runs counter-clockwise in (x, z), i.e. clockwise
+    // seen from above. Fan out from a patch sample: a diagonal between two
+    // outline vertices would be shared by top and bottom, four faces at
+    // one edge.
+    size_t first = 0;
+    while (top.sample[poly[first]] < 0) ++first;
+    const size_t n = poly.size();
+    for (size_t k = 1; k + 1 < n; ++k) {
+      top.tris.insert(top.tris.end(),
+                      {poly[first], poly[(first + k + 1) % n], poly[(first + k) % n]});
+    }
+  };
+
+  // Marching squares on one cell that has patch samples at some corners only.
+  std::vector<uint32_t> poly;
+  auto march_cell = [&](int ci, int cj) {
+    const size_t c[4] = {f.at(ci, cj), f.at(ci + 1, cj), f.at(ci + 1, cj + 1), f.at(ci, cj + 1)};
+    const bool in[4] = {f.member[c[0]] != 0, f.member[c[1]] != 0, f.member[c[2]] != 0,
+                        f.member[c[3]] != 0};
+    const int inside = int(in[0]) + int(in[1]) + int(in[2]) + int(in[3]);
+    poly.clear();
+    for (int q = 0; q < 4; ++q) {
+      const int nq = (q + 1) & 3;
+      if (in[q]) poly.push_back(vertex_at_sample(c[q]));
+      if (in[q] != in[nq]) {
+        poly.push_back(in[q] ? vertex_on_edge(c[q], c[nq]) : vertex_on_edge(c[nq], c[q]));
+      }
+    }
+    const bool saddle = inside == 2 && in[0] == in[2];
+    const double mean = 0.25 * (double(f.s[c[0]]) + f.s[c[1]] + f.s[c[2]] + f.s[c[3]]);
+    if (saddle && mean <= min_thickness) {
+      // Two separate corners: each inside sample with its two crossings.
+      for (size_t k = 0; k < poly.size(); ++k) {
+        if (top.sample[poly[k]] < 0) continue;
+        emit({poly[(k + poly.size() - 1) % poly.size()], poly[k], poly[(k + 1) % poly.size()]});
+      }
+    } else {
+      emit(poly);
+    }
+  };
+  auto emit_oriented = [&](uint32_t a, uint32_t b, uint32_t c) {
+    if (plan_area2(top.positions[a], top.positions[b], top.positions[c]) < 0.0) std::swap(b, c);
+    top.tris.insert(top.tris.end(), {a, b, c});
+  };
+
+  // Right-triangulated irregular network over the window padded to a
+  // (2^k + 1)^2 grid (Evans, Kirkpatrick and Townsend 2001; the error pass
+  // follows mapbox/martini): a triangle stays whole while top and ground
+  // interpolate every sample it holds within `tolerance`. Corners of cells
+  // with patch samples at some corners only get an infinite error, so
+  // those cells (and their neighbours) are refined to single cells and
+  // take the marching-squares outline; the shared per-vertex errors keep
+  // the triangulation free of T-junctions.
+  int tile = 1;
+  while (tile + 1 < std::max(f.w, f.h)) tile *= 2;
+  const int n = tile + 1;
+  std::vector<float> error(size_t(n) * size_t(n), 0.0f);
+  auto member = [&](int x, int y) { return x < f.w && y < f.h && f.member[f.at(x, y)] != 0; };
+  const float kForce = std::numeric_limits<float>::infinity();
+  for (int cj = 0; cj + 1 < f.h; ++cj) {
+    for (int ci = 0; ci + 1 < f.w; ++ci) {
+      const int inside = int(member(ci, cj)) + int(member(ci + 1, cj)) + int(member(ci, cj + 1)) +
+                         int(member(ci + 1, cj + 1));
+      if (inside == 0 || inside == 4) continue;
+      for (int q = 0; q < 4; ++q)
+        error[size_t(cj + (q >> 1)) * size_t(n) + size_t(ci + (q & 1))] = kForce;
+    }
+  }
+  if (tolerance >= 0.0) {
+    const size_t triangles = size_t(tile) * size_t(tile) * 2 - 2;
+    const size_t parents = triangles - size_t(tile) * size_t(tile);
+    for (size_t t = triangles; t-- > 0;) {
+      size_t id = t + 2;
+      int ax = 0, ay = 0, bx = 0, by = 0, cx = 0, cy = 0;
+      if (id & 1) {
+        bx = by = cx = tile;
+      } else {
+        ax = ay = cy = tile;
+      }
+      while ((id >>= 1) > 1) {
+        const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
+        if (id & 1) {
+          bx = ax, by = ay, ax = cx, ay = cy;
+        } else {
+          ax = bx, ay = by, bx = cx, by = cy;
+        }
+        cx = mx, cy = my;
+      }
+      const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
+      float& e = error[size_t(my) * size_t(n) + size_t(mx)];
+      if (member(ax, ay) && member(bx, by) && member(mx, my)) {
+        const size_t a = f.at(ax, ay), b = f.at(bx, by), m = f.at(mx, my);
+        const float dg = std::abs(0.5f * (f.g[a] + f.g[b]) - f.g[m]);
+        const float dt = std::abs(0.5f * (f.g[a] + f.s[a] + f.g[b] + f.s[b]) - (f.g[m] + f.s[m]));
+        e = std::max(e, std::max(dg, dt));
+      }
+      if (t < parents) {
+        e = std::max({e, error[size_t((ay + cy) >> 1) * size_t(n) + size_t((ax + cx) >> 1)],
+                      error[size_t((by + cy) >> 1) * size_t(n) + size_t((bx + cx) >> 1)]});
+      }
+    }
+  }
+  std::vector<uint8_t> cell_done(f.member.size(), 0);
+  const float split_above = tolerance >= 0.0 ? float(tolerance) : -1.0f;
+  // Triangle (a, b, c): hypotenuse a-b, right angle at c.
+  std::function<void(int, int, int, int, int, int)> visit = [&](int ax, int ay, int bx, int by,
+                                                                int cx, int cy) {
+    const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
+    const bool leaf = std::abs(ax - cx) + std::abs(ay - cy) <= 1;
+    if (!leaf && error[size_t(my) * size_t(n) + size_t(mx)] > split_above) {
+      visit(cx, cy, ax, ay, mx, my);
+      visit(bx, by, cx, cy, mx, my);
+      return;
+    }
+    const bool in_a = member(ax, ay), in_b = member(bx, by), in_c = member(cx, cy);
+    if (!leaf) {
+      // Unsplit: wholly inside the patch or wholly outside it.
+      if (in_a) {
+        emit_oriented(vertex_at_sample(f.at(ax, ay)), vertex_at_sample(f.at(bx, by)),
+                      vertex_at_sample(f.at(cx, cy)));
+      }
+      return;
+    }
+    const int ci = std::min({ax, bx, cx}), cj = std::min({ay, by, cy});
+    if (ci + 1 >= f.w || cj + 1 >= f.h) return;  // padding
+    if (in_a && in_b && in_c &&
+        member(ci, cj) + member(ci + 1, cj) + member(ci, cj + 1) + member(ci + 1, cj + 1) == 4) {
+      emit_oriented(vertex_at_sample(f.at(ax, ay)), vertex_at_sample(f.at(bx, by)),
+                    vertex_at_sample(f.at(cx, cy)));
+      return;
+    }
+    uint8_t& done = cell_done[f.at(ci, cj)];
+    if (done ||
+        !(member(ci, cj) || member(ci + 1, cj) || member(ci, cj + 1) || member(ci + 1, cj + 1))) {
+      return;
+    }
+    done = 1;
+    march_cell(ci, cj);
+  };
+  visit(0, 0, tile, tile, tile, 0);
+  visit(tile, tile, 0, 0, 0, tile);
+  return top;
+}
+
+/// Laplacian smoothing of the outline polylines (x, y, z of outline vertices
+/// move halfway to the mean of their two outline neighbours); a move that
+/// would fold a triangle in plan is skipped.
+void smooth_outline(TopMesh& top, int iterations, double texel) {
+  if (iterations <= 0) return;
+  const size_t nv = top.positions.size();
+  std::unordered_map<uint64_t, uint32_t> directed;  // edge (u, v) -> count
+  auto key = [](uint32_t u, uint32_t v) { return (uint64_t(u) << 32) | v; };
+  for (size_t t = 0; t < top.tris.size(); t += 3) {
+    for (int e = 0; e < 3; ++e) ++directed[key(top.tris[t + e], top.tris[t + (e + 1) % 3])];
+  }
+  std::vector<int64_t> next(nv, -1), prev(nv, -1);
+  for (const auto& [k, count] : directed) {
+    const uint32_t u = uint32_t(k >> 32), v = uint32_t(k & 0xffffffffu);
+    if (directed.count(key(v, u))) continue;
+    next[u] = v;
+    prev[v] = u;
+  }
+  std::vector<std::vector<uint32_t>> vertex_tris(nv);
+  for (size_t t = 0; t < top.tris.size(); t += 3) {
+    for (int e = 0; e < 3; ++e) {
+      if (next[top.tris[t + e]] >= 0) vertex_tris[top.tris[t + e]].push_back(uint32_t(t));
+    }
+  }
+  const double min_area2 = 1e-6 * texel * texel;
+  for (int it = 0; it < iterations; ++it) {
+    for (size_t v = 0; v < nv; ++v) {
+      if (next[v] < 0 || prev[v] < 0 || top.sample[v] >= 0) continue;
+      const glm::dvec3 old = top.positions[v];
+      const glm::dvec3 mean =
+          0.5 * (top.positions[size_t(next[v])] + top.positions[size_t(prev[v])]);
+      top.positions[v] = old + 0.5 * (mean - old);
+      for (uint32_t t : vertex_tris[v]) {
+        const auto& p = top.positions;
+        if (plan_area2(p[top.tris[t]], p[top.tris[t + 1]], p[top.tris[t + 2]]) < min_area2) {
+          top.positions[v] = old;
+          break;
+        }
+      }
+    }
+  }
+}
+
+double top_plan_area(const TopMesh& top) {
+  double area2 = 0.0;
+  for (size_t t = 0; t < top.tris.size(); t += 3) {
+    area2 += plan_area2(top.positions[top.tris[t]], top.positions[top.tris[t + 1]],
+                        top.positions[top.tris[t + 2]]);
+  }
+  return 0.5 * area2;
+}
+
+// ---------------------------------------------------------------------------
+// Closed mesh, decimation, output
+
+/// Builds the closed solid (or fails: returns false and warns).
+bool build_solid(const TopMesh& top, const PatchField& f, float bottom_offset,
+                 const std::string& name, OMesh& mesh, OpenMesh::FPropHandleT<bool> is_top) {
+  std::vector<OMesh::VertexHandle> top_v(top.positions.size());
+  std::vector<OMesh::VertexHandle> bottom_v(top.positions.size());
+  for (size_t v = 0; v < top.positions.size(); ++v) {
+    const glm::dvec3& p = top.positions[v];
+    top_v[v] = mesh.add_vertex(OMesh::Point(p.x, p.y, p.z));
+  }
+  for (size_t v = 0; v < top.positions.size(); ++v) {
+    if (top.sample[v] < 0) {
+      bottom_v[v] = top_v[v];  // outline: shared by top and bottom
+    } else {
+      const glm::dvec3& p = top.positions[v];
+      const double y = double(f.g[size_t(top.sample[v])]) - double(bottom_offset);
+      bottom_v[v] = mesh.add_vertex(OMesh::Point(p.x, y, p.z));
+    }
+  }
+  size_t failed = 0;
+  for (size_t t = 0; t < top.tris.size(); t += 3) {
+    const auto a = top.tris[t], b = top.tris[t + 1], c = top.tris[t + 2];
+    const auto ft = mesh.add_face(top_v[a], top_v[b], top_v[c]);
+    const auto fb = mesh.add_face(bottom_v[a], bottom_v[c], bottom_v[b]);
+    if (ft.is_valid()) mesh.property(is_top, ft) = true;
+    if (fb.is_valid()) mesh.property(is_top, fb) = false;
+    failed += size_t(!ft.is_valid()) + size_t(!fb.is_valid());
+  }
+  if (failed > 0) {
+    log_warn("polygonize: dropping snow patch " + name + ": " + std::to_string(failed) +
+             " faces would not form a manifold mesh");
+    return false;
+  }
+  return true;
+}
+
+void decimate(OMesh& mesh, double max_error) {
+  mesh.request_vertex_status();
+  mesh.request_edge_status();
+  mesh.request_face_status();
+  mesh.request_face_normals();
+  mesh.update_face_normals();
+  OpenMesh::Decimater::DecimaterT<OMesh> decimater(mesh);
+  typename ModPlaneErrorT<OMesh>::Handle plane_error;
+  OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle normal_flipping;
+  decimater.add(plane_error);
+  decimater.add(normal_flipping);
+  decimater.module(plane_error).set_max_err(max_error * max_error);
+  decimater.module(normal_flipping).set_max_normal_deviation(60.0);
+  decimater.initialize();
+  decimater.decimate();
+  mesh.garbage_collection();
+}
+
+double signed_volume(const TriMesh& m) {
+  double v6 = 0.0;
+  for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
+    const glm::dvec3 a = m.positions[m.indices[t]];
+    const glm::dvec3 b = m.positions[m.indices[t + 1]];
+    const glm::dvec3 c = m.positions[m.indices[t + 2]];
+    v6 += glm::dot(a, glm::cross(b, c));
+  }
+  return v6 / 6.0;
+}
+
+/// Copies the faces of `mesh` (all, or only top ones) into a TriMesh with
+/// area-weighted vertex normals and planar world UVs.
+TriMesh to_trimesh(const OMesh& mesh, OpenMesh::FPropHandleT<bool> is_top, bool top_only) {
+  TriMesh out;
+  std::vector<int64_t> remap(mesh.n_vertices(), -1);
+  for (auto f : mesh.faces()) {
+    if (top_only && !mesh.property(is_top, f)) continue;
+    for (auto v : mesh.fv_range(f)) {
+      const size_t vi = size_t(v.idx());
+      if (remap[vi] < 0) {
+        remap[vi] = int64_t(out.positions.size());
+        const auto& p = mesh.point(v);
+        out.positions.emplace_back(float(p[0]), float(p[1]), float(p[2]));
+      }
+      out.indices.push_back(uint32_t(remap[vi]));
+    }
+  }
+  std::vector<glm::dvec3> normals(out.positions.size(), glm::dvec3(0.0));
+  for (size_t t = 0; t < out.indices.size(); t += 3) {
+    const glm::dvec3 a = out.positions[out.indices[t]];
+    const glm::dvec3 b = out.positions[out.indices[t + 1]];
+    const glm::dvec3 c = out.positions[out.indices[t + 2]];
+    const glm::dvec3 n = glm::cross(b - a, c - a);
+    for (int e = 0; e < 3; ++e) normals[out.indices[t + e]] += n;
+  }
+  out.normals.reserve(normals.size());
+  out.uvs.reserve(normals.size());
+  for (size_t v = 0; v < normals.size(); ++v) {
+    const double len = glm::length(normals[v]);
+    out.normals.push_back(len > 0.0 ? glm::vec3(normals[v] / len) : glm::vec3(0, 1, 0));
+    out.uvs.emplace_back(out.positions[v].x, out.positions[v].z);
+  }
+  return out;
+}
+
+std::string unique_name(const std::string& base, std::set<std::string>& used) {
+  std::string name = base;
+  for (int k = 2; used.count(name); ++k) name = base + "_" + std::to_string(k);
+  used.insert(name);
+  return name;
+}
+
+}  // namespace
+
+std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>& depth,
+                                  const Scene& scene, PolygonizeSettings settings) {
+  const size_t n = size_t(std::max(maps.layers, 0)) * maps.grid.texels();
+  if (maps.layers < 0 || maps.grid.width < 0 || maps.grid.height < 0 || !(maps.grid.texel > 0.0f) ||
+      !std::isfinite(maps.grid.texel)) {
+    throw InputError("polygonize: snow maps have an invalid grid (texel " +
+                     std::to_string(maps.grid.texel) + " m)");
+  }
+  if (maps.ground.size() != n || maps.ceiling.size() != n || maps.normal.size() != n ||
+      maps.object.size() != n) {
+    throw InputError("polygonize: snow maps arrays do not match " + std::to_string(maps.layers) +
+                     " layers of " + std::to_string(maps.grid.width) + "x" +
+                     std::to_string(maps.grid.height) + " texels");
+  }
+  if (depth.size() != n) {
+    throw InputError("polygonize: snow depth has " + std::to_string(depth.size()) +
+                     " values, the maps have " + std::to_string(n) + " layer texels");
+  }
+  const float texel = maps.grid.texel;
+  const float min_thickness = std::max(settings.min_thickness, 0.0f);
+  const float connect = std::clamp(settings.connect_slope, 0.0f, 89.0f);
+  const float max_step = texel * std::tan(glm::radians(connect));
+
+  // Clean depth: NaN, negative or surface-less snow is no snow.
+  std::vector<float> d(n, 0.0f);
+  for (size_t k = 0; k < n; ++k) {
+    const float v = depth[k];
+    if (!std::isnan(maps.ground[k]) && std::isfinite(v) && v > 0.0f) d[k] = v;
+  }
+
+  const std::vector<PatchTexels> found = find_patches(maps, d, min_thickness, max_step);
+  std::vector<SnowPatch> out;
+  std::set<std::string> used_names;
+  Progress progress("polygonize", double(found.size()));
+  for (size_t p = 0; p < found.size(); ++p) {
+    progress.update(double(p));
+    const PatchTexels& texels = found[p];
+
+    SnowPatch patch;
+    patch.texels = texels.texels.size();
+    std::map<int, size_t> votes;
+    std::vector<float> thickness;
+    thickness.reserve(texels.texels.size());
+    for (size_t k : texels.texels) {
+      patch.depth_volume += double(d[k]) * double(texel) * double(texel);
+      ++votes[maps.object[k]];
+      thickness.push_back(d[k]);
+    }
+    size_t best = 0;
+    for (const auto& [object, count] : votes) {
+      if (count > best) {
+        best = count;
+        patch.object = object;
+      }
+    }
+    if (patch.object < -1) patch.object = -1;
+    const bool named = patch.object >= 0 && size_t(patch.object) < scene.objects.size();
+    const std::string base =
+        named ? "snow/" + scene.objects[size_t(patch.object)].name : std::string("snow/patch");
+
+    // Error budget: half for the grid-level triangulation, half for the
+    // OpenMesh decimation that follows.
+    double error =
+        settings.decimate_error < 0.0f ? 0.5 * double(texel) : double(settings.decimate_error);
+    std::nth_element(thickness.begin(), thickness.begin() + thickness.size() / 2, thickness.end());
+    error = std::min(error, 0.25 * double(thickness[thickness.size() / 2]));
+
+    PatchField field = build_field(maps, d, texels);
+    smooth_field(field, settings.smooth_iterations, min_thickness);
+    TopMesh top =
+        triangulate_top(field, maps.grid, min_thickness, error > 0.0 ? 0.5 * error : -1.0);
+    smooth_outline(top, settings.smooth_iterations, texel);
+    patch.area = top_plan_area(top);
+    if (patch.area < double(settings.min_patch_area)) {
+      log_debug("polygonize: dropping a " + std::to_string(patch.area) + " m^2 snow patch on " +
+                base);
+      continue;
+    }
+
+    OMesh mesh;
+    OpenMesh::FPropHandleT<bool> is_top;
+    mesh.add_property(is_top);
+    if (!build_solid(top, field, settings.bottom_offset, base, mesh, is_top)) continue;
+    if (error > 0.0) decimate(mesh, 0.5 * error);
+
+    const TriMesh solid = to_trimesh(mesh, is_top, false);
+    patch.volume = signed_volume(solid);
+    patch.mesh = settings.closed ? solid : to_trimesh(mesh, is_top, true);
+    patch.mesh.name = unique_name(base, used_names);
+    patch.mesh.material = 0;
+    out.push_back(std::move(patch));
+  }
+  progress.finish();
+  return out;
+}
+
+}  // namespace snow

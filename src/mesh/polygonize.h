@@ -1,0 +1,76 @@
+#pragma once
+// Polygonize: fallen snow (SnowMaps + per-layer-texel depth) as closed,
+// UV-mapped, decimated triangle meshes, one per connected snow patch
+// (DESIGN.md, "Polygonize").
+#include <cstddef>
+#include <vector>
+
+#include "mesh/mesh.h"
+#include "scene/scene.h"
+#include "snow/maps.h"
+
+namespace snow {
+
+struct PolygonizeSettings {
+  /// Snow thinner than this is no snow (metres). The outline of every patch
+  /// is the marching-squares contour of the thickness field at this level.
+  float min_thickness = 0.005f;
+  /// Largest distance (metres) decimation may move the surface away from the
+  /// planes of the full-resolution mesh. Negative: half a texel. Zero: no
+  /// decimation. It is lowered to a quarter of a patch's median snow
+  /// thickness so thin snow keeps its volume.
+  float decimate_error = -1.0f;
+  /// Smoothing passes (count) over the snow top (mass-conserving diffusion of
+  /// the snow surface height) and over the outline. 0: none.
+  int smooth_iterations = 2;
+  /// Patches whose top covers less ground than this (square metres, plan
+  /// area) are dropped.
+  float min_patch_area = 0.01f;
+  /// true: closed solids (top, tapered edges, bottom). false: open top
+  /// surfaces only, their boundary lying on the supporting surface.
+  bool closed = true;
+  /// The bottom lies this far (metres) under the surface the snow rests on.
+  float bottom_offset = 0.001f;
+  /// Snow in neighbouring columns belongs to one patch when
+  /// snow::landing_layer links them (either way) and their snow tops differ by at most
+  /// texel * tan(connect_slope) (degrees, 0 to 89).
+  float connect_slope = 70.0f;
+};
+
+/// One connected snow patch as a mesh.
+struct SnowPatch {
+  /// World-space metres, +Y up, counter-clockwise outward faces. Named
+  /// "snow/<object name>" (unique among the returned patches); normals (one
+  /// per position) and planar UVs in world metres (u = x, v = z) filled;
+  /// material 0. Closed 2-manifold when PolygonizeSettings::closed.
+  TriMesh mesh;
+  int object = -1;            // scene object most of the patch rests on, -1 none
+  double volume = 0.0;        // m^3 enclosed by the closed mesh (also for open output)
+  double area = 0.0;          // m^2, plan (x, z) area covered by the top surface
+  double depth_volume = 0.0;  // m^3, sum of depth * texel^2 over the patch's texels
+  size_t texels = 0;          // layer texels in the patch (count)
+};
+
+/// Turns the snow lying on `maps` into meshes.
+///
+/// `depth` holds the snow depth (metres, >= 0) of every layer texel in the
+/// maps' layout (maps.layers * maps.grid.texels() entries; otherwise
+/// InputError); NaN or negative depths count as no snow, and depth on a
+/// texel without a surface is ignored. Texels with more than
+/// `min_thickness` of snow are joined into patches across layers by
+/// snow::landing_layer (column.h) plus the height step bound of
+/// `connect_slope`, so a floor running under a table is one patch; a patch
+/// holds at most one layer per column (a second layer of the same column
+/// starts another patch). Each patch becomes a mesh: the top at ground +
+/// depth over texel centres, the outline from marching squares on the
+/// thickness field (snow tapers to zero thickness there), the bottom
+/// `bottom_offset` under the ground, decimated within `decimate_error`.
+/// `scene` is only read for object names (maps.object indexes
+/// scene.objects; out-of-range indices give "snow/patch"). Patches come in a
+/// deterministic order (by their first texel in layer, row, column order).
+/// Patches under `min_patch_area` are dropped (logged at debug level).
+/// Reports progress; throws InputError on inconsistent maps.
+std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>& depth,
+                                  const Scene& scene, PolygonizeSettings settings);
+
+}  // namespace snow
