@@ -370,6 +370,11 @@ class GltfLoader {
     throw InputError(label_ + ": " + message);
   }
 
+  [[noreturn]] void fail_triangle_limit() const {
+    fail("the scene has more triangles than the limit of " +
+         std::to_string(settings_.limits.max_triangles) + " (LoadLimits::max_triangles)");
+  }
+
   void warn(const std::string& message) {
     scene_.warnings.push_back(message);
     log_warn(message);
@@ -405,7 +410,8 @@ class GltfLoader {
       const double d = value.get<double>();
       if (d >= 0 && d <= 9007199254740992.0 && std::floor(d) == d) return static_cast<uint64_t>(d);
     }
-    fail(what + " must be a non-negative integer, not " + one_line(value.dump(), 40));
+    fail(what + " must be a non-negative integer, not " +
+         one_line(value.dump(-1, ' ', false, json::error_handler_t::replace), 40));
   }
 
   uint64_t opt_uint(const json& object, const char* key, uint64_t fallback,
@@ -1184,24 +1190,26 @@ class GltfLoader {
     return *primitives;
   }
 
-  /// Triangles a primitive will produce, from declared counts only (no
-  /// decoding); 0 when unknown. Used to check the limit and reserve memory.
+  /// Triangles the mesh's primitives will produce, from validated declared
+  /// counts (no decoding). Used to check the limit and reserve memory early.
   uint64_t estimate_triangles(int mesh) {
     uint64_t total = 0;
-    const json& accessors = top_array("accessors");
-    for (const json& prim : primitives_of(mesh)) {
-      const json* mode_value = member(prim, "mode");
-      const uint64_t mode =
-          mode_value && mode_value->is_number_unsigned() ? mode_value->get<uint64_t>() : 4;
-      if (mode < 4 || mode > 6) continue;
+    const json& primitives = primitives_of(mesh);
+    const size_t accessor_count = top_array("accessors").size();
+    for (size_t p = 0; p < primitives.size(); ++p) {
+      const json& prim = primitives[p];
+      const std::string what = mesh_label(mesh) + " primitive " + std::to_string(p);
+      const uint64_t mode = opt_uint(prim, "mode", 4, what);
+      if (mode < 4 || mode > 6) continue;  // reported when decoded
       const json* attributes = member(prim, "attributes");
-      const json* source = member(prim, "indices");
-      if (!source && attributes) source = member(*attributes, "POSITION");
-      if (!source || !source->is_number_unsigned() || source->get<uint64_t>() >= accessors.size())
-        continue;
-      const json* count = member(accessors[source->get<size_t>()], "count");
-      if (!count || !count->is_number_unsigned()) continue;
-      const uint64_t n = std::min<uint64_t>(count->get<uint64_t>(), kMaxAccessorCount);
+      int64_t source = opt_index(prim, "indices", accessor_count, what, "accessors");
+      std::string role = what + " indices";
+      if (source < 0 && attributes) {
+        source = opt_index(*attributes, "POSITION", accessor_count, what, "accessors");
+        role = what + " POSITION";
+      }
+      if (source < 0) continue;
+      const uint64_t n = accessor_info(uint64_t(source), role).count;
       total += mode == 4 ? n / 3 : (n >= 3 ? n - 2 : 0);
     }
     return total;
@@ -1298,6 +1306,7 @@ class GltfLoader {
       }
       expand_topology(int(mode), indices, what, geometry.triangles);
     }
+    compact_vertices(geometry);
     if (!geometry.uvs.empty() && geometry.material >= 0) {
       const UvMapping& mapping = uv_mappings_[size_t(geometry.material)];
       if (mapping.transform) {
@@ -1305,6 +1314,34 @@ class GltfLoader {
       }
     }
     return geometry;
+  }
+
+  /// Drops vertices no triangle uses (primitives often index a small part of
+  /// a vertex array shared with others), so instances transform only these.
+  static void compact_vertices(PrimitiveGeometry& g) {
+    const size_t vertex_count = g.positions.size();
+    if (g.triangles.size() >= vertex_count * 2) {
+      // Usually every vertex is used: check before building a remap.
+      std::vector<uint8_t> used(vertex_count, 0);
+      for (uint32_t i : g.triangles) used[i] = 1;
+      if (std::find(used.begin(), used.end(), 0) == used.end()) return;
+    }
+    std::vector<uint32_t> remap(vertex_count, UINT32_MAX);
+    uint32_t next = 0;
+    for (uint32_t& i : g.triangles) {
+      if (remap[i] == UINT32_MAX) remap[i] = next++;
+      i = remap[i];
+    }
+    auto gather = [&](auto& values) {
+      if (values.empty()) return;
+      std::remove_reference_t<decltype(values)> out(next);
+      for (size_t v = 0; v < vertex_count; ++v)
+        if (remap[v] != UINT32_MAX) out[remap[v]] = values[v];
+      values = std::move(out);
+    };
+    gather(g.positions);
+    gather(g.normals);
+    gather(g.uvs);
   }
 
   /// TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN index lists to a triangle list
@@ -1433,9 +1470,7 @@ class GltfLoader {
         it = estimate.emplace(instance.mesh, estimate_triangles(instance.mesh)).first;
       total += it->second;
       ++uses[instance.mesh];
-      if (total > settings_.limits.max_triangles)
-        fail("the scene has more than " + std::to_string(settings_.limits.max_triangles) +
-             " triangles (LoadLimits::max_triangles)");
+      if (total > settings_.limits.max_triangles) fail_triangle_limit();
     }
     scene_.positions.reserve(size_t(total) * 3);
     scene_.normals.reserve(size_t(total) * 3);
@@ -1458,8 +1493,7 @@ class GltfLoader {
               std::vector<glm::vec3>& wp, std::vector<glm::vec3>& wn) {
     const uint64_t triangle_count = g.triangles.size() / 3;
     if (scene_.stats.triangles_read + triangle_count > settings_.limits.max_triangles)
-      fail("the scene has more than " + std::to_string(settings_.limits.max_triangles) +
-           " triangles (LoadLimits::max_triangles)");
+      fail_triangle_limit();
     scene_.stats.triangles_read += triangle_count;
     const glm::dmat4& world = instance.world;
     const glm::dmat3 linear(world);
