@@ -59,21 +59,50 @@ constexpr size_t kMaxPathNames = 24;  // node paths deeper than this are elided
 const char* const kModeNames[] = {"POINTS",    "LINES",          "LINE_LOOP",   "LINE_STRIP",
                                   "TRIANGLES", "TRIANGLE_STRIP", "TRIANGLE_FAN"};
 
-/// Makes text from the file safe for a one-line message.
+/// Length of the valid UTF-8 sequence at text[i], or 0 if it is invalid.
+size_t utf8_sequence(std::string_view text, size_t i) {
+  const auto c = static_cast<unsigned char>(text[i]);
+  size_t n = 0;
+  uint32_t cp = 0;
+  if (c < 0x80) return 1;
+  if ((c & 0xE0) == 0xC0)
+    n = 2, cp = c & 0x1F;
+  else if ((c & 0xF0) == 0xE0)
+    n = 3, cp = c & 0x0F;
+  else if ((c & 0xF8) == 0xF0)
+    n = 4, cp = c & 0x07;
+  else
+    return 0;
+  if (i + n > text.size()) return 0;
+  for (size_t k = 1; k < n; ++k) {
+    const auto d = static_cast<unsigned char>(text[i + k]);
+    if ((d & 0xC0) != 0x80) return 0;
+    cp = (cp << 6) | (d & 0x3F);
+  }
+  static const uint32_t kMin[5] = {0, 0, 0x80, 0x800, 0x10000};
+  if (cp < kMin[n] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return 0;
+  return n;
+}
+
+/// Makes text from the file safe for a one-line message: control characters
+/// become spaces, invalid UTF-8 bytes '?', and long text is cut with "...".
 std::string one_line(std::string_view text, size_t max_chars = 120) {
   std::string out;
   out.reserve(std::min(text.size(), max_chars) + 3);
-  for (char c : text) {
-    if (out.size() >= max_chars) {
-      // Do not cut a UTF-8 sequence in half.
-      while (!out.empty() && (static_cast<unsigned char>(out.back()) & 0xC0) == 0x80)
-        out.pop_back();
-      if (!out.empty() && (static_cast<unsigned char>(out.back()) & 0x80)) out.pop_back();
-      out += "...";
-      return out;
+  for (size_t i = 0; i < text.size();) {
+    if (out.size() >= max_chars) return out + "...";
+    const size_t n = utf8_sequence(text, i);
+    if (n == 0) {
+      out += '?';
+      ++i;
+    } else if (n == 1) {
+      const auto u = static_cast<unsigned char>(text[i]);
+      out += (u < 0x20 || u == 0x7F) ? ' ' : text[i];
+      ++i;
+    } else {
+      out.append(text.data() + i, n);
+      i += n;
     }
-    const auto u = static_cast<unsigned char>(c);
-    out += (u < 0x20 || u == 0x7F) ? ' ' : c;
   }
   return out;
 }
@@ -1036,7 +1065,7 @@ class GltfLoader {
     const json& scenes = top_array("scenes");
     const size_t node_count = nodes().size();
     std::vector<int> roots;
-    int64_t scene_index = opt_index(doc_, "scene", scenes.size(), "'scene'", "scenes");
+    int64_t scene_index = opt_index(doc_, "scene", scenes.size(), "top-level", "scenes");
     if (scene_index < 0 && !scenes.empty()) scene_index = 0;
     if (scene_index < 0) {
       for (size_t n = 0; n < node_count; ++n)
