@@ -129,6 +129,12 @@ void init_new_context(ProcAddressFn loader, Backend backend, const ContextOption
     throw GLError(to_string(backend) + ": OpenGL " + std::to_string(major) + "." +
                   std::to_string(minor) + " (" + gl_string(GL_RENDERER) + "), need 4.3 or newer");
   }
+  // The RAII creators and the passes use direct state access (core in 4.5).
+  if (!glCreateTextures || !glNamedBufferStorage || !glTextureStorage3D) {
+    throw GLError(to_string(backend) + ": OpenGL " + std::to_string(major) + "." +
+                  std::to_string(minor) + " (" + gl_string(GL_RENDERER) +
+                  ") lacks direct state access, need 4.5");
+  }
   if (want_debug(options) && glDebugMessageCallback) {
     glEnable(GL_DEBUG_OUTPUT);
     glEnable(GL_DEBUG_OUTPUT_SYNCHRONOUS);

@@ -9,7 +9,7 @@
 #include <EGL/eglext.h>
 
 #include <cstring>
-#include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -71,40 +71,25 @@ bool has_extension(const char* list, const char* name) {
 
 ProcAddressFn egl_loader() { return reinterpret_cast<ProcAddressFn>(&eglGetProcAddress); }
 
-// One eglInitialize per display, however many contexts use it; the last
-// context to go terminates it (eglTerminate would pull the display from
-// under the others).
-std::map<EGLDisplay, int>& display_users() {
-  static std::map<EGLDisplay, int> users;
-  return users;
-}
-
-void acquire_display(EGLDisplay display) {
-  int& users = display_users()[display];
-  if (users == 0) {
-    EGLint major = 0;
-    EGLint minor = 0;
-    if (!eglInitialize(display, &major, &minor)) {
-      display_users().erase(display);
-      throw GLError("eglInitialize failed (" + egl_error() + ")");
-    }
+// One eglInitialize per display, kept for the life of the process: the
+// same EGLDisplay is shared by every context on it (eglTerminate would pull
+// it from under the others), re-initializing costs time, and Mesa leaks a
+// little driver state on eglTerminate. The OS frees it all at exit.
+void initialize_display(EGLDisplay display) {
+  static std::set<EGLDisplay> initialized;
+  if (initialized.count(display)) return;
+  EGLint major = 0;
+  EGLint minor = 0;
+  if (!eglInitialize(display, &major, &minor)) {
+    throw GLError("eglInitialize failed (" + egl_error() + ")");
   }
-  ++users;
-}
-
-void release_display(EGLDisplay display) {
-  auto it = display_users().find(display);
-  if (it == display_users().end()) return;
-  if (--it->second == 0) {
-    eglTerminate(display);
-    display_users().erase(it);
-  }
+  initialized.insert(display);
 }
 
 class EglContext final : public Context {
  public:
   EglContext(Backend backend, EGLDisplay display) : backend_(backend), display_(display) {
-    acquire_display(display_);
+    initialize_display(display_);
   }
   ~EglContext() override {
     if (context_ != EGL_NO_CONTEXT) {
@@ -114,7 +99,6 @@ class EglContext final : public Context {
       eglDestroyContext(display_, context_);
     }
     if (surface_ != EGL_NO_SURFACE) eglDestroySurface(display_, surface_);
-    release_display(display_);
   }
 
   Backend backend() const override { return backend_; }
