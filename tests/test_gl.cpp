@@ -210,7 +210,9 @@ TEST(GlContext, BackendNames) {
 TEST(GlContext, FailureMessageListsEachBackendTried) {
   // Without a display GLFW must fail; the message names it with its reason.
   const char* display = std::getenv("DISPLAY");
+  const char* wayland = std::getenv("WAYLAND_DISPLAY");
   const std::string saved = display ? display : "";
+  const std::string saved_wayland = wayland ? wayland : "";
   unsetenv("DISPLAY");
   unsetenv("WAYLAND_DISPLAY");
   try {
@@ -234,6 +236,7 @@ TEST(GlContext, FailureMessageListsEachBackendTried) {
     EXPECT_NE(glfw, std::string::npos) << message;
   }
   if (!saved.empty()) setenv("DISPLAY", saved.c_str(), 1);
+  if (!saved_wayland.empty()) setenv("WAYLAND_DISPLAY", saved_wayland.c_str(), 1);
 }
 
 class GlTest : public ::testing::Test {
