@@ -376,6 +376,18 @@ TEST_F(SceneLoad, DefaultSceneIsTheSceneProperty) {
   EXPECT_EQ(snow::load_scene(g.write_glb(dir_, "s0")).triangle_count(), 1u);
 }
 
+TEST_F(SceneLoad, SceneListingAChildNodeWarns) {
+  int mesh = 0;
+  Gltf g = triangle_gltf(&mesh);
+  const int child = g.node({{"name", "Leaf"}, {"mesh", mesh}});
+  g.node({{"translation", {0, 9, 0}}, {"children", {child}}});
+  g.scene({child});  // invalid: scenes list root nodes only
+  const snow::Scene s = snow::load_scene(g.write_glb(dir_, "child_root"));
+  EXPECT_EQ(s.triangle_count(), 1u);
+  ASSERT_EQ(s.warnings.size(), 1u);
+  EXPECT_NE(s.warnings[0].find("'Leaf'"), std::string::npos) << s.warnings[0];
+}
+
 TEST_F(SceneLoad, VeryDeepHierarchyLoads) {
   int mesh = 0;
   Gltf g = triangle_gltf(&mesh);

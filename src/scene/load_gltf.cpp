@@ -539,8 +539,9 @@ class GltfLoader {
     const size_t slash = decoded.find('/');
     if (colon != std::string::npos && (slash == std::string::npos || colon < slash))
       fail(what + ": uri '" + one_line(uri) + "' is not a relative file path (refused)");
+    if (decoded.empty()) fail(what + ": empty uri");
     const fs::path relative(decoded);
-    if (decoded.empty() || relative.is_absolute() || relative.has_root_path())
+    if (relative.is_absolute() || relative.has_root_path())
       fail(what + ": uri '" + one_line(uri) + "' is an absolute path (refused)");
     for (const auto& part : relative) {
       if (part == "..")
@@ -1082,6 +1083,9 @@ class GltfLoader {
       if (n >= node_count)
         fail(what + " lists node " + std::to_string(n) + ", out of range (" +
              std::to_string(node_count) + " nodes)");
+      if (parents[n] != 0)
+        warn(what + " lists " + node_label(int(n)) +
+             ", which is a child of another node; its ancestors' transforms are not applied");
       roots.push_back(int(n));
     }
     return roots;
