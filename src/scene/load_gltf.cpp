@@ -382,13 +382,13 @@ class GltfLoader {
     read_materials();
     std::vector<Instance> instances = traverse();
     build_geometry(instances);
-    if (settings_.load_images) load_images();
     if (scene_.triangle_count() == 0) {
       if (scene_.stats.triangles_read > 0)
         fail("the scene has no triangles left after dropping " +
              std::to_string(scene_.stats.degenerate_dropped) + " degenerate ones");
       fail("the scene has no triangles");
     }
+    if (settings_.load_images) load_images();
     return std::move(scene_);
   }
 
@@ -650,12 +650,13 @@ class GltfLoader {
         json_begin = file_.data() + data_offset;
         json_size = chunk_length;
         have_json = true;
-      } else if (chunk == 1 && chunk_type == kChunkBin) {
+      } else if (chunk_type == kChunkBin && !has_glb_bin_) {
         glb_bin_ = file_.data() + data_offset;
         glb_bin_size_ = chunk_length;
         has_glb_bin_ = true;
       } else if (chunk_type == kChunkJson || chunk_type == kChunkBin) {
-        fail("bad GLB: chunk " + std::to_string(chunk) + " is a second JSON or BIN chunk");
+        fail("bad GLB: chunk " + std::to_string(chunk) + " is a second " +
+             (chunk_type == kChunkJson ? "JSON" : "BIN") + " chunk");
       }
       // Chunks are 4-byte aligned; tolerate writers that forgot the padding.
       offset = data_offset + chunk_length;
