@@ -1,1 +1,72 @@
-// Placeholder: this file is written by the module's issue.
+// Time-stepped accumulation: coverage (Tokoi 2006, section 4) times fresh
+// snow per step, stabilized after each step (DESIGN.md, "Stabilizer").
+#include "snow/accumulate.h"
+
+#include <cmath>
+#include <string>
+
+#include "core/error.h"
+#include "core/log.h"
+
+namespace snow {
+
+void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
+                   std::vector<float>& coverage) {
+  if (receives.empty()) return;
+  for (size_t k = 0; k < coverage.size(); ++k) {
+    const int32_t object = maps.object[k];
+    if (object >= 0 && size_t(object) < receives.size() && !receives[size_t(object)]) coverage[k] = 0;
+  }
+}
+
+SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSettings& coverage,
+                      const StabilizeSettings& stabilize, const AccumulateSettings& settings,
+                      const std::vector<uint8_t>& receives) {
+  if (!std::isfinite(settings.fall_depth) || settings.fall_depth < 0 || settings.fall_depth > 1000) {
+    throw InputError("snow depth must be between 0 and 1000 m, got " + std::to_string(settings.fall_depth));
+  }
+  if (settings.steps < 1 || settings.steps > 100000) {
+    throw InputError("snow steps must be between 1 and 100000, got " + std::to_string(settings.steps));
+  }
+  if (settings.snow_on_snow_every < 0) {
+    throw InputError("snow-on-snow interval must be 0 (off) or a positive number of steps");
+  }
+
+  SnowResult result;
+  CoverageRenderer shadows(scene);
+  Stabilizer stabilizer(maps, stabilize);
+  result.coverage = shadows.compute(maps, coverage);
+  mask_coverage(maps, receives, result.coverage);
+  result.coverage_updates = 1;
+
+  const float per_step = settings.fall_depth / float(settings.steps);
+  const double texel_area = double(maps.grid.texel) * double(maps.grid.texel);
+  Progress progress("snowfall", settings.steps);
+  for (int step = 0; step < settings.steps; ++step) {
+    const bool update = settings.snow_on_snow_every > 0 && step > 0 &&
+                        step % settings.snow_on_snow_every == 0;
+    if (update) {
+      const std::vector<float> lying = stabilizer.depth();
+      result.coverage = shadows.compute(maps, coverage, &lying);
+      mask_coverage(maps, receives, result.coverage);
+      ++result.coverage_updates;
+    }
+    stabilizer.add_snow(result.coverage, per_step);
+    double added = 0;
+    for (size_t k = 0; k < result.coverage.size(); ++k) {
+      if (!std::isnan(maps.ground[k])) added += double(result.coverage[k] * per_step);
+    }
+    result.fallen_volume += added * texel_area;
+    result.last = stabilizer.run();
+    result.iterations += result.last.iterations;
+    progress.update(step + 1);
+  }
+  progress.finish();
+
+  result.depth = stabilizer.depth();
+  result.lost_volume = stabilizer.lost_volume();
+  result.volume = snow_volume(maps, result.depth);
+  return result;
+}
+
+}  // namespace snow

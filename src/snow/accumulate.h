@@ -1,0 +1,50 @@
+#pragma once
+// Snowfall over time: each step adds fresh snow in proportion to the
+// coverage and stabilizes it (DESIGN.md, "snowfall" and "Stabilizer").
+// With snow on snow, the lying snow is drawn into the shadow maps every few
+// steps, so drifts shade what lies behind them (Fearing 2000, section 4).
+#include <cstdint>
+#include <vector>
+
+#include "scene/scene.h"
+#include "snow/coverage.h"
+#include "snow/maps.h"
+#include "snow/stabilize.h"
+
+namespace snow {
+
+struct AccumulateSettings {
+  float fall_depth = 0.3f;     // metres of fresh snow on open flat ground, all steps together
+  int steps = 1;               // time steps (1..100000); each adds fall_depth/steps * coverage
+  int snow_on_snow_every = 0;  // steps between coverage updates that include the lying snow;
+                               // 0 = off (coverage computed once, from the bare scene)
+};
+
+struct SnowResult {
+  std::vector<float> depth;     // metres per layer texel (maps' layout)
+  std::vector<float> coverage;  // the last coverage used, [0,1] (maps' layout)
+  StabilizeResult last;         // stabilizer result of the last step
+  int iterations = 0;           // stabilizer passes over all steps, count
+  int coverage_updates = 0;     // coverage computations (1 + snow-on-snow updates), count
+  double fallen_volume = 0.0;   // m^3 of snow added
+  double lost_volume = 0.0;     // m^3 that left the maps (off the domain)
+  double volume = 0.0;          // m^3 lying at the end; fallen = volume + lost (up to rounding)
+};
+
+/// Multiplies coverage by 0 on every layer texel whose object does not
+/// receive snow (receives[object] == 0); `receives` is indexed by scene
+/// object and may be empty (everything receives).
+void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
+                   std::vector<float>& coverage);
+
+/// Runs the snowfall on the GPU: coverage once (or every
+/// snow_on_snow_every steps with the lying snow included), then per step
+/// add fall_depth/steps * coverage and stabilize (Stabilizer::run). Objects
+/// with receives[object] == 0 get no fresh snow (snow sliding onto them
+/// still rests there). Reports progress. Needs a current GL context. Throws
+/// InputError for bad settings, GLError for GL trouble.
+SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSettings& coverage,
+                      const StabilizeSettings& stabilize, const AccumulateSettings& settings,
+                      const std::vector<uint8_t>& receives = {});
+
+}  // namespace snow
