@@ -1,1 +1,225 @@
-// Placeholder: this file is written by the module's issue.
+// Snow mesh export (DESIGN.md, "Outputs"). glTF files follow the Khronos
+// glTF 2.0 specification (images in buffer views: section 3.8.2 "Images");
+// OBJ and PLY are written by obj_writer.cpp and ply_writer.cpp.
+#include "mesh/export.h"
+
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <cctype>
+#include <sstream>
+#include <system_error>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "mesh/gltf_writer.h"
+#include "mesh/obj_writer.h"
+#include "mesh/ply_writer.h"
+
+namespace snow {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string lower_extension(const fs::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  return ext;
+}
+
+std::vector<TriMesh> patch_meshes(const std::vector<SnowPatch>& patches) {
+  std::vector<TriMesh> meshes;
+  meshes.reserve(patches.size());
+  for (const SnowPatch& p : patches) {
+    if (p.mesh.indices.size() < 3) continue;
+    meshes.push_back(p.mesh);
+    meshes.back().material = 0;
+  }
+  return meshes;
+}
+
+/// tinygltf image callback that keeps the encoded bytes (in Image::image) of
+/// images stored in files or data URIs instead of decoding them, so they can
+/// be written back unchanged. Images in buffer views stay where they are.
+bool keep_image_bytes(tinygltf::Image* image, const int /*index*/, std::string* /*err*/,
+                      std::string* /*warn*/, int /*req_width*/, int /*req_height*/,
+                      const unsigned char* bytes, int size, void* /*user_data*/) {
+  image->image.clear();
+  if (image->bufferView < 0 && bytes != nullptr && size > 0) {
+    image->image.assign(bytes, bytes + size);
+  }
+  image->as_is = true;
+  return true;
+}
+
+/// MIME type of encoded image bytes, from their signature; empty if unknown.
+std::string sniff_mime_type(const std::vector<unsigned char>& b) {
+  auto starts = [&](std::initializer_list<int> sig, size_t at = 0) {
+    if (b.size() < at + sig.size()) return false;
+    size_t k = at;
+    for (int c : sig) {
+      if (b[k++] != static_cast<unsigned char>(c)) return false;
+    }
+    return true;
+  };
+  if (starts({0x89, 'P', 'N', 'G', 0x0d, 0x0a, 0x1a, 0x0a})) return "image/png";
+  if (starts({0xff, 0xd8, 0xff})) return "image/jpeg";
+  if (starts({'R', 'I', 'F', 'F'}) && starts({'W', 'E', 'B', 'P'}, 8)) return "image/webp";
+  if (starts({0xab, 'K', 'T', 'X', ' ', '2', '0', 0xbb})) return "image/ktx2";
+  return {};
+}
+
+/// Moves every image held as bytes (from a file or a data URI) into buffer 0
+/// as a new buffer view.
+void embed_images(tinygltf::Model& model, const fs::path& input) {
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    tinygltf::Image& image = model.images[i];
+    if (image.bufferView >= 0) {
+      image.image.clear();
+      continue;
+    }
+    if (image.image.empty()) {
+      log_warn(input.string() + ": image " + std::to_string(i) + " ('" + image.uri +
+               "') could not be read; the output refers to it by its URI as it is");
+      continue;
+    }
+    std::string mime = sniff_mime_type(image.image);
+    if (mime.empty()) mime = image.mimeType;
+    if (mime.empty()) {
+      log_warn(input.string() + ": image " + std::to_string(i) + " ('" + image.uri +
+               "') has an unknown format; the output refers to it by its URI as it is");
+      image.image.clear();
+      continue;
+    }
+    if (model.buffers.empty()) model.buffers.emplace_back();
+    std::vector<unsigned char>& bytes = model.buffers[0].data;
+    bytes.resize((bytes.size() + 3) & ~size_t(3), 0);
+    tinygltf::BufferView view;
+    view.name = image.name.empty() ? "image" + std::to_string(i) : image.name;
+    view.buffer = 0;
+    view.byteOffset = bytes.size();
+    view.byteLength = image.image.size();
+    bytes.insert(bytes.end(), image.image.begin(), image.image.end());
+    model.bufferViews.push_back(view);
+    image.bufferView = int(model.bufferViews.size()) - 1;
+    image.mimeType = mime;
+    image.uri.clear();
+    image.image.clear();
+    image.as_is = false;
+  }
+}
+
+/// Fails early, before any file (a .bin, a .mtl beside the target) is
+/// written, when `path` cannot be the output.
+void check_output_path(const fs::path& path) {
+  const fs::path folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) {
+    throw IOError("cannot write " + path.string() + ": folder " + folder.string() +
+                  " does not exist");
+  }
+  if (fs::is_directory(path, ec))
+    throw IOError("cannot write " + path.string() + ": it is a folder");
+}
+
+/// First line of a tinygltf message.
+std::string first_line(const std::string& text) {
+  const size_t end = text.find('\n');
+  return end == std::string::npos ? text : text.substr(0, end);
+}
+
+}  // namespace
+
+MeshFormat format_from_path(const fs::path& path) {
+  const std::string ext = lower_extension(path);
+  if (ext == ".glb") return MeshFormat::Glb;
+  if (ext == ".gltf") return MeshFormat::Gltf;
+  if (ext == ".obj") return MeshFormat::Obj;
+  if (ext == ".ply") return MeshFormat::Ply;
+  throw InputError(path.string() + ": unknown mesh format '" + path.extension().string() +
+                   "' (use .glb, .gltf, .obj or .ply)");
+}
+
+const char* format_name(MeshFormat format) {
+  switch (format) {
+    case MeshFormat::Glb:
+      return "glb";
+    case MeshFormat::Gltf:
+      return "gltf";
+    case MeshFormat::Obj:
+      return "obj";
+    case MeshFormat::Ply:
+      return "ply";
+  }
+  return "?";
+}
+
+MeshMaterial snow_material() {
+  MeshMaterial m;
+  m.name = "snow";
+  m.base_color = glm::vec4(0.9f, 0.9f, 0.9f, 1.0f);
+  m.roughness = 0.8f;
+  m.metallic = 0.0f;
+  return m;
+}
+
+void write_snow_meshes(const std::vector<SnowPatch>& patches, const fs::path& path,
+                       MeshFormat format) {
+  check_output_path(path);
+  const std::vector<TriMesh> meshes = patch_meshes(patches);
+  switch (format) {
+    case MeshFormat::Glb:
+    case MeshFormat::Gltf: {
+      if (lower_extension(path) != (format == MeshFormat::Glb ? ".glb" : ".gltf")) {
+        throw InputError(path.string() + ": a " + format_name(format) +
+                         " file needs the extension ." + format_name(format));
+      }
+      tinygltf::Model model;
+      append_meshes(model, meshes, {snow_material()}, "Snow");
+      save_gltf(model, path);
+      break;
+    }
+    case MeshFormat::Obj:
+      write_obj(meshes, snow_material(), path);
+      break;
+    case MeshFormat::Ply:
+      write_ply(meshes, path);
+      break;
+  }
+}
+
+void write_combined_gltf(const fs::path& input_scene, const std::vector<SnowPatch>& patches,
+                         const fs::path& out) {
+  const std::string out_ext = lower_extension(out);
+  if (out_ext != ".glb" && out_ext != ".gltf") {
+    throw InputError(out.string() + ": the scene plus snow is written as .glb or .gltf only");
+  }
+  check_output_path(out);
+  std::error_code ec;
+  if (!fs::is_regular_file(input_scene, ec)) {
+    throw IOError("cannot read " + input_scene.string() + ": no such file");
+  }
+  tinygltf::Model model;
+  tinygltf::TinyGLTF loader;
+  loader.SetImageLoader(keep_image_bytes, nullptr);
+  std::string err, warn;
+  const bool binary = lower_extension(input_scene) == ".glb";
+  const bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, input_scene.string())
+                         : loader.LoadASCIIFromFile(&model, &err, &warn, input_scene.string());
+  if (!warn.empty()) {
+    std::istringstream lines(warn);
+    for (std::string line; std::getline(lines, line);) {
+      if (!line.empty()) log_warn(input_scene.string() + ": " + line);
+    }
+  }
+  if (!ok) {
+    throw InputError(input_scene.string() + ": " +
+                     (err.empty() ? std::string("not a valid glTF file") : first_line(err)));
+  }
+  embed_images(model, input_scene);
+  append_meshes(model, patch_meshes(patches), {snow_material()}, "Snow");
+  save_gltf(model, out);
+}
+
+}  // namespace snow

@@ -1,0 +1,553 @@
+// Tests for snow mesh export: snow-only GLB/glTF/OBJ/PLY and the input scene
+// plus snow. Every glTF and GLB written here goes through the Khronos glTF
+// validator (tools/validator, installed with `npm ci` there) when node and the
+// validator are installed.
+#include <gtest/gtest.h>
+#include <tiny_gltf.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#define STB_IMAGE_WRITE_STATIC
+#define STB_IMAGE_WRITE_IMPLEMENTATION
+#include <stb_image_write.h>
+
+#include "core/error.h"
+#include "mesh/export.h"
+#include "mesh/gltf_writer.h"
+#include "mesh/polygonize.h"
+
+namespace snow {
+namespace {
+namespace fs = std::filesystem;
+
+// ---------------------------------------------------------------------------
+// Helpers
+
+/// A fresh, empty folder for one test.
+fs::path test_dir() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path dir =
+      fs::temp_directory_path() /
+      ("snow_test_export_" + std::string(info->name()) + "_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+struct Validation {
+  bool ran = false;
+  int status = -1;
+  std::string output;
+};
+
+/// Runs tools/validator/validate.mjs over `files` (not run when node or the
+/// validator is not installed).
+Validation run_validator(const std::vector<fs::path>& files) {
+  Validation v;
+  const fs::path dir = fs::path(SNOW_SOURCE_DIR) / "tools" / "validator";
+  if (!fs::exists(dir / "node_modules" / "gltf-validator" / "package.json")) return v;
+  if (std::system("command -v node >/dev/null 2>&1") != 0) return v;
+  std::string command = "node '" + (dir / "validate.mjs").string() + "'";
+  for (const fs::path& f : files) command += " '" + f.string() + "'";
+  command += " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return v;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) v.output.append(buf, n);
+  const int status = pclose(pipe);
+  v.ran = true;
+  v.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return v;
+}
+
+void expect_valid_gltf(const std::vector<fs::path>& files) {
+  const Validation v = run_validator(files);
+  if (!v.ran) {
+    std::printf("glTF validator not installed (npm ci in tools/validator): not validated\n");
+    return;
+  }
+  std::printf("%s", v.output.c_str());
+  EXPECT_EQ(v.status, 0) << v.output;
+  for (const fs::path& f : files) {
+    EXPECT_NE(v.output.find(f.string() + ": 0 errors"), std::string::npos) << v.output;
+  }
+}
+
+tinygltf::Model load_gltf(const fs::path& path) {
+  tinygltf::Model model;
+  tinygltf::TinyGLTF loader;
+  std::string err, warn;
+  const bool ok = path.extension() == ".glb"
+                      ? loader.LoadBinaryFromFile(&model, &err, &warn, path.string())
+                      : loader.LoadASCIIFromFile(&model, &err, &warn, path.string());
+  EXPECT_TRUE(ok) << path << ": " << err;
+  return model;
+}
+
+/// Snow on a table and the floor around (see test_polygonize): two patches,
+/// "snow/Floor" and "snow/Table Top" (a name with a space).
+std::vector<SnowPatch> table_patches() {
+  SnowMaps maps;
+  MapGrid grid;
+  grid.origin = glm::vec2(-1.6f);
+  grid.texel = 0.1f;
+  grid.width = grid.height = 32;
+  maps.allocate(grid, 3);
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  for (int j = 0; j < 32; ++j) {
+    for (int i = 0; i < 32; ++i) {
+      const bool under = i >= 10 && i < 22 && j >= 10 && j < 22;
+      auto set = [&](int l, float g, float c, glm::vec3 n, int object, float d) {
+        const size_t k = maps.index(l, i, j);
+        maps.ground[k] = g;
+        maps.ceiling[k] = c;
+        maps.normal[k] = n;
+        maps.object[k] = object;
+        depth[k] = d;
+      };
+      const float floor_snow = (i >= 2 && i < 30 && j >= 2 && j < 30) ? 0.2f : 0.0f;
+      if (under) {
+        set(0, 0.75f, kOpenSky, {0, 1, 0}, 1, 0.15f);
+        set(1, 0.70f, 0.75f, {0, -1, 0}, 1, 0.0f);
+        set(2, 0.0f, 0.70f, {0, 1, 0}, 0, 0.0f);
+      } else {
+        set(0, 0.0f, kOpenSky, {0, 1, 0}, 0, floor_snow);
+      }
+    }
+  }
+  Scene scene;
+  for (const char* name : {"Floor", "Table Top"}) {
+    SceneObject o;
+    o.name = name;
+    scene.objects.push_back(o);
+  }
+  return polygonize(maps, depth, scene, {});
+}
+
+size_t count_lines(const std::string& text, const std::string& prefix) {
+  std::istringstream in(text);
+  size_t n = 0;
+  for (std::string line; std::getline(in, line);) n += line.rfind(prefix, 0) == 0;
+  return n;
+}
+
+std::string read_text(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// ---------------------------------------------------------------------------
+
+TEST(Export, FormatFromPath) {
+  EXPECT_EQ(format_from_path("a/b.glb"), MeshFormat::Glb);
+  EXPECT_EQ(format_from_path("b.GLTF"), MeshFormat::Gltf);
+  EXPECT_EQ(format_from_path("snow.Obj"), MeshFormat::Obj);
+  EXPECT_EQ(format_from_path("snow.ply"), MeshFormat::Ply);
+  EXPECT_THROW(format_from_path("snow.fbx"), InputError);
+  EXPECT_THROW(format_from_path("snow"), InputError);
+  EXPECT_STREQ(format_name(MeshFormat::Ply), "ply");
+  const MeshMaterial m = snow_material();
+  EXPECT_NEAR(m.roughness, 0.8f, 1e-6f);
+  EXPECT_EQ(m.metallic, 0.0f);
+  EXPECT_GE(m.base_color.r, 0.85f);
+  EXPECT_EQ(m.base_color.r, m.base_color.b);
+}
+
+TEST(Export, ValidatorIsInstalled) {
+  const fs::path dir = test_dir();
+  write_snow_meshes(table_patches(), dir / "probe.glb", MeshFormat::Glb);
+  const Validation v = run_validator({dir / "probe.glb"});
+  if (!v.ran) {
+    GTEST_SKIP() << "node or the glTF validator is missing: run `npm ci` in tools/validator";
+  }
+  EXPECT_EQ(v.status, 0) << v.output;
+  // And it does catch errors: a GLB cut short is reported.
+  const std::string bytes = read_text(dir / "probe.glb");
+  std::ofstream(dir / "broken.glb", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  const Validation broken = run_validator({dir / "broken.glb"});
+  EXPECT_NE(broken.status, 0) << broken.output;
+}
+
+TEST(Export, SnowOnlyGltfHasASnowRootPerPatchNodesAndValidates) {
+  const auto patches = table_patches();
+  ASSERT_EQ(patches.size(), 2u);
+  const fs::path dir = test_dir();
+  for (const char* name : {"snow.glb", "snow.gltf"}) {
+    SCOPED_TRACE(name);
+    const fs::path path = dir / name;
+    write_snow_meshes(patches, path, format_from_path(path));
+    ASSERT_TRUE(fs::exists(path));
+    if (path.extension() == ".gltf") {
+      EXPECT_TRUE(fs::exists(dir / "snow.bin"));
+    }
+    const tinygltf::Model model = load_gltf(path);
+    ASSERT_EQ(model.scenes.size(), 1u);
+    const auto& roots = model.scenes[size_t(std::max(model.defaultScene, 0))].nodes;
+    ASSERT_EQ(roots.size(), 1u);
+    const tinygltf::Node& snow = model.nodes[size_t(roots[0])];
+    EXPECT_EQ(snow.name, "Snow");
+    EXPECT_TRUE(snow.matrix.empty() && snow.translation.empty() && snow.rotation.empty());
+    ASSERT_EQ(snow.children.size(), patches.size());
+    std::set<std::string> names;
+    for (size_t c = 0; c < snow.children.size(); ++c) {
+      const tinygltf::Node& node = model.nodes[size_t(snow.children[c])];
+      names.insert(node.name);
+      ASSERT_GE(node.mesh, 0);
+      const tinygltf::Primitive& prim = model.meshes[size_t(node.mesh)].primitives.at(0);
+      EXPECT_TRUE(prim.attributes.count("NORMAL"));
+      EXPECT_TRUE(prim.attributes.count("TEXCOORD_0"));
+      const tinygltf::Accessor& idx = model.accessors[size_t(prim.indices)];
+      EXPECT_EQ(idx.count, patches[c].mesh.indices.size());
+      const tinygltf::Material& m = model.materials[size_t(prim.material)];
+      EXPECT_EQ(m.name, "snow");
+      EXPECT_NEAR(m.pbrMetallicRoughness.roughnessFactor, 0.8, 1e-6);
+      EXPECT_NEAR(m.pbrMetallicRoughness.baseColorFactor[0], 0.9, 1e-6);
+    }
+    EXPECT_EQ(names, (std::set<std::string>{"snow/Floor", "snow/Table Top"}));
+  }
+  // No patches at all still gives valid, empty files.
+  write_snow_meshes({}, dir / "empty.glb", MeshFormat::Glb);
+  write_snow_meshes({}, dir / "empty.gltf", MeshFormat::Gltf);
+  expect_valid_gltf({dir / "snow.glb", dir / "snow.gltf", dir / "empty.glb", dir / "empty.gltf"});
+}
+
+TEST(Export, ObjHasOneObjectPerPatchWithNormalsUvsAndMaterial) {
+  const auto patches = table_patches();
+  const fs::path dir = test_dir();
+  write_snow_meshes(patches, dir / "snow.obj", MeshFormat::Obj);
+  const std::string obj = read_text(dir / "snow.obj");
+  const std::string mtl = read_text(dir / "snow.mtl");
+  size_t vertices = 0, faces = 0;
+  for (const auto& p : patches) {
+    vertices += p.mesh.positions.size();
+    faces += p.mesh.indices.size() / 3;
+  }
+  EXPECT_EQ(count_lines(obj, "mtllib snow.mtl"), 1u);
+  EXPECT_EQ(count_lines(obj, "o "), patches.size());
+  EXPECT_EQ(count_lines(obj, "o snow/Floor"), 1u);
+  EXPECT_EQ(count_lines(obj, "o snow/Table_Top"), 1u);
+  EXPECT_EQ(count_lines(obj, "v "), vertices);
+  EXPECT_EQ(count_lines(obj, "vt "), vertices);
+  EXPECT_EQ(count_lines(obj, "vn "), vertices);
+  EXPECT_EQ(count_lines(obj, "f "), faces);
+  EXPECT_EQ(count_lines(obj, "usemtl snow"), patches.size());
+  EXPECT_EQ(count_lines(mtl, "newmtl snow"), 1u);
+  EXPECT_EQ(count_lines(mtl, "Pr 0.8"), 1u);
+  // Every face refers to existing v/vt/vn, the same index for all three.
+  std::istringstream in(obj);
+  size_t checked = 0;
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("f ", 0) != 0) continue;
+    std::istringstream f(line.substr(2));
+    for (int c = 0; c < 3; ++c) {
+      std::string corner;
+      f >> corner;
+      size_t v = 0, vt = 0, vn = 0;
+      ASSERT_EQ(std::sscanf(corner.c_str(), "%zu/%zu/%zu", &v, &vt, &vn), 3) << line;
+      ASSERT_GE(v, 1u);
+      ASSERT_LE(v, vertices);
+      ASSERT_EQ(v, vt);
+      ASSERT_EQ(v, vn);
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, faces);
+  // The first vertex round-trips.
+  std::istringstream again(obj);
+  for (std::string line; std::getline(again, line);) {
+    if (line.rfind("v ", 0) != 0) continue;
+    float x, y, z;
+    ASSERT_EQ(std::sscanf(line.c_str(), "v %f %f %f", &x, &y, &z), 3);
+    EXPECT_EQ(x, patches[0].mesh.positions[0].x);
+    EXPECT_EQ(y, patches[0].mesh.positions[0].y);
+    EXPECT_EQ(z, patches[0].mesh.positions[0].z);
+    break;
+  }
+}
+
+TEST(Export, PlyHoldsAllPatchesInOneBinaryMesh) {
+  const auto patches = table_patches();
+  const fs::path dir = test_dir();
+  write_snow_meshes(patches, dir / "snow.ply", MeshFormat::Ply);
+  const std::string bytes = read_text(dir / "snow.ply");
+  const size_t end = bytes.find("end_header\n");
+  ASSERT_NE(end, std::string::npos);
+  const std::string header = bytes.substr(0, end);
+  size_t vertices = 0, faces = 0;
+  for (const auto& p : patches) {
+    vertices += p.mesh.positions.size();
+    faces += p.mesh.indices.size() / 3;
+  }
+  EXPECT_NE(header.find("format binary_little_endian 1.0"), std::string::npos);
+  EXPECT_NE(header.find("element vertex " + std::to_string(vertices) + "\n"), std::string::npos);
+  EXPECT_NE(header.find("element face " + std::to_string(faces) + "\n"), std::string::npos);
+  EXPECT_NE(header.find("property float nx"), std::string::npos);
+  EXPECT_NE(header.find("property float s"), std::string::npos);
+  EXPECT_NE(header.find("comment mesh snow/Table Top faces"), std::string::npos);
+  const size_t body = end + std::strlen("end_header\n");
+  ASSERT_EQ(bytes.size(), body + vertices * 32 + faces * 13);
+  // Vertices of the second patch follow the first's; faces index them.
+  const glm::vec3 p = patches[1].mesh.positions[0];
+  float xyz[3];
+  std::memcpy(xyz, bytes.data() + body + patches[0].mesh.positions.size() * 32, sizeof(xyz));
+  EXPECT_EQ(xyz[0], p.x);
+  EXPECT_EQ(xyz[1], p.y);
+  EXPECT_EQ(xyz[2], p.z);
+  const char* face = bytes.data() + body + vertices * 32;
+  uint32_t max_index = 0;
+  for (size_t f = 0; f < faces; ++f, face += 13) {
+    ASSERT_EQ(face[0], 3);
+    for (int c = 0; c < 3; ++c) {
+      uint32_t v;
+      std::memcpy(&v, face + 1 + 4 * c, 4);
+      max_index = std::max(max_index, v);
+    }
+  }
+  EXPECT_EQ(max_index + 1, vertices);
+}
+
+TEST(Export, UnwritablePathIsAnIOErrorAndLeavesNothing) {
+  const auto patches = table_patches();
+  const fs::path dir = test_dir();
+  for (const char* name : {"snow.glb", "snow.gltf", "snow.obj", "snow.ply"}) {
+    SCOPED_TRACE(name);
+    const fs::path missing = dir / "no" / "such" / "folder" / name;
+    EXPECT_THROW(write_snow_meshes(patches, missing, format_from_path(missing)), IOError);
+    const fs::path folder = dir / (std::string(name) + ".d");
+    fs::create_directories(folder / name);  // the target is a folder
+    EXPECT_THROW(write_snow_meshes(patches, folder / name, format_from_path(name)), IOError);
+    if (geteuid() != 0) {  // root writes anywhere
+      const fs::path locked = dir / (std::string(name) + ".locked");
+      fs::create_directories(locked);
+      fs::permissions(locked, fs::perms::owner_read | fs::perms::owner_exec);
+      EXPECT_THROW(write_snow_meshes(patches, locked / name, format_from_path(name)), IOError);
+      fs::permissions(locked, fs::perms::owner_all);
+      EXPECT_TRUE(fs::is_empty(locked));
+    }
+  }
+  // Nothing but the folders made above.
+  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
+    EXPECT_TRUE(entry.is_directory()) << entry.path();
+  }
+  EXPECT_THROW(write_combined_gltf(dir / "absent.gltf", patches, dir / "out.glb"), IOError);
+  EXPECT_THROW(write_combined_gltf(dir / "absent.gltf", patches, dir / "out.obj"), InputError);
+  std::ofstream(dir / "garbage.gltf") << "{ not json";
+  EXPECT_THROW(write_combined_gltf(dir / "garbage.gltf", patches, dir / "out.glb"), InputError);
+  EXPECT_FALSE(fs::exists(dir / "out.glb"));
+}
+
+/// A small input scene made here: a textured triangle (image in a PNG file
+/// beside the .gltf), a camera, an animation and a material extension.
+fs::path write_input_scene(const fs::path& folder, std::vector<unsigned char>* png) {
+  const unsigned char pixels[2 * 2 * 3] = {255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255};
+  png->clear();
+  stbi_write_png_to_func(
+      [](void* ctx, void* data, int size) {
+        auto* out = static_cast<std::vector<unsigned char>*>(ctx);
+        out->insert(out->end(), static_cast<unsigned char*>(data),
+                    static_cast<unsigned char*>(data) + size);
+      },
+      png, 2, 2, 3, pixels, 0);
+  std::ofstream(folder / "checker.png", std::ios::binary)
+      .write(reinterpret_cast<const char*>(png->data()), std::streamsize(png->size()));
+
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.buffers.emplace_back();
+  auto add = [&](const void* data, size_t size, int count, int type, int target,
+                 std::vector<double> min = {}, std::vector<double> max = {}) {
+    auto& bytes = model.buffers[0].data;
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = bytes.size();
+    view.byteLength = size;
+    view.target = target;
+    bytes.insert(bytes.end(), static_cast<const unsigned char*>(data),
+                 static_cast<const unsigned char*>(data) + size);
+    model.bufferViews.push_back(view);
+    tinygltf::Accessor a;
+    a.bufferView = int(model.bufferViews.size()) - 1;
+    a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+    a.type = type;
+    a.count = size_t(count);
+    a.minValues = std::move(min);
+    a.maxValues = std::move(max);
+    model.accessors.push_back(a);
+    return int(model.accessors.size()) - 1;
+  };
+  const float positions[9] = {-2, 0, -2, 2, 0, -2, 0, 0, 2};
+  const float uvs[6] = {0, 0, 1, 0, 0.5f, 1};
+  const float times[2] = {0, 1};
+  const float moves[6] = {0, 0, 0, 0, 0.5f, 0};
+  tinygltf::Primitive prim;
+  prim.mode = TINYGLTF_MODE_TRIANGLES;
+  prim.attributes["POSITION"] = add(positions, sizeof(positions), 3, TINYGLTF_TYPE_VEC3,
+                                    TINYGLTF_TARGET_ARRAY_BUFFER, {-2, 0, -2}, {2, 0, 2});
+  prim.attributes["TEXCOORD_0"] =
+      add(uvs, sizeof(uvs), 3, TINYGLTF_TYPE_VEC2, TINYGLTF_TARGET_ARRAY_BUFFER);
+  prim.material = 0;
+  tinygltf::Mesh mesh;
+  mesh.name = "Ground";
+  mesh.primitives.push_back(prim);
+  model.meshes.push_back(mesh);
+
+  tinygltf::Image image;
+  image.name = "checker";
+  image.uri = "checker.png";
+  model.images.push_back(image);
+  tinygltf::Sampler sampler;
+  sampler.magFilter = TINYGLTF_TEXTURE_FILTER_NEAREST;
+  model.samplers.push_back(sampler);
+  tinygltf::Texture texture;
+  texture.source = 0;
+  texture.sampler = 0;
+  model.textures.push_back(texture);
+  tinygltf::Material material;
+  material.name = "Checker";
+  material.pbrMetallicRoughness.baseColorTexture.index = 0;
+  material.emissiveFactor = {1, 1, 1};
+  tinygltf::Value::Object strength;
+  strength["emissiveStrength"] = tinygltf::Value(2.0);
+  material.extensions["KHR_materials_emissive_strength"] = tinygltf::Value(strength);
+  model.materials.push_back(material);
+  model.extensionsUsed.push_back("KHR_materials_emissive_strength");
+
+  tinygltf::Camera camera;
+  camera.type = "perspective";
+  camera.perspective.yfov = 0.8;
+  camera.perspective.znear = 0.1;
+  camera.perspective.zfar = 100;
+  camera.perspective.aspectRatio = 1.5;
+  model.cameras.push_back(camera);
+
+  tinygltf::Node ground;
+  ground.name = "Ground";
+  ground.mesh = 0;
+  tinygltf::Node eye;
+  eye.name = "Eye";
+  eye.camera = 0;
+  eye.translation = {0, 2, 6};
+  model.nodes = {ground, eye};
+  tinygltf::Scene scene;
+  scene.name = "World";
+  scene.nodes = {0, 1};
+  model.scenes.push_back(scene);
+  model.defaultScene = 0;
+
+  tinygltf::Animation animation;
+  animation.name = "Bob";
+  tinygltf::AnimationSampler as;
+  as.input = add(times, sizeof(times), 2, TINYGLTF_TYPE_SCALAR, 0, {0}, {1});
+  as.output = add(moves, sizeof(moves), 2, TINYGLTF_TYPE_VEC3, 0);
+  as.interpolation = "LINEAR";
+  animation.samplers.push_back(as);
+  tinygltf::AnimationChannel channel;
+  channel.sampler = 0;
+  channel.target_node = 0;
+  channel.target_path = "translation";
+  animation.channels.push_back(channel);
+  model.animations.push_back(animation);
+
+  const fs::path path = folder / "input.gltf";
+  save_gltf(model, path);
+  return path;
+}
+
+TEST(Export, CombinedKeepsTheInputAndEmbedsItsImages) {
+  const auto patches = table_patches();
+  const fs::path dir = test_dir();
+  fs::create_directories(dir / "in");
+  fs::create_directories(dir / "out");
+  std::vector<unsigned char> png;
+  const fs::path input = write_input_scene(dir / "in", &png);
+  const tinygltf::Model before = load_gltf(input);
+  expect_valid_gltf({input});
+
+  for (const char* name : {"combined.glb", "combined.gltf"}) {
+    SCOPED_TRACE(name);
+    const fs::path out = dir / "out" / name;
+    write_combined_gltf(input, patches, out);
+    const tinygltf::Model after = load_gltf(out);
+    EXPECT_EQ(after.nodes.size(), before.nodes.size() + patches.size() + 1);
+    EXPECT_EQ(after.meshes.size(), before.meshes.size() + patches.size());
+    EXPECT_EQ(after.materials.size(), before.materials.size() + 1);
+    EXPECT_EQ(after.textures.size(), before.textures.size());
+    EXPECT_EQ(after.images.size(), before.images.size());
+    EXPECT_EQ(after.samplers.size(), before.samplers.size());
+    EXPECT_EQ(after.cameras.size(), before.cameras.size());
+    EXPECT_EQ(after.animations.size(), before.animations.size());
+    EXPECT_EQ(after.extensionsUsed, before.extensionsUsed);
+    ASSERT_EQ(after.scenes.size(), 1u);
+    EXPECT_EQ(after.scenes[0].name, "World");
+    // The input's nodes come first, unchanged; the snow root is added.
+    const auto& roots = after.scenes[0].nodes;
+    ASSERT_EQ(roots.size(), 3u);
+    EXPECT_EQ(after.nodes[size_t(roots[0])].name, "Ground");
+    EXPECT_EQ(after.nodes[size_t(roots[1])].name, "Eye");
+    EXPECT_EQ(after.nodes[1].translation, before.nodes[1].translation);
+    EXPECT_EQ(after.nodes[size_t(roots[2])].name, "Snow");
+    EXPECT_EQ(after.nodes[size_t(roots[2])].children.size(), patches.size());
+    EXPECT_EQ(after.materials[0].name, "Checker");
+    EXPECT_TRUE(after.materials[0].extensions.count("KHR_materials_emissive_strength"));
+    EXPECT_EQ(after.animations[0].channels.at(0).target_path, "translation");
+    // The image is embedded byte for byte.
+    const tinygltf::Image& image = after.images[0];
+    EXPECT_TRUE(image.uri.empty());
+    ASSERT_GE(image.bufferView, 0);
+    EXPECT_EQ(image.mimeType, "image/png");
+    const tinygltf::BufferView& view = after.bufferViews[size_t(image.bufferView)];
+    const auto& data = after.buffers[size_t(view.buffer)].data;
+    ASSERT_EQ(view.byteLength, png.size());
+    EXPECT_TRUE(std::equal(png.begin(), png.end(), data.begin() + long(view.byteOffset)));
+  }
+  // The output folder holds only what was written (no image files copied).
+  std::set<std::string> files;
+  for (const auto& e : fs::directory_iterator(dir / "out")) files.insert(e.path().filename());
+  EXPECT_EQ(files, (std::set<std::string>{"combined.glb", "combined.gltf", "combined.bin"}));
+  expect_valid_gltf({dir / "out" / "combined.glb", dir / "out" / "combined.gltf"});
+}
+
+TEST(Export, CombinedToyCarKeepsItsCounts) {
+  const fs::path input = fs::path(SNOW_SHARED_SCENES) / "khronos" / "ToyCar" / "ToyCar.gltf";
+  if (!fs::exists(input)) GTEST_SKIP() << input << " is absent";
+  const auto patches = table_patches();
+  const fs::path dir = test_dir();
+  const tinygltf::Model before = load_gltf(input);
+  for (const char* name : {"toycar_snow.glb", "toycar_snow.gltf"}) {
+    SCOPED_TRACE(name);
+    const fs::path out = dir / name;
+    write_combined_gltf(input, patches, out);
+    const tinygltf::Model after = load_gltf(out);
+    EXPECT_EQ(after.nodes.size(), before.nodes.size() + patches.size() + 1);
+    EXPECT_EQ(after.meshes.size(), before.meshes.size() + patches.size());
+    EXPECT_EQ(after.materials.size(), before.materials.size() + 1);
+    EXPECT_EQ(after.textures.size(), before.textures.size());
+    EXPECT_EQ(after.images.size(), before.images.size());
+    EXPECT_EQ(after.cameras.size(), before.cameras.size());
+    EXPECT_EQ(after.animations.size(), before.animations.size());
+    EXPECT_EQ(after.extensionsUsed, before.extensionsUsed);
+    for (const auto& image : after.images) {
+      EXPECT_TRUE(image.uri.empty());
+      EXPECT_GE(image.bufferView, 0);
+    }
+    std::printf(
+        "%s: %zu nodes, %zu meshes, %zu materials, %zu textures, %zu cameras "
+        "(input: %zu, %zu, %zu, %zu, %zu)\n",
+        name, after.nodes.size(), after.meshes.size(), after.materials.size(),
+        after.textures.size(), after.cameras.size(), before.nodes.size(), before.meshes.size(),
+        before.materials.size(), before.textures.size(), before.cameras.size());
+  }
+  expect_valid_gltf({dir / "toycar_snow.glb", dir / "toycar_snow.gltf"});
+}
+
+}  // namespace
+}  // namespace snow
