@@ -330,7 +330,7 @@ TEST_F(RenderTest, ThreeQuarterViewIsFromTheSouthEastAndFramesTheBounds) {
   EXPECT_GT(min_y, 0);
   EXPECT_LT(max_x, image.width - 1);
   EXPECT_LT(max_y, image.height - 1);
-  EXPECT_TRUE(max_x - min_x > 0.75f * image.width || max_y - min_y > 0.75f * image.height)
+  EXPECT_TRUE(max_x - min_x > 0.85f * image.width || max_y - min_y > 0.85f * image.height)
       << min_x << ".." << max_x << " x " << min_y << ".." << max_y;
 }
 
@@ -360,6 +360,45 @@ TEST_F(RenderTest, CamerasFrameAllCorners) {
   EXPECT_GT(orbit.eye.x, b.center().x);  // east
   EXPECT_GT(orbit.eye.z, b.center().z);  // south
   EXPECT_GT(orbit.eye.y, b.max.y);       // above
+}
+
+TEST_F(RenderTest, FitCameraFramesThePointsTightly) {
+  // A flat 10 m cloth with a small box on it; the bounds reach 3 m up only
+  // at one corner (a pole), so box-corner framing leaves much empty image.
+  std::vector<glm::vec3> points;
+  for (int i = 0; i <= 10; ++i) {
+    for (int j = 0; j <= 10; ++j) points.push_back({i - 5.0f, 0.0f, j - 5.0f});
+  }
+  points.push_back({-5, 3, -5});
+  Bounds b;
+  for (const glm::vec3& p : points) b.extend(p);
+  const float margin = 0.05f;
+  const PreviewCamera loose = orbit_camera(b, 45, 35, 1.6f, 35, margin);
+  const PreviewCamera tight = orbit_camera_fit(b, {&points}, 45, 35, 1.6f, 35, margin);
+  auto extent = [&](const PreviewCamera& cam) {
+    glm::vec2 lo(10.0f), hi(-10.0f);
+    for (const glm::vec3& p : points) {
+      const glm::vec4 clip = cam.view_projection() * glm::vec4(p, 1.0f);
+      const glm::vec3 ndc = glm::vec3(clip) / clip.w;
+      EXPECT_GT(ndc.z, -1.0f);
+      EXPECT_LT(ndc.z, 1.0f);
+      lo = glm::min(lo, glm::vec2(ndc));
+      hi = glm::max(hi, glm::vec2(ndc));
+    }
+    return std::pair{lo, hi};
+  };
+  const auto [tlo, thi] = extent(tight);
+  const float limit = 1.0f - 2.0f * margin + 1e-3f;
+  EXPECT_GE(tlo.x, -limit);
+  EXPECT_GE(tlo.y, -limit);
+  EXPECT_LE(thi.x, limit);
+  EXPECT_LE(thi.y, limit);
+  // Tight: touches the margin on one axis, centred on both.
+  EXPECT_TRUE(thi.x - tlo.x > 2.0f * limit - 0.02f || thi.y - tlo.y > 2.0f * limit - 0.02f);
+  EXPECT_NEAR(tlo.x + thi.x, 0.0f, 0.05f);
+  EXPECT_NEAR(tlo.y + thi.y, 0.0f, 0.05f);
+  const auto [llo, lhi] = extent(loose);
+  EXPECT_GT((thi.x - tlo.x) * (thi.y - tlo.y), (lhi.x - llo.x) * (lhi.y - llo.y));
 }
 
 TEST_F(RenderTest, ExtraMeshesDrawOnTopWithDepth) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -41,35 +42,45 @@ float fill_fraction(float margin) { return std::clamp(1.0f - 2.0f * margin, 0.05
 
 }  // namespace
 
-PreviewCamera orbit_camera(const Bounds& input, float azimuth, float elevation, float aspect,
-                           float fov, float margin, float zoom_out) {
-  const Bounds bounds = usable(input);
-  const glm::vec3 center = bounds.center();
-  aspect = aspect > 0.0f ? aspect : 1.0f;
-  fov = std::clamp(fov, 1.0f, 170.0f);
+namespace {
+
+struct Orbit {
+  glm::vec3 to_eye, right, up;  // unit; to_eye points from the target to the eye
+  float tan_h, tan_v;           // half-extents of the usable image at unit distance
+  float fov, aspect;
+};
+
+Orbit make_orbit(float azimuth, float elevation, float aspect, float fov, float margin) {
+  Orbit o;
+  o.aspect = aspect > 0.0f ? aspect : 1.0f;
+  o.fov = std::clamp(fov, 1.0f, 170.0f);
   elevation = std::clamp(elevation, -89.9f, 89.9f);
   const float az = glm::radians(azimuth);
   const float el = glm::radians(elevation);
-  const glm::vec3 to_eye(std::cos(el) * std::sin(az), std::sin(el), std::cos(el) * std::cos(az));
-  const glm::vec3 forward = -to_eye;
-  const glm::vec3 right = glm::normalize(glm::cross(forward, glm::vec3(0, 1, 0)));
-  const glm::vec3 up = glm::cross(right, forward);
+  o.to_eye = glm::vec3(std::cos(el) * std::sin(az), std::sin(el), std::cos(el) * std::cos(az));
+  o.right = glm::normalize(glm::cross(-o.to_eye, glm::vec3(0, 1, 0)));
+  o.up = glm::cross(o.right, -o.to_eye);
+  o.tan_v = std::tan(glm::radians(o.fov) * 0.5f) * fill_fraction(margin);
+  o.tan_h = o.tan_v * o.aspect;
+  return o;
+}
 
-  const float tan_v = std::tan(glm::radians(fov) * 0.5f) * fill_fraction(margin);
-  const float tan_h = std::tan(glm::radians(fov) * 0.5f) * aspect * fill_fraction(margin);
-  float distance = 0.0f;
-  for (const glm::vec3& c : corners(bounds)) {
-    const glm::vec3 p = c - center;
-    const float z = glm::dot(p, to_eye);
-    distance = std::max(distance, z + std::abs(glm::dot(p, right)) / tan_h);
-    distance = std::max(distance, z + std::abs(glm::dot(p, up)) / tan_v);
-  }
-  distance *= std::max(zoom_out, 1e-3f);
+// Smallest eye distance from `target` at which `p` fits into the image.
+float distance_for(const Orbit& o, const glm::vec3& target, const glm::vec3& point) {
+  const glm::vec3 p = point - target;
+  const float z = glm::dot(p, o.to_eye);
+  return std::max(z + std::abs(glm::dot(p, o.right)) / o.tan_h,
+                  z + std::abs(glm::dot(p, o.up)) / o.tan_v);
+}
 
+// The camera at `distance` from `target`, near/far planes around `bounds`.
+PreviewCamera finish_orbit(const Orbit& o, const Bounds& bounds, const glm::vec3& target,
+                           float distance) {
+  const glm::vec3 eye = target + o.to_eye * distance;
   float nearest = std::numeric_limits<float>::max();
   float farthest = 0.0f;
   for (const glm::vec3& c : corners(bounds)) {
-    const float depth = distance - glm::dot(c - center, to_eye);
+    const float depth = glm::dot(eye - c, o.to_eye);
     nearest = std::min(nearest, depth);
     farthest = std::max(farthest, depth);
   }
@@ -77,12 +88,62 @@ PreviewCamera orbit_camera(const Bounds& input, float azimuth, float elevation, 
   const float near_plane = std::max(nearest * 0.95f, farthest * 1e-4f);
 
   PreviewCamera camera;
-  camera.eye = center + to_eye * distance;
-  camera.forward = forward;
-  camera.view = glm::lookAt(camera.eye, center, up);
-  camera.projection = glm::perspective(glm::radians(fov), aspect, near_plane, farthest);
+  camera.eye = eye;
+  camera.forward = -o.to_eye;
+  camera.view = glm::lookAt(eye, target, o.up);
+  camera.projection = glm::perspective(glm::radians(o.fov), o.aspect, near_plane, farthest);
   camera.orthographic = false;
   return camera;
+}
+
+}  // namespace
+
+PreviewCamera orbit_camera(const Bounds& input, float azimuth, float elevation, float aspect,
+                           float fov, float margin, float zoom_out) {
+  const Bounds bounds = usable(input);
+  const Orbit o = make_orbit(azimuth, elevation, aspect, fov, margin);
+  const glm::vec3 target = bounds.center();
+  float distance = 0.0f;
+  for (const glm::vec3& c : corners(bounds)) {
+    distance = std::max(distance, distance_for(o, target, c));
+  }
+  return finish_orbit(o, bounds, target, distance * std::max(zoom_out, 1e-3f));
+}
+
+PreviewCamera orbit_camera_fit(const Bounds& input, const PointSets& points, float azimuth,
+                               float elevation, float aspect, float fov, float margin) {
+  size_t count = 0;
+  for (const auto* set : points) count += set ? set->size() : 0;
+  if (count == 0 || input.empty()) {
+    return orbit_camera(input, azimuth, elevation, aspect, fov, margin);
+  }
+  const Bounds bounds = usable(input);
+  const Orbit o = make_orbit(azimuth, elevation, aspect, fov, margin);
+
+  // With the eye at c + a right + b up + d to_eye (c the bounds' centre), a
+  // point at lateral (x, y) and height z along to_eye fits when
+  // |x - a| <= (d - z) tan_h and |y - b| <= (d - z) tan_v. The smallest d
+  // and its a, b follow from four maxima over the points, in one pass.
+  const glm::vec3 c = bounds.center();
+  float ax = -std::numeric_limits<float>::max(), bx = ax, ay = ax, by = ax;
+  for (const auto* set : points) {
+    if (!set) continue;
+    for (const glm::vec3& point : *set) {
+      const glm::vec3 p = point - c;
+      const float x = glm::dot(p, o.right);
+      const float y = glm::dot(p, o.up);
+      const float z = glm::dot(p, o.to_eye);
+      ax = std::max(ax, x + z * o.tan_h);
+      bx = std::max(bx, -x + z * o.tan_h);
+      ay = std::max(ay, y + z * o.tan_v);
+      by = std::max(by, -y + z * o.tan_v);
+    }
+  }
+  const float size = std::max(glm::length(bounds.size()), 1e-6f);
+  const float distance =
+      std::max({(ax + bx) / (2.0f * o.tan_h), (ay + by) / (2.0f * o.tan_v), 1e-4f * size});
+  const glm::vec3 target = c + o.right * ((ax - bx) * 0.5f) + o.up * ((ay - by) * 0.5f);
+  return finish_orbit(o, bounds, target, distance);
 }
 
 PreviewCamera top_camera(const Bounds& input, float aspect, float margin) {

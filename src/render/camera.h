@@ -2,6 +2,8 @@
 // Cameras that frame a scene's bounds for the preview renderer and viewer.
 // World frame: metres, +Y up, north = -Z, east = +X (so "from the
 // south-east" is from +X, +Z).
+#include <vector>
+
 #include <glm/glm.hpp>
 
 #include "scene/scene.h"
@@ -33,6 +35,18 @@ struct PreviewCamera {
 /// at the origin.
 PreviewCamera orbit_camera(const Bounds& bounds, float azimuth, float elevation, float aspect,
                            float fov = 35.0f, float margin = 0.05f, float zoom_out = 1.0f);
+
+/// Sets of points (e.g. &Scene::positions and each extra mesh's positions).
+using PointSets = std::vector<const std::vector<glm::vec3>*>;
+
+/// Like orbit_camera(), but framed on the points themselves (all of which
+/// must lie in `bounds`): it aims at the middle of the points' image and
+/// backs off just far enough that every point fits with `margin`. Tighter
+/// than the bounds' corners when the geometry does not fill its box (a
+/// small car on a wide cloth). Same as orbit_camera() without points.
+PreviewCamera orbit_camera_fit(const Bounds& bounds, const PointSets& points, float azimuth,
+                               float elevation, float aspect, float fov = 35.0f,
+                               float margin = 0.05f);
 
 /// Orthographic camera looking straight down (-Y) at `bounds`, north (-Z)
 /// up and east (+X) right, the X/Z extent fit into the image with `margin`

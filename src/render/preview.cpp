@@ -143,12 +143,13 @@ glm::vec3 shade_linear(const glm::vec3& albedo, const glm::vec3& normal,
                    settings.sky_ambient * (0.65f + 0.35f * normal.y));
 }
 
-PreviewCamera preview_camera(const Bounds& bounds, const PreviewSettings& settings) {
+PreviewCamera preview_camera(const Bounds& bounds, const PreviewSettings& settings,
+                             const PointSets& points) {
   const float aspect = static_cast<float>(std::max(settings.width, 1)) /
                        static_cast<float>(std::max(settings.height, 1));
   if (settings.view == View::Top) return top_camera(bounds, aspect, settings.margin);
-  return orbit_camera(bounds, settings.azimuth, settings.elevation, aspect, settings.fov,
-                      settings.margin);
+  return orbit_camera_fit(bounds, points, settings.azimuth, settings.elevation, aspect,
+                          settings.fov, settings.margin);
 }
 
 struct PreviewRenderer::Gpu {
@@ -386,7 +387,9 @@ ImageRGBA8 render_preview(const Scene& scene, const std::vector<TriMesh>& extra,
 
   PreviewRenderer renderer(scene);
   renderer.set_extra_meshes(extra, extra_colors);
-  const PreviewCamera camera = preview_camera(renderer.bounds(), settings);
+  PointSets points = {&scene.positions};
+  for (const TriMesh& mesh : extra) points.push_back(&mesh.positions);
+  const PreviewCamera camera = preview_camera(renderer.bounds(), settings, points);
 
   const int w = settings.width;
   const int h = settings.height;

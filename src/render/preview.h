@@ -22,10 +22,11 @@ namespace snow::render {
 constexpr size_t kSoftwareMsaaTriangleLimit = 500000;
 
 struct PreviewSettings {
-  int width = 1280;                           // image width, pixels
-  int height = 800;                           // image height, pixels
-  View view = View::ThreeQuarter;             // camera
-  glm::vec3 background{0.92f, 0.94f, 0.97f};  // sRGB colour (0..1) where nothing is drawn
+  int width = 1280;                // image width, pixels
+  int height = 800;                // image height, pixels
+  View view = View::ThreeQuarter;  // camera
+  glm::vec3 background{0.80f, 0.85f,
+                       0.90f};  // sRGB colour (0..1) where nothing is drawn; darker than lit snow
   // MSAA samples per pixel, clamped to GL_MAX_SAMPLES; 1 = off; 0 = auto: 4,
   // but 1 on a software renderer (llvmpipe) for more than
   // kSoftwareMsaaTriangleLimit triangles, where 4x MSAA costs about 4x time.
@@ -49,8 +50,11 @@ glm::vec3 shade_linear(const glm::vec3& albedo, const glm::vec3& normal,
 float srgb_encode(float linear);
 float srgb_decode(float encoded);
 
-/// The camera render_preview uses for `bounds` and these settings.
-PreviewCamera preview_camera(const Bounds& bounds, const PreviewSettings& settings);
+/// The camera of settings.view for `bounds`: ThreeQuarter is
+/// orbit_camera_fit() on `points` (orbit_camera() when there are none),
+/// Top is top_camera().
+PreviewCamera preview_camera(const Bounds& bounds, const PreviewSettings& settings,
+                             const PointSets& points = {});
 
 /// GPU copy of a scene (and extra meshes) that draws with any camera: the
 /// one-off render_preview uses it, the live viewer keeps one between frames.
