@@ -29,16 +29,24 @@ namespace fs = std::filesystem;
 // ---------------------------------------------------------------------------
 // Helpers
 
-/// A fresh, empty folder for one test.
-fs::path test_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir =
-      fs::temp_directory_path() /
-      ("snow_test_export_" + std::string(info->name()) + "_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+/// A fresh, empty folder for one test, removed afterwards (kept when the
+/// environment variable SNOW_KEEP_TEST_OUTPUT is set, to look at the files).
+struct TestDir {
+  fs::path path;
+  TestDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path = fs::temp_directory_path() /
+           ("snow_test_export_" + std::string(info->name()) + "_" + std::to_string(getpid()));
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TestDir() {
+    std::error_code ec;
+    if (!std::getenv("SNOW_KEEP_TEST_OUTPUT")) fs::remove_all(path, ec);
+  }
+  TestDir(const TestDir&) = delete;
+  TestDir& operator=(const TestDir&) = delete;
+};
 
 struct Validation {
   bool ran = false;
@@ -163,7 +171,8 @@ TEST(Export, FormatFromPath) {
 }
 
 TEST(Export, ValidatorIsInstalled) {
-  const fs::path dir = test_dir();
+  const TestDir test_dir;
+  const fs::path& dir = test_dir.path;
   write_snow_meshes(table_patches(), dir / "probe.glb", MeshFormat::Glb);
   const Validation v = run_validator({dir / "probe.glb"});
   if (!v.ran) {
@@ -180,7 +189,8 @@ TEST(Export, ValidatorIsInstalled) {
 TEST(Export, SnowOnlyGltfHasASnowRootPerPatchNodesAndValidates) {
   const auto patches = table_patches();
   ASSERT_EQ(patches.size(), 2u);
-  const fs::path dir = test_dir();
+  const TestDir test_dir;
+  const fs::path& dir = test_dir.path;
   for (const char* name : {"snow.glb", "snow.gltf"}) {
     SCOPED_TRACE(name);
     const fs::path path = dir / name;
@@ -222,7 +232,8 @@ TEST(Export, SnowOnlyGltfHasASnowRootPerPatchNodesAndValidates) {
 
 TEST(Export, ObjHasOneObjectPerPatchWithNormalsUvsAndMaterial) {
   const auto patches = table_patches();
-  const fs::path dir = test_dir();
+  const TestDir test_dir;
+  const fs::path& dir = test_dir.path;
   write_snow_meshes(patches, dir / "snow.obj", MeshFormat::Obj);
   const std::string obj = read_text(dir / "snow.obj");
   const std::string mtl = read_text(dir / "snow.mtl");
@@ -276,7 +287,8 @@ TEST(Export, ObjHasOneObjectPerPatchWithNormalsUvsAndMaterial) {
 
 TEST(Export, PlyHoldsAllPatchesInOneBinaryMesh) {
   const auto patches = table_patches();
-  const fs::path dir = test_dir();
+  const TestDir test_dir;
+  const fs::path& dir = test_dir.path;
   write_snow_meshes(patches, dir / "snow.ply", MeshFormat::Ply);
   const std::string bytes = read_text(dir / "snow.ply");
   const size_t end = bytes.find("end_header\n");
@@ -317,7 +329,8 @@ TEST(Export, PlyHoldsAllPatchesInOneBinaryMesh) {
 
 TEST(Export, UnwritablePathIsAnIOErrorAndLeavesNothing) {
   const auto patches = table_patches();
-  const fs::path dir = test_dir();
+  const TestDir test_dir;
+  const fs::path& dir = test_dir.path;
   for (const char* name : {"snow.glb", "snow.gltf", "snow.obj", "snow.ply"}) {
     SCOPED_TRACE(name);
     const fs::path missing = dir / "no" / "such" / "folder" / name;
@@ -464,7 +477,8 @@ fs::path write_input_scene(const fs::path& folder, std::vector<unsigned char>* p
 
 TEST(Export, CombinedKeepsTheInputAndEmbedsItsImages) {
   const auto patches = table_patches();
-  const fs::path dir = test_dir();
+  const TestDir test_dir;
+  const fs::path& dir = test_dir.path;
   fs::create_directories(dir / "in");
   fs::create_directories(dir / "out");
   std::vector<unsigned char> png;
@@ -520,7 +534,8 @@ TEST(Export, CombinedToyCarKeepsItsCounts) {
   const fs::path input = fs::path(SNOW_SHARED_SCENES) / "khronos" / "ToyCar" / "ToyCar.gltf";
   if (!fs::exists(input)) GTEST_SKIP() << input << " is absent";
   const auto patches = table_patches();
-  const fs::path dir = test_dir();
+  const TestDir test_dir;
+  const fs::path& dir = test_dir.path;
   const tinygltf::Model before = load_gltf(input);
   for (const char* name : {"toycar_snow.glb", "toycar_snow.gltf"}) {
     SCOPED_TRACE(name);
