@@ -771,7 +771,9 @@ std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>
     OMesh mesh;
     OpenMesh::FPropHandleT<bool> is_top;
     mesh.add_property(is_top);
-    if (!build_solid(top, field, settings.bottom_offset, base, mesh, is_top)) continue;
+    if (!build_solid(top, field, std::max(settings.bottom_offset, 0.0f), base, mesh, is_top)) {
+      continue;
+    }
     if (error > 0.0) decimate(mesh, 0.5 * error);
 
     const TriMesh solid = to_trimesh(mesh, is_top, false);
