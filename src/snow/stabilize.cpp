@@ -1,1 +1,538 @@
-// Placeholder: this file is written by the module's issue.
+// The snow stabilizer on the GPU (DESIGN.md "Stabilizer"; angle of repose
+// relaxation after Fearing 2000, section 5, on the snow amount maps of Tokoi
+// 2006; routing of what cannot stay as flow routing over a terrain, with a
+// distance-transform erosion and pointer jumping). One full-screen draw per map layer and pass,
+// ping-pong between two depth texture arrays; the CPU twin is reference/stabilize_ref.
+#include "snow/stabilize.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "core/error.h"
+#include "gl/gl.h"
+#include "gl/objects.h"
+#include "gl/program.h"
+#include "shaders/bindings.h"
+#include "snow/column.h"
+
+namespace snow {
+namespace {
+
+constexpr int kReduceBlock = 16;  // columns per side of a residual block
+
+void check_settings(const StabilizeSettings& s) {
+  auto bad = [](const std::string& what) { throw InputError("stabilize: " + what); };
+  if (!(s.repose_deg >= 5.0f && s.repose_deg <= 85.0f)) {
+    bad("repose_deg must be in 5..85 degrees, got " + std::to_string(s.repose_deg));
+  }
+  if (!(s.repose_jitter_deg >= 0.0f) || s.repose_deg - s.repose_jitter_deg < 1.0f ||
+      s.repose_deg + s.repose_jitter_deg > 89.0f) {
+    bad("repose_jitter_deg must be >= 0 with repose +- jitter in 1..89 degrees, got " +
+        std::to_string(s.repose_jitter_deg));
+  }
+  if (!(s.tolerance >= 0.0f) || !std::isfinite(s.tolerance)) {
+    bad("tolerance must be a finite number >= 0 metres, got " + std::to_string(s.tolerance));
+  }
+  if (s.max_iterations < 0) bad("max_iterations must be >= 0");
+  if (s.check_every < 1) bad("check_every must be >= 1");
+  if (s.max_stride < 1 || s.max_stride > 64 || (s.max_stride & (s.max_stride - 1)) != 0) {
+    bad("max_stride must be a power of two in 1..64, got " + std::to_string(s.max_stride));
+  }
+}
+
+void check_maps(const SnowMaps& maps) {
+  const size_t n = size_t(maps.layers) * maps.grid.texels();
+  if (maps.layers < 1 || maps.layers > 64) {
+    throw InputError("stabilize: maps must have 1..64 layers, got " + std::to_string(maps.layers));
+  }
+  if (maps.grid.width < 1 || maps.grid.height < 1 || !(maps.grid.texel > 0.0f)) {
+    throw InputError("stabilize: empty map grid or non-positive texel");
+  }
+  if (maps.ground.size() != n || maps.ceiling.size() != n || maps.normal.size() != n) {
+    throw InputError("stabilize: map arrays do not hold layers * width * height entries");
+  }
+  if (double(n) >= double(0xffffffffu)) {
+    throw InputError("stabilize: maps of " + std::to_string(n) + " layer texels are too large");
+  }
+}
+
+// 32-bit integer hash (lowbias32 by C. Wellons).
+uint32_t hash32(uint32_t x) {
+  x ^= x >> 16;
+  x *= 0x7feb352du;
+  x ^= x >> 15;
+  x *= 0x846ca68bu;
+  x ^= x >> 16;
+  return x;
+}
+
+}  // namespace
+
+float texel_repose_deg(const StabilizeSettings& settings, int l, int i, int j) {
+  uint32_t h = hash32(settings.seed ^ 0x9e3779b9u);
+  h = hash32(h ^ uint32_t(i));
+  h = hash32(h ^ uint32_t(j));
+  h = hash32(h ^ uint32_t(l));
+  const double u = double(h >> 8) / double(1u << 24);  // [0, 1)
+  return float(double(settings.repose_deg) + (2.0 * u - 1.0) * double(settings.repose_jitter_deg));
+}
+
+int stabilize_pass_stride(const StabilizeSettings& settings, int pass) {
+  int levels = 1;
+  while ((1 << levels) <= settings.max_stride) ++levels;  // max_stride = 2^(levels-1)
+  return settings.max_stride >> (pass % levels);
+}
+
+std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSettings& settings) {
+  check_settings(settings);
+  check_maps(maps);
+  std::vector<glm::vec4> cells(size_t(maps.layers) * maps.grid.texels());
+  for (int l = 0; l < maps.layers; ++l) {
+    for (int j = 0; j < maps.grid.height; ++j) {
+      for (int i = 0; i < maps.grid.width; ++i) {
+        const size_t k = maps.index(l, i, j);
+        const double angle = double(texel_repose_deg(settings, l, i, j)) * M_PI / 180.0;
+        glm::vec4 cell(0.0f, kCellOpenSky, float(std::tan(angle)), 0.0f);
+        const float g = maps.ground[k];
+        if (std::isfinite(g)) {
+          int flags = kCellSurface;
+          if (gap_is_solid(maps, l, i, j)) flags |= kCellSolid;
+          cell.x = g;
+          // +inf (open sky) -> 3e38; a ceiling below the ground (inconsistent
+          // maps) -> no gap.
+          cell.y = std::min(maps.ceiling[k], kCellOpenSky);
+          if (std::isnan(maps.ceiling[k])) cell.y = kCellOpenSky;
+          cell.y = std::max(cell.y, g);
+          cell.w = float(flags);
+        }
+        cells[k] = cell;
+      }
+    }
+  }
+  return cells;
+}
+
+double snow_volume(const SnowMaps& maps, const std::vector<float>& depth) {
+  double sum = 0.0;
+  const size_t n = std::min(depth.size(), maps.ground.size());
+  for (size_t k = 0; k < n; ++k) {
+    if (!std::isnan(maps.ground[k]) && depth[k] > 0.0f) sum += double(depth[k]);
+  }
+  return sum * double(maps.grid.texel) * double(maps.grid.texel);
+}
+
+// ---------------------------------------------------------------------------
+// GPU
+
+struct Stabilizer::Impl {
+  StabilizeSettings settings;
+  MapGrid grid;
+  int layers = 0;
+  int width = 0, height = 0;
+  int reduce_width = 0, reduce_height = 0;
+  glm::vec2 distance{0.0f};
+  bool route_pending = false;
+  bool lost_is_zero = true;      // no pass ran since construction or set_depth
+  int cur = 0;                   // depth[cur] holds the current snow
+  std::vector<uint8_t> surface;  // per layer texel: has a surface
+
+  gl::Texture cells, depth[2], out_a, out_b, code, pointer[2], stable, reduce;
+  std::vector<gl::Framebuffer> fbo_outflow, fbo_depth[2], fbo_pointer[2], fbo_stable[2];
+  gl::Framebuffer fbo_scatter, fbo_reduce, fbo_empty;
+  gl::VertexArray vao;
+  gl::Query query;
+  gl::Program outflow, gather, erode, erode_check, receiver, jump, jump_check, scatter, apply, add,
+      residual;
+
+  Impl(const SnowMaps& maps, const StabilizeSettings& s);
+  size_t count() const { return size_t(layers) * size_t(width) * size_t(height); }
+  void set_common(const gl::Program& program) const;
+  void per_layer(const gl::Program& program, const std::vector<gl::Framebuffer>& fbos);
+  void bind(GLuint unit, const gl::Texture& texture) const {
+    glBindTextureUnit(unit, texture.id());
+  }
+  void upload_depth(const std::vector<float>& depth);
+  void add_snow(const std::vector<float>& add);
+  int route();
+  void relax_pass(int stride);
+  GLuint count_fragments(const gl::Program& program);
+  // Per-block reduction summed over blocks: max move, sum depth, sum lost,
+  // sum of out_a.r (the scattered snow after routing); metres.
+  glm::dvec4 reduce_blocks(bool with_moves);
+  std::vector<glm::vec2> read_depth() const;
+  StabilizeResult iterate(int passes);
+};
+
+Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
+    : settings(s), grid(maps.grid), layers(maps.layers) {
+  const std::vector<glm::vec4> cell_data = stabilize_cells(maps, s);
+  surface.resize(cell_data.size());
+  for (size_t k = 0; k < cell_data.size(); ++k) {
+    surface[k] = (int(cell_data[k].w) & kCellSurface) != 0 ? 1 : 0;
+  }
+  width = grid.width;
+  height = grid.height;
+  reduce_width = (width + kReduceBlock - 1) / kReduceBlock;
+  reduce_height = (height + kReduceBlock - 1) / kReduceBlock;
+  distance = glm::vec2(grid.texel, float(double(grid.texel) * std::sqrt(2.0)));
+
+  GLint max_layers = 0;
+  glGetIntegerv(GL_MAX_ARRAY_TEXTURE_LAYERS, &max_layers);
+  if (max_layers > 0 && layers > max_layers) {
+    throw GLError("stabilize: " + std::to_string(layers) +
+                  " layers exceed GL_MAX_ARRAY_TEXTURE_LAYERS " + std::to_string(max_layers));
+  }
+  cells = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize cells");
+  glTextureSubImage3D(cells.id(), 0, 0, 0, 0, width, height, layers, GL_RGBA, GL_FLOAT,
+                      cell_data.data());
+  for (int x = 0; x < 2; ++x) {
+    depth[x] = gl::create_texture_2d_array(GL_RG32F, width, height, layers, "stabilize depth");
+    pointer[x] = gl::create_texture_2d_array(GL_R32UI, width, height, layers, "stabilize pointers");
+  }
+  out_a = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize outflow");
+  out_b = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize outflow");
+  code = gl::create_texture_2d_array(GL_RG32UI, width, height, layers, "stabilize codes");
+  stable = gl::create_texture_2d_array(GL_R32F, width, height, layers, "stabilize kept height");
+  reduce = gl::create_texture_2d(GL_RGBA32F, reduce_width, reduce_height, "stabilize residual");
+  const float zero[4] = {0, 0, 0, 0};
+  glClearTexImage(depth[0].id(), 0, GL_RG, GL_FLOAT, zero);
+  glClearTexImage(depth[1].id(), 0, GL_RG, GL_FLOAT, zero);
+  glClearTexImage(out_a.id(), 0, GL_RGBA, GL_FLOAT, zero);
+  glClearTexImage(out_b.id(), 0, GL_RGBA, GL_FLOAT, zero);
+  gl::check_error("stabilize: texture upload");
+
+  auto layer_fbo = [&](std::initializer_list<const gl::Texture*> textures, int l) {
+    gl::Framebuffer fbo = gl::create_framebuffer();
+    GLenum buffers[4];
+    int n = 0;
+    for (const gl::Texture* t : textures) {
+      glNamedFramebufferTextureLayer(fbo.id(), GLenum(GL_COLOR_ATTACHMENT0 + n), t->id(), 0, l);
+      buffers[n] = GLenum(GL_COLOR_ATTACHMENT0 + n);
+      ++n;
+    }
+    glNamedFramebufferDrawBuffers(fbo.id(), n, buffers);
+    gl::check_framebuffer(fbo, "stabilize framebuffer");
+    return fbo;
+  };
+  for (int l = 0; l < layers; ++l) {
+    fbo_outflow.push_back(layer_fbo({&out_a, &out_b, &code}, l));
+    for (int x = 0; x < 2; ++x) {
+      fbo_depth[x].push_back(layer_fbo({&depth[x]}, l));
+      fbo_pointer[x].push_back(layer_fbo({&pointer[x]}, l));
+    }
+    // Erosion ping-pongs between `stable` and out_b (free while routing).
+    fbo_stable[0].push_back(layer_fbo({&stable}, l));
+    fbo_stable[1].push_back(layer_fbo({&out_b}, l));
+  }
+  fbo_scatter = gl::create_framebuffer();
+  glNamedFramebufferTexture(fbo_scatter.id(), GL_COLOR_ATTACHMENT0, out_a.id(), 0);  // layered
+  gl::check_framebuffer(fbo_scatter, "stabilize scatter framebuffer");
+  fbo_reduce = gl::create_framebuffer();
+  glNamedFramebufferTexture(fbo_reduce.id(), GL_COLOR_ATTACHMENT0, reduce.id(), 0);
+  gl::check_framebuffer(fbo_reduce, "stabilize residual framebuffer");
+  fbo_empty = gl::create_framebuffer();
+  glNamedFramebufferParameteri(fbo_empty.id(), GL_FRAMEBUFFER_DEFAULT_WIDTH, width);
+  glNamedFramebufferParameteri(fbo_empty.id(), GL_FRAMEBUFFER_DEFAULT_HEIGHT, height);
+  glNamedFramebufferDrawBuffer(fbo_empty.id(), GL_NONE);
+  gl::check_framebuffer(fbo_empty, "stabilize check framebuffer");
+
+  vao = gl::create_vertex_array();
+  query = gl::create_query(GL_SAMPLES_PASSED);
+  outflow = gl::Program({"stabilize.vert", "stabilize_outflow.frag"});
+  gather = gl::Program({"stabilize.vert", "stabilize_gather.frag"});
+  erode = gl::Program({"stabilize.vert", "stabilize_erode.frag"});
+  erode_check = gl::Program({"stabilize.vert", "stabilize_erode_check.frag"});
+  receiver = gl::Program({"stabilize.vert", "stabilize_receiver.frag"});
+  jump = gl::Program({"stabilize.vert", "stabilize_jump.frag"});
+  jump_check = gl::Program({"stabilize.vert", "stabilize_jump_check.frag"});
+  scatter =
+      gl::Program({"stabilize_scatter.vert", "stabilize_scatter.geom", "stabilize_scatter.frag"});
+  apply = gl::Program({"stabilize.vert", "stabilize_apply.frag"});
+  add = gl::Program({"stabilize.vert", "stabilize_add.frag"});
+  residual = gl::Program({"stabilize.vert", "stabilize_residual.frag"});
+  for (const gl::Program* p : {&outflow, &gather, &erode, &erode_check, &receiver, &jump,
+                               &jump_check, &scatter, &apply, &add, &residual}) {
+    set_common(*p);
+    p->set("u_stride", 1);
+  }
+  residual.set("u_block", kReduceBlock);
+  gl::check_error("stabilize: set-up");
+}
+
+void Stabilizer::Impl::set_common(const gl::Program& program) const {
+  program.set("u_size", glm::ivec2(width, height));
+  program.set("u_layers", layers);
+  program.set("u_distance", distance);
+  program.set("u_rise", kSurfaceContinuityTexels * grid.texel);
+}
+
+// One full-screen triangle per layer into fbos[l], u_layer = l.
+void Stabilizer::Impl::per_layer(const gl::Program& program,
+                                 const std::vector<gl::Framebuffer>& fbos) {
+  program.use();
+  glBindVertexArray(vao.id());
+  glViewport(0, 0, width, height);
+  for (int l = 0; l < layers; ++l) {
+    program.set("u_layer", l);
+    glBindFramebuffer(GL_FRAMEBUFFER, fbos[size_t(l)].id());
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  }
+}
+
+void Stabilizer::Impl::upload_depth(const std::vector<float>& d) {
+  std::vector<glm::vec2> data(d.size());
+  for (size_t k = 0; k < d.size(); ++k) data[k] = glm::vec2(d[k], 0.0f);
+  glTextureSubImage3D(depth[cur].id(), 0, 0, 0, 0, width, height, layers, GL_RG, GL_FLOAT,
+                      data.data());
+  gl::check_error("stabilize: depth upload");
+}
+
+void Stabilizer::Impl::add_snow(const std::vector<float>& amount) {
+  // The amount goes through out_a (scratch between passes) in r.
+  glTextureSubImage3D(out_a.id(), 0, 0, 0, 0, width, height, layers, GL_RED, GL_FLOAT,
+                      amount.data());
+  bind(SNOW_STABILIZE_CELLS, cells);
+  bind(SNOW_STABILIZE_DEPTH, depth[cur]);
+  bind(SNOW_STABILIZE_ADD, out_a);
+  per_layer(add, fbo_depth[1 - cur]);
+  cur = 1 - cur;
+  gl::check_error("stabilize: add snow");
+}
+
+// Runs `program` over every layer into the attachment-less framebuffer
+// and returns the fragments that were not discarded.
+GLuint Stabilizer::Impl::count_fragments(const gl::Program& program) {
+  glBeginQuery(GL_SAMPLES_PASSED, query.id());
+  program.use();
+  glBindVertexArray(vao.id());
+  glViewport(0, 0, width, height);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_empty.id());
+  for (int l = 0; l < layers; ++l) {
+    program.set("u_layer", l);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  }
+  glEndQuery(GL_SAMPLES_PASSED);
+  GLuint samples = 0;
+  glGetQueryObjectuiv(query.id(), GL_QUERY_RESULT, &samples);
+  return samples;
+}
+
+int Stabilizer::Impl::route() {
+  bind(SNOW_STABILIZE_CELLS, cells);
+  bind(SNOW_STABILIZE_DEPTH, depth[cur]);
+  // Erosion until nothing changes; the kept height ends in stable_tex[e].
+  const gl::Texture* stable_tex[2] = {&stable, &out_b};
+  erode.set("u_init", 1);
+  per_layer(erode, fbo_stable[0]);
+  erode.set("u_init", 0);
+  int e = 0;
+  int passes = 0;
+  for (;;) {
+    bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
+    per_layer(erode, fbo_stable[1 - e]);
+    ++passes;
+    bind(SNOW_STABILIZE_STABLE, *stable_tex[1 - e]);
+    bind(SNOW_STABILIZE_STABLE_OLD, *stable_tex[e]);
+    e = 1 - e;
+    if (count_fragments(erode_check) == 0) break;
+    if (passes > 4 * (width + height) * layers + 16) {
+      throw GLError("stabilize: routing erosion did not settle");
+    }
+  }
+  bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
+  per_layer(receiver, fbo_pointer[0]);
+  int p = 0;  // pointer[p] holds the pointers
+  for (;;) {
+    bind(SNOW_STABILIZE_POINTER, pointer[p]);
+    if (count_fragments(jump_check) == 0) break;
+    per_layer(jump, fbo_pointer[1 - p]);
+    p = 1 - p;
+    ++passes;
+    if (passes > 100000) throw GLError("stabilize: routing pointers did not settle");
+  }
+  // Scatter the routed snow into out_a (cleared), then apply.
+  const float zero[4] = {0, 0, 0, 0};
+  glClearTexImage(out_a.id(), 0, GL_RGBA, GL_FLOAT, zero);
+  scatter.use();
+  glBindVertexArray(vao.id());
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_scatter.id());
+  glViewport(0, 0, width, height);
+  glEnable(GL_BLEND);
+  glBlendEquation(GL_FUNC_ADD);
+  glBlendFunc(GL_ONE, GL_ONE);
+  glDrawArrays(GL_POINTS, 0, GLsizei(count()));
+  glDisable(GL_BLEND);
+  bind(SNOW_STABILIZE_OUT_A, out_a);
+  per_layer(apply, fbo_depth[1 - cur]);
+  cur = 1 - cur;
+  gl::check_error("stabilize: routing");
+  return passes;
+}
+
+void Stabilizer::Impl::relax_pass(int stride) {
+  bind(SNOW_STABILIZE_CELLS, cells);
+  bind(SNOW_STABILIZE_DEPTH, depth[cur]);
+  outflow.set("u_stride", stride);
+  gather.set("u_stride", stride);
+  per_layer(outflow, fbo_outflow);
+  bind(SNOW_STABILIZE_OUT_A, out_a);
+  bind(SNOW_STABILIZE_OUT_B, out_b);
+  bind(SNOW_STABILIZE_CODE, code);
+  per_layer(gather, fbo_depth[1 - cur]);
+  cur = 1 - cur;
+}
+
+glm::dvec4 Stabilizer::Impl::reduce_blocks(bool with_moves) {
+  bind(SNOW_STABILIZE_CELLS, cells);
+  bind(SNOW_STABILIZE_DEPTH, depth[cur]);
+  bind(SNOW_STABILIZE_OUT_A, out_a);
+  bind(SNOW_STABILIZE_OUT_B, out_b);
+  residual.use();
+  residual.set("u_with_moves", with_moves ? 1 : 0);
+  glBindVertexArray(vao.id());
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_reduce.id());
+  glViewport(0, 0, reduce_width, reduce_height);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  std::vector<glm::vec4> blocks(size_t(reduce_width) * size_t(reduce_height));
+  glGetTextureImage(reduce.id(), 0, GL_RGBA, GL_FLOAT, GLsizei(blocks.size() * sizeof(glm::vec4)),
+                    blocks.data());
+  gl::check_error("stabilize: residual");
+  glm::dvec4 r(0.0);
+  for (const glm::vec4& b : blocks) {
+    r.x = std::max(r.x, double(b.x));
+    r.y += double(b.y);
+    r.z += double(b.z);
+    r.w += double(b.w);
+  }
+  return r;
+}
+
+std::vector<glm::vec2> Stabilizer::Impl::read_depth() const {
+  std::vector<glm::vec2> data(count());
+  glGetTextureImage(depth[cur].id(), 0, GL_RG, GL_FLOAT, GLsizei(data.size() * sizeof(glm::vec2)),
+                    data.data());
+  gl::check_error("stabilize: depth readback");
+  return data;
+}
+
+StabilizeResult Stabilizer::Impl::iterate(int passes) {
+  StabilizeResult result;
+  const double area = double(grid.texel) * double(grid.texel);
+  const double lost_before = lost_is_zero ? 0.0 : reduce_blocks(false).z * area;
+  lost_is_zero = false;
+  if (route_pending) {
+    if (settings.route_steep) {
+      result.route_passes = route();
+      // Routed = scattered to terminals (out_a.r) + routed into the void.
+      const glm::dvec4 after = reduce_blocks(false);
+      result.routed_volume = (after.w + after.z) * area - lost_before;
+    }
+    route_pending = false;
+  }
+  glm::dvec4 sums(0.0);
+  bool measured = false;
+  int last_check = 0;
+  for (int pass = 1; pass <= passes; ++pass) {
+    const int stride = stabilize_pass_stride(settings, pass - 1);
+    relax_pass(stride);
+    ++result.iterations;
+    if ((stride == 1 && pass - last_check >= settings.check_every) || pass == passes) {
+      last_check = pass;
+      sums = reduce_blocks(true);
+      measured = true;
+      result.residual = float(sums.x);
+      if (result.residual < settings.tolerance) {
+        result.converged = true;
+        break;
+      }
+    }
+  }
+  if (!measured) sums = reduce_blocks(false);
+  result.volume = sums.y * area;
+  result.lost_volume = sums.z * area - lost_before;
+  return result;
+}
+
+Stabilizer::Stabilizer(const SnowMaps& maps, const StabilizeSettings& settings)
+    : impl_(std::make_unique<Impl>(maps, settings)) {}
+Stabilizer::~Stabilizer() = default;
+Stabilizer::Stabilizer(Stabilizer&&) noexcept = default;
+Stabilizer& Stabilizer::operator=(Stabilizer&&) noexcept = default;
+
+void Stabilizer::set_depth(const std::vector<float>& depth) {
+  if (depth.size() != impl_->count()) {
+    throw InputError("stabilize: depth has " + std::to_string(depth.size()) +
+                     " entries, the maps have " + std::to_string(impl_->count()) + " layer texels");
+  }
+  std::vector<float> clean(depth.size());
+  for (size_t k = 0; k < depth.size(); ++k) {
+    clean[k] = impl_->surface[k] && depth[k] > 0.0f ? depth[k] : 0.0f;
+  }
+  impl_->upload_depth(clean);  // lost (g) = 0
+  impl_->route_pending = true;
+  impl_->lost_is_zero = true;
+}
+
+void Stabilizer::add_snow(const std::vector<float>& amount, float scale) {
+  if (amount.size() != impl_->count()) {
+    throw InputError("stabilize: snow amount has " + std::to_string(amount.size()) +
+                     " entries, the maps have " + std::to_string(impl_->count()) + " layer texels");
+  }
+  std::vector<float> add(amount.size());
+  for (size_t k = 0; k < amount.size(); ++k) {
+    const float a = amount[k] * scale;
+    add[k] = a > 0.0f ? a : 0.0f;  // NaN and negative add nothing
+  }
+  impl_->add_snow(add);
+  impl_->route_pending = true;
+}
+
+StabilizeResult Stabilizer::iterate(int passes) { return impl_->iterate(std::max(0, passes)); }
+
+StabilizeResult Stabilizer::run() {
+  const double before = impl_->lost_is_zero ? 0.0 : lost_volume();
+  StabilizeResult result = impl_->iterate(impl_->settings.max_iterations);
+  const std::vector<glm::vec2> data = impl_->read_depth();
+  double depth_sum = 0.0, lost_sum = 0.0;
+  for (const glm::vec2& d : data) {
+    depth_sum += double(d.x);
+    lost_sum += double(d.y);
+  }
+  const double area = double(impl_->grid.texel) * double(impl_->grid.texel);
+  result.volume = depth_sum * area;
+  result.lost_volume = lost_sum * area - before;
+  return result;
+}
+
+std::vector<float> Stabilizer::depth() const {
+  const std::vector<glm::vec2> data = impl_->read_depth();
+  std::vector<float> out(data.size());
+  for (size_t k = 0; k < data.size(); ++k) out[k] = data[k].x;
+  return out;
+}
+
+double Stabilizer::lost_volume() const {
+  const std::vector<glm::vec2> data = impl_->read_depth();
+  double sum = 0.0;
+  for (const glm::vec2& d : data) sum += double(d.y);
+  return sum * double(impl_->grid.texel) * double(impl_->grid.texel);
+}
+
+unsigned Stabilizer::depth_texture() const { return impl_->depth[impl_->cur].id(); }
+const MapGrid& Stabilizer::grid() const { return impl_->grid; }
+int Stabilizer::layers() const { return impl_->layers; }
+const StabilizeSettings& Stabilizer::settings() const { return impl_->settings; }
+
+StabilizeResult stabilize(const SnowMaps& maps, std::vector<float>& depth,
+                          const StabilizeSettings& settings) {
+  Stabilizer stabilizer(maps, settings);
+  stabilizer.set_depth(depth);
+  StabilizeResult result = stabilizer.run();
+  depth = stabilizer.depth();
+  for (float& d : depth) d = std::max(d, 0.0f);
+  return result;
+}
+
+}  // namespace snow

@@ -1,0 +1,71 @@
+// GLSL mirror of src/snow/column.h (the landing rule) on the stabilizer's
+// cells, plus the constants the stabilize_* passes share with
+// src/snow/stabilize.h and src/snow/reference/stabilize_ref.h.
+// Needs bindings.h included first.
+
+layout(binding = SNOW_STABILIZE_CELLS) uniform sampler2DArray u_cells;  // ground, ceiling, tan, flags
+layout(binding = SNOW_STABILIZE_DEPTH) uniform sampler2DArray u_depth;  // r = depth (m), g = lost
+
+uniform ivec2 u_size;    // map width, height (texels)
+uniform int u_layers;    // L
+uniform int u_layer;     // the layer this draw writes
+uniform vec2 u_distance; // metres to an edge neighbour, to a diagonal one
+uniform float u_rise;    // metres, kSurfaceContinuityTexels * texel
+uniform int u_stride;    // texels, stride of a relaxation pass
+
+const int kCellSurface = 1;
+const int kCellSolid = 2;
+
+const int kLandBlocked = -1;
+const int kLandVoid = -2;
+
+const float kCeilingClearance = 1e-4;  // metres, snow::kCeilingClearance
+
+const uint kCodeNone = 254u;
+const uint kCodeVoid = 255u;
+const uint kPointerVoid = 0xffffffffu;
+
+const ivec2 kDir[8] = ivec2[8](ivec2(1, 0), ivec2(-1, 0), ivec2(0, 1), ivec2(0, -1), ivec2(1, 1),
+                               ivec2(-1, 1), ivec2(1, -1), ivec2(-1, -1));
+
+float dir_distance(int n) { return n < 4 ? u_distance.x : u_distance.y; }
+
+bool in_map(ivec2 c) { return all(greaterThanEqual(c, ivec2(0))) && all(lessThan(c, u_size)); }
+
+// snow::land_in_column: the layer of column c on which snow at height h,
+// resting on a support at height `support`, comes to rest, kLandBlocked or
+// kLandVoid.
+int landing(ivec2 c, float h, float support) {
+  if (!in_map(c)) return kLandVoid;
+  for (int l = 0; l < u_layers; ++l) {
+    vec4 cell = texelFetch(u_cells, ivec3(c, l), 0);
+    int flags = int(cell.w);
+    if ((flags & kCellSurface) == 0) return kLandVoid;
+    if (h >= cell.y) return kLandBlocked;
+    float top = cell.x + texelFetch(u_depth, ivec3(c, l), 0).r;
+    if (top <= h) {
+      if ((flags & kCellSolid) != 0 || cell.y - support < u_rise) return kLandBlocked;
+      return l;
+    }
+    if (h >= cell.x) return kLandBlocked;
+  }
+  return kLandBlocked;
+}
+
+// Snow top (ground + depth) of layer l of column c.
+float snow_top(ivec2 c, int l) {
+  return texelFetch(u_cells, ivec3(c, l), 0).x + texelFetch(u_depth, ivec3(c, l), 0).r;
+}
+
+uint texel_index(ivec2 c, int l) {
+  return (uint(l) * uint(u_size.y) + uint(c.y)) * uint(u_size.x) + uint(c.x);
+}
+
+ivec3 texel_of_index(uint k) {
+  uint w = uint(u_size.x), h = uint(u_size.y);
+  return ivec3(int(k % w), int((k / w) % h), int(k / (w * h)));
+}
+
+// The snow surface as far as it is free to move: ground + depth, kept
+// kCeilingClearance under the ceiling.
+float free_top(vec4 cell, float s) { return max(cell.x, min(cell.x + s, cell.y - kCeilingClearance)); }

@@ -1,0 +1,26 @@
+#version 450 core
+// Routing, apply: routed texels give up their excess (to the void: lost),
+// terminals receive the scattered sums. Mirrors reference::Stabilizer::route.
+#include "bindings.h"
+#include "column.glsl"
+
+layout(binding = SNOW_STABILIZE_POINTER) uniform usampler2DArray u_pointer;
+layout(binding = SNOW_STABILIZE_OUT_A) uniform sampler2DArray u_arrive;  // r: scattered sums
+layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
+
+layout(location = 0) out vec2 o_depth;
+
+void main() {
+  ivec2 c = ivec2(gl_FragCoord.xy);
+  ivec3 t = ivec3(c, u_layer);
+  uint p = texelFetch(u_pointer, t, 0).r;
+  vec2 d = texelFetch(u_depth, t, 0).rg;
+  float s = d.r;
+  float lost = d.g;
+  if (p != texel_index(c, u_layer)) {
+    float e = (texelFetch(u_cells, t, 0).x + s) - texelFetch(u_stable, t, 0).r;
+    if (p == kPointerVoid) lost = lost + e;
+    s = s - e;
+  }
+  o_depth = vec2(s + texelFetch(u_arrive, t, 0).r, lost);
+}

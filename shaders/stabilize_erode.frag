@@ -1,0 +1,38 @@
+#version 450 core
+// Routing, erosion pass: the highest snow surface each texel can keep,
+// H = max(ground, min(H, min over neighbours of H(landing) + distance *
+// tan(repose))); the void as a neighbour keeps nothing. With u_init, writes
+// the start value H = min(ground + depth, ceiling) instead.
+// Mirrors the erosion loop of reference::Stabilizer::route.
+#include "bindings.h"
+#include "column.glsl"
+
+layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
+uniform int u_init;
+
+layout(location = 0) out float o_stable;
+
+void main() {
+  ivec2 c = ivec2(gl_FragCoord.xy);
+  ivec3 t = ivec3(c, u_layer);
+  vec4 cell = texelFetch(u_cells, t, 0);
+  float he = free_top(cell, texelFetch(u_depth, t, 0).r);
+  if (u_init != 0) {
+    o_stable = he;
+    return;
+  }
+  float hs = texelFetch(u_stable, t, 0).r;
+  if ((int(cell.w) & kCellSurface) != 0 && hs > cell.x) {
+    for (int n = 0; n < 8; ++n) {
+      ivec2 nc = c + kDir[n];
+      int land_l = landing(nc, he, cell.x);
+      if (land_l == kLandVoid) {
+        hs = cell.x;
+      } else if (land_l >= 0) {
+        hs = min(hs, texelFetch(u_stable, ivec3(nc, land_l), 0).r + dir_distance(n) * cell.z);
+      }
+    }
+    hs = max(hs, cell.x);
+  }
+  o_stable = hs;
+}

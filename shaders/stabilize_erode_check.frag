@@ -1,0 +1,13 @@
+#version 450 core
+// Routing: keeps (for an occlusion query) the texels whose kept height
+// changed in the last erosion pass; writes nothing.
+#include "bindings.h"
+#include "column.glsl"
+
+layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
+layout(binding = SNOW_STABILIZE_STABLE_OLD) uniform sampler2DArray u_stable_old;
+
+void main() {
+  ivec3 t = ivec3(ivec2(gl_FragCoord.xy), u_layer);
+  if (texelFetch(u_stable, t, 0).r == texelFetch(u_stable_old, t, 0).r) discard;
+}

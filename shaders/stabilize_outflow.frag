@@ -1,0 +1,126 @@
+#version 450 core
+// Stabilizer outflow pass (DESIGN.md "Stabilizer"): for each of the 8
+// directions, where snow leaving this texel lands u_stride columns away
+// (column.glsl, along a path of single steps for strided passes) and how
+// much goes there. Mirrors reference::Stabilizer::outflow_pass.
+#include "bindings.h"
+#include "column.glsl"
+
+layout(location = 0) out vec4 o_out_a;  // metres to directions 0..3
+layout(location = 1) out vec4 o_out_b;  // metres to directions 4..7
+layout(location = 2) out uvec2 o_code;  // landing codes, 8 bits per direction
+
+// The layer of column c whose gap (ground up to ceiling, not a solid's
+// inside) contains height h, kLandBlocked or kLandVoid.
+int gap_at(ivec2 c, float h) {
+  if (!in_map(c)) return kLandVoid;
+  for (int l = 0; l < u_layers; ++l) {
+    vec4 cell = texelFetch(u_cells, ivec3(c, l), 0);
+    int flags = int(cell.w);
+    if ((flags & kCellSurface) == 0) return kLandVoid;
+    if (h >= cell.y) return kLandBlocked;
+    if (h >= cell.x) return (flags & kCellSolid) != 0 ? kLandBlocked : l;
+  }
+  return kLandBlocked;
+}
+
+void main() {
+  ivec2 c = ivec2(gl_FragCoord.xy);
+  float amount[8];
+  uint code[8];
+  for (int n = 0; n < 8; ++n) {
+    amount[n] = 0.0;
+    code[n] = kCodeNone;
+  }
+  vec4 cell = texelFetch(u_cells, ivec3(c, u_layer), 0);
+  float s = texelFetch(u_depth, ivec3(c, u_layer), 0).r;
+  if ((int(cell.w) & kCellSurface) != 0 && s > 0.0) {
+    float h = cell.x + s;
+    float he = free_top(cell, s);  // snow above the ceiling is pressed out
+    float over = h - he;
+    float w[8];
+    float wsum = 0.0, wmax = 0.0;
+    int voids = 0;
+    for (int n = 0; n < 8; ++n) {
+      w[n] = 0.0;
+      // Strided passes: a path of single steps, each landing by the rule and
+      // going down by at most u_rise; never into the void.
+      ivec2 nc = c;
+      int land_l = 0;
+      float path_h = he, path_g = cell.x, path_tan = 0.0;
+      float step_tan = cell.z;
+      for (int m = 1; m <= u_stride; ++m) {
+        nc = c + m * kDir[n];
+        land_l = landing(nc, path_h, path_g);
+        path_tan += step_tan;
+        if (u_stride == 1 || land_l < 0) break;
+        vec4 mc = texelFetch(u_cells, ivec3(nc, land_l), 0);
+        float top = mc.x + texelFetch(u_depth, ivec3(nc, land_l), 0).r;
+        if (path_h - top > u_rise) {
+          land_l = kLandBlocked;
+          break;
+        }
+        path_h = top;
+        path_g = mc.x;
+        step_tan = mc.z;
+      }
+      if (u_stride > 1 && land_l == kLandVoid) land_l = kLandBlocked;
+      if (land_l == kLandVoid) {
+        code[n] = kCodeVoid;
+        ++voids;
+      } else if (land_l >= 0) {
+        code[n] = uint(land_l);
+        float ht = snow_top(nc, land_l);
+        float e = he - ht - dir_distance(n) * path_tan;
+        w[n] = max(e, 0.0);
+        wsum += w[n];
+        wmax = max(wmax, w[n]);
+      }
+    }
+    if (voids > 0) {
+      // An edge of the world: everything falls off, shared by the void directions.
+      float share = s / float(voids);
+      float left = s;
+      int seen = 0;
+      for (int n = 0; n < 8; ++n) {
+        if (code[n] != kCodeVoid) continue;
+        ++seen;
+        amount[n] = seen == voids ? left : share;
+        left -= share;
+      }
+    } else if (wmax > 0.0) {
+      float total = min(s, max(0.5 * wmax, over));
+      for (int n = 0; n < 8; ++n) amount[n] = total * (w[n] / wsum);
+    } else if (over > 0.0 && u_stride == 1) {
+      // Snow deeper than its gap with nowhere downhill to go is squeezed out
+      // sideways into the neighbouring columns' gaps at that height.
+      float p[8];
+      float psum = 0.0;
+      for (int n = 0; n < 8; ++n) {
+        p[n] = 0.0;
+        code[n] = kCodeNone;
+        ivec2 nc = c + kDir[n];
+        int gap = gap_at(nc, he);
+        if (gap == kLandVoid) {
+          code[n] = kCodeVoid;
+          p[n] = over;
+        } else if (gap >= 0) {
+          code[n] = uint(gap);
+          vec4 tc = texelFetch(u_cells, ivec3(nc, gap), 0);
+          float room =
+              (tc.y - kCeilingClearance) - (tc.x + texelFetch(u_depth, ivec3(nc, gap), 0).r);
+          p[n] = min(max(0.5 * (over + room), 0.0), over);
+        }
+        psum += p[n];
+      }
+      if (psum > 0.0) {
+        float scale = min(1.0, over / psum);
+        for (int n = 0; n < 8; ++n) amount[n] = p[n] * scale;
+      }
+    }
+  }
+  o_out_a = vec4(amount[0], amount[1], amount[2], amount[3]);
+  o_out_b = vec4(amount[4], amount[5], amount[6], amount[7]);
+  o_code = uvec2(code[0] | (code[1] << 8) | (code[2] << 16) | (code[3] << 24),
+                 code[4] | (code[5] << 8) | (code[6] << 16) | (code[7] << 24));
+}

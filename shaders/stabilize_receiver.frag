@@ -1,0 +1,42 @@
+#version 450 core
+// Routing, receiver pass: a texel holding more than it can keep (ground +
+// depth above its kept height H) points at the neighbour that limits it (the
+// one with the smallest H(landing) + distance * tan(repose) among those with
+// a lower H), or at the void when one neighbour is the void; others point at
+// themselves. H falls strictly along pointers, so they form a forest.
+// Mirrors the receiver loop of reference::Stabilizer::route.
+#include "bindings.h"
+#include "column.glsl"
+
+layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
+layout(location = 0) out uint o_pointer;
+
+void main() {
+  ivec2 c = ivec2(gl_FragCoord.xy);
+  ivec3 t = ivec3(c, u_layer);
+  vec4 cell = texelFetch(u_cells, t, 0);
+  uint self_index = texel_index(c, u_layer);
+  uint p = self_index;
+  float s = texelFetch(u_depth, t, 0).r;
+  float hs = texelFetch(u_stable, t, 0).r;
+  if ((int(cell.w) & kCellSurface) != 0 && cell.x + s > hs) {
+    float he = free_top(cell, s);
+    float best = hs;
+    for (int n = 0; n < 8; ++n) {
+      ivec2 nc = c + kDir[n];
+      int land_l = landing(nc, he, cell.x);
+      if (land_l == kLandVoid) {
+        p = kPointerVoid;
+        break;
+      }
+      if (land_l < 0) continue;
+      float hn = texelFetch(u_stable, ivec3(nc, land_l), 0).r;
+      float via = hn + dir_distance(n) * cell.z;
+      if (hn < hs && (p == self_index || via < best)) {
+        best = via;
+        p = texel_index(nc, land_l);
+      }
+    }
+  }
+  o_pointer = p;
+}

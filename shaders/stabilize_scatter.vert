@@ -1,0 +1,27 @@
+#version 450 core
+// Routing, scatter: one point per layer texel (gl_VertexID = texel index);
+// the excess of a routed texel (ground + depth - kept height) goes to its
+// terminal (the geometry shader picks the layer; additive blending in
+// primitive order sums it in texel order, as the reference does).
+#include "bindings.h"
+#include "column.glsl"
+
+layout(binding = SNOW_STABILIZE_POINTER) uniform usampler2DArray u_pointer;
+layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
+
+out VertexData {
+  flat int emit;
+  flat ivec3 target;
+  flat float amount;
+} v_out;
+
+void main() {
+  uint k = uint(gl_VertexID);
+  ivec3 t = texel_of_index(k);
+  uint p = texelFetch(u_pointer, t, 0).r;
+  v_out.emit = (p != k && p != kPointerVoid) ? 1 : 0;
+  v_out.target = v_out.emit != 0 ? texel_of_index(p) : ivec3(0);
+  v_out.amount = (texelFetch(u_cells, t, 0).x + texelFetch(u_depth, t, 0).r) -
+                 texelFetch(u_stable, t, 0).r;
+  gl_Position = vec4(0.0, 0.0, 0.0, 1.0);
+}

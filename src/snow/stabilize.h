@@ -1,0 +1,160 @@
+#pragma once
+// Stage 3: the snow stabilizer. Snow steeper than its angle of repose moves
+// downhill; snow leaving an edge falls through to the highest free surface
+// below in the neighbouring column (DESIGN.md, "Stabilizer"; the angle of
+// repose relaxation of Fearing 2000, section 5, on Tokoi's snow amount maps).
+//
+// Two kinds of passes, on the GPU as fragment passes over the layer texture
+// arrays and on the CPU in snow::reference with the same float math:
+//  - relaxation: an outflow pass (per layer texel: for each of the 8
+//    neighbour columns, the landing layer by snow::landing (column.h) at the
+//    snow surface height, and the amount moved there) and a gather pass
+//    (depth minus what the texel sent plus what its neighbours sent to it,
+//    read from the same outflow textures, so every amount leaves one texel
+//    and arrives at another bit for bit). Snow that goes off the map or into
+//    the void below the lowest surface is lost and counted.
+//  - routing: snow that cannot stay where it lies is sent in one go down a
+//    chain of receivers (pointer jumping) to the first texel where it can
+//    rest, as hydrology routes water over a terrain. What a texel can keep
+//    comes from erosion passes (a distance transform): the highest surface
+//    no more than distance * tan(repose) above what its downhill neighbours
+//    keep, nothing where a neighbour is the void. So snow on a support
+//    steeper than the repose angle leaves at once, and the edges of a table
+//    or an eave round off at once. The relaxation then only shapes the
+//    piles. Routing runs at the start of each stabilize call and after snow
+//    is added.
+// Relaxation passes cycle through strides max_stride, ..., 2, 1 (multi-scale,
+// see stabilize_pass_stride), so piles spread in few passes.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "snow/maps.h"
+
+namespace snow {
+
+struct StabilizeSettings {
+  float repose_deg = 45.0f;        // degrees, angle of repose of loose snow (5..85)
+  float repose_jitter_deg = 3.0f;  // degrees, +- deterministic per-texel jitter of the repose
+                                   // angle, against terracing (>= 0; repose +- jitter in 1..89)
+  float tolerance = 1e-4f;         // metres: converged when the largest move of a pass is below
+                                   // this (>= 0; 0 runs max_iterations passes)
+  int max_iterations = 4000;       // relaxation passes at most per call (>= 0)
+  int check_every = 16;            // passes between convergence checks (a small GPU reduction
+                                   // and readback); >= 1
+  int max_stride = 4;              // texels, largest stride of the multi-scale relaxation
+                                   // passes (a power of two, 1..64; 1 = single steps only)
+  bool route_steep = true;         // route what cannot stay (steep supports, edges) in one go
+                                   // before relaxing (off:
+                                   // relaxation only, for comparisons)
+  uint32_t seed = 1;               // seed of the repose jitter; same seed, same result
+};
+
+struct StabilizeResult {
+  int iterations = 0;          // relaxation passes run (outflow + gather pairs), count
+  float residual = 0.0f;       // metres, largest move (snow leaving one texel) in the last pass
+  bool converged = false;      // residual < tolerance was seen at a check
+  int route_passes = 0;        // erosion plus pointer-jumping passes of the routing, count
+  double routed_volume = 0.0;  // m^3 moved by routing
+  double lost_volume = 0.0;    // m^3 that left the scene during the call (off the map or into
+                               // the void below the lowest surface)
+  double volume = 0.0;         // m^3 of snow lying on the maps after the call
+};
+
+/// Per layer texel inputs of the passes, shared by the GPU upload and the CPU
+/// reference (maps' layout): x = ground (m; 0 where no surface), y = ceiling
+/// (m; 3e38 for open sky), z = tan(repose angle + jitter), w = flags
+/// (kCellSurface | kCellSolid, stored as a float).
+constexpr int kCellSurface = 1;  // the texel has a surface
+constexpr int kCellSolid = 2;    // its gap is the inside of a solid (snow::gap_is_solid)
+constexpr float kCellOpenSky = 3.0e38f;
+/// Snow fills a gap up to this far (m) under its ceiling; deeper snow is
+/// squeezed out sideways into the neighbouring columns' gaps.
+constexpr float kCeilingClearance = 1e-4f;
+
+/// The repose angle of layer texel (l, i, j) in degrees: repose_deg plus a
+/// jitter in [-repose_jitter_deg, +repose_jitter_deg] hashed from (l, i, j,
+/// seed). Throws InputError for settings out of range.
+float texel_repose_deg(const StabilizeSettings& settings, int l, int i, int j);
+
+/// The cells above for `maps`. Throws InputError for inconsistent maps
+/// (array sizes), layers outside 1..64, a non-positive texel, or settings out
+/// of range.
+std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSettings& settings);
+
+/// The stride (texels) of relaxation pass `pass` (0-based) of a call: the
+/// passes cycle through max_stride, max_stride/2, ..., 1. A strided pass
+/// moves snow `stride` columns at once along a path of single steps that
+/// neither fall over an edge nor rise, against the sum of the path's repose
+/// slopes, so piles spread over long distances in few passes while a state at
+/// rest for single steps stays at rest. Convergence is checked after
+/// stride-1 passes.
+int stabilize_pass_stride(const StabilizeSettings& settings, int pass);
+
+/// Snow volume (m^3): sum of depth (m) over the layer texels that have a
+/// surface times texel^2, in double.
+double snow_volume(const SnowMaps& maps, const std::vector<float>& depth);
+
+/// Stabilizes `depth` (metres per layer texel, maps' layout; NaN, negative
+/// or depth on texels without a surface is treated as 0 and cleared) in
+/// place on the GPU: routing, then relaxation passes until the largest
+/// move is below settings.tolerance (checked every check_every passes) or
+/// max_iterations passes. Mass is conserved up to float rounding, minus the
+/// counted losses. Needs a current GL context. Throws InputError for bad
+/// maps, depth size or settings, GLError for GL trouble.
+StabilizeResult stabilize(const SnowMaps& maps, std::vector<float>& depth,
+                          const StabilizeSettings& settings);
+
+/// The stabilizer with its state kept on the GPU between calls, for the live
+/// preview and for time-stepped accumulation: the maps are uploaded once;
+/// snow is added, a few passes run per frame, and the depth is read back on
+/// demand. Needs the GL context that was current at construction to be
+/// current in every call, including destruction.
+class Stabilizer {
+ public:
+  /// Uploads the maps (cells) and allocates the pass textures (84 B per
+  /// layer texel); the snow starts empty. Throws like stabilize().
+  Stabilizer(const SnowMaps& maps, const StabilizeSettings& settings);
+  ~Stabilizer();
+  Stabilizer(Stabilizer&&) noexcept;
+  Stabilizer& operator=(Stabilizer&&) noexcept;
+
+  /// Replaces the snow (metres per layer texel, maps' layout; cleaned as in
+  /// stabilize()) and resets the lost volume. Routing runs before the next
+  /// pass. Throws InputError for a wrong size.
+  void set_depth(const std::vector<float>& depth);
+  /// depth += scale * amount on every texel with a surface (e.g. amount =
+  /// coverage, scale = metres of fresh snow); negative or NaN products add
+  /// nothing. Routing runs before the next pass. Throws InputError for a
+  /// wrong size.
+  void add_snow(const std::vector<float>& amount, float scale);
+
+  /// Runs the pending routing, then up to `passes` relaxation passes,
+  /// stopping early once converged (checked every check_every passes and
+  /// after the last). Fills every field; volume and lost_volume come from a
+  /// GPU sum (float per block, double over blocks).
+  StabilizeResult iterate(int passes);
+  /// iterate(settings.max_iterations), with volume and lost_volume summed
+  /// exactly (double) from a full readback.
+  StabilizeResult run();
+
+  /// Current depth (metres per layer texel, maps' layout); a full readback.
+  std::vector<float> depth() const;
+  /// Lost volume (m^3) since construction or set_depth (full readback).
+  double lost_volume() const;
+  /// The current depth texture (GL name of a GL_TEXTURE_2D_ARRAY, RG32F,
+  /// one layer per map layer, r = depth in metres, g = lost metres) for
+  /// renderers; valid until the next call that runs passes.
+  unsigned depth_texture() const;
+  const MapGrid& grid() const;
+  int layers() const;
+  const StabilizeSettings& settings() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace snow

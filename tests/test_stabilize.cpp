@@ -1,0 +1,403 @@
+// Tests of the stabilizer (src/snow/stabilize.h) and its CPU reference
+// (src/snow/reference/stabilize_ref.h): mass conservation, the repose slope
+// after convergence, sliding off steep supports, falling through to lower
+// maps, and GPU against CPU.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "core/error.h"
+#include "gl/context.h"
+#include "snow/column.h"
+#include "snow/maps.h"
+#include "snow/reference/stabilize_ref.h"
+#include "snow/stabilize.h"
+
+namespace snow {
+namespace {
+
+constexpr float kDeg = 3.14159265358979f / 180.0f;
+
+// --- Analytic maps ----------------------------------------------------------
+
+struct Surface {
+  float y;      // metres
+  glm::vec3 n;  // normal as wound
+};
+// The surfaces of the column through (x, z), from the top down.
+using ColumnFn = std::function<std::vector<Surface>(float x, float z)>;
+
+const glm::vec3 kUp(0.0f, 1.0f, 0.0f);
+const glm::vec3 kDown(0.0f, -1.0f, 0.0f);
+
+SnowMaps make_maps(int width, int height, float texel, int layers, const ColumnFn& column) {
+  SnowMaps maps;
+  MapGrid grid;
+  grid.origin = glm::vec2(0.0f);
+  grid.texel = texel;
+  grid.width = width;
+  grid.height = height;
+  maps.allocate(grid, layers);
+  for (int j = 0; j < height; ++j) {
+    for (int i = 0; i < width; ++i) {
+      const glm::vec2 c = grid.center(i, j);
+      std::vector<Surface> s = column(c.x, c.y);
+      std::stable_sort(s.begin(), s.end(),
+                       [](const Surface& a, const Surface& b) { return a.y > b.y; });
+      float last = kOpenSky;
+      for (int l = 0; l < std::min<int>(layers, int(s.size())); ++l) {
+        const size_t k = maps.index(l, i, j);
+        maps.ground[k] = s[l].y;
+        maps.ceiling[k] = last;
+        maps.normal[k] = glm::normalize(s[l].n);
+        maps.object[k] = 0;
+        last = s[l].y;
+      }
+    }
+  }
+  return maps;
+}
+
+// `amount` metres on every layer-0 texel (snow falling straight down onto
+// the top surfaces).
+std::vector<float> snow_on_top(const SnowMaps& maps, float amount) {
+  std::vector<float> depth(size_t(maps.layers) * maps.grid.texels(), 0.0f);
+  for (int j = 0; j < maps.grid.height; ++j) {
+    for (int i = 0; i < maps.grid.width; ++i) {
+      if (maps.has_surface(0, i, j)) depth[maps.index(0, i, j)] = amount;
+    }
+  }
+  return depth;
+}
+
+// A lean-to roof of `pitch_deg` over x in [x0, x1] (eave at x1, height
+// eave_y there, rising towards x0), a one-sided plane, over a floor at y = 0.
+ColumnFn lean_to_roof(float x0, float x1, float z0, float z1, float eave_y, float pitch_deg) {
+  const float t = std::tan(pitch_deg * kDeg);
+  const glm::vec3 n(std::sin(pitch_deg * kDeg), std::cos(pitch_deg * kDeg), 0.0f);
+  return [=](float x, float z) {
+    std::vector<Surface> s;
+    if (x >= x0 && x < x1 && z >= z0 && z < z1) s.push_back({eave_y + (x1 - x) * t, n});
+    s.push_back({0.0f, kUp});
+    return s;
+  };
+}
+
+// A table: a closed slab (top up-facing, underside down-facing) over a floor.
+ColumnFn table(float cx, float cz, float half, float top_y, float thickness) {
+  return [=](float x, float z) {
+    std::vector<Surface> s;
+    if (std::abs(x - cx) < half && std::abs(z - cz) < half) {
+      s.push_back({top_y, kUp});
+      s.push_back({top_y - thickness, kDown});
+    }
+    s.push_back({0.0f, kUp});
+    return s;
+  };
+}
+
+// Per-texel movable excess of a converged state: for every texel with more
+// than `min_depth` of snow, the largest (h - h_land) - distance * tan(repose)
+// over its neighbours that it can reach (a void neighbour counts as infinite).
+float largest_excess(const SnowMaps& maps, const std::vector<float>& depth,
+                     const StabilizeSettings& settings, float min_depth) {
+  const std::vector<glm::vec4> cells = stabilize_cells(maps, settings);
+  float largest = 0.0f;
+  for (int l = 0; l < maps.layers; ++l) {
+    for (int j = 0; j < maps.grid.height; ++j) {
+      for (int i = 0; i < maps.grid.width; ++i) {
+        const size_t k = maps.index(l, i, j);
+        if (!maps.has_surface(l, i, j) || !(depth[k] > min_depth)) continue;
+        const float h = std::min(maps.ground[k] + depth[k], maps.ceiling[k] - kCeilingClearance);
+        for (int n = 0; n < 8; ++n) {
+          const int ni = i + reference::kDirI[n], nj = j + reference::kDirJ[n];
+          const int land = landing(maps, depth.data(), ni, nj, h, maps.ground[k]);
+          if (land == kLandVoid) return INFINITY;
+          if (land < 0) continue;
+          const size_t kt = maps.index(land, ni, nj);
+          const float dist = maps.grid.texel * (n < 4 ? 1.0f : std::sqrt(2.0f));
+          const float e = h - (maps.ground[kt] + depth[kt]) - dist * cells[k].z;
+          largest = std::max(largest, std::min(e, depth[k]));
+        }
+      }
+    }
+  }
+  return largest;
+}
+
+double sum_where(const SnowMaps& maps, const std::vector<float>& depth,
+                 const std::function<bool(int l, int i, int j)>& pick) {
+  double sum = 0.0;
+  for (int l = 0; l < maps.layers; ++l) {
+    for (int j = 0; j < maps.grid.height; ++j) {
+      for (int i = 0; i < maps.grid.width; ++i) {
+        if (pick(l, i, j)) sum += double(depth[maps.index(l, i, j)]);
+      }
+    }
+  }
+  return sum * double(maps.grid.texel) * double(maps.grid.texel);
+}
+
+gl::Context* context() {
+  static std::unique_ptr<gl::Context> ctx = []() -> std::unique_ptr<gl::Context> {
+    try {
+      return gl::create_context();
+    } catch (const Error& e) {
+      std::fprintf(stderr, "no GL context: %s\n", e.what());
+      return nullptr;
+    }
+  }();
+  return ctx.get();
+}
+#define REQUIRE_GL() \
+  if (!context()) GTEST_SKIP() << "no OpenGL context"
+
+// Bumpy terrain with holes (void columns), a floating slab (three layers)
+// and a low shelf, for the property tests.
+SnowMaps bumpy_maps(int size, int layers) {
+  return make_maps(size, size, 0.05f, layers, [size](float x, float z) {
+    std::vector<Surface> s;
+    const float u = x / (0.05f * float(size)), v = z / (0.05f * float(size));
+    if (std::abs(u - 0.7f) < 0.04f && std::abs(v - 0.3f) < 0.04f) return s;  // a hole
+    if (u > 0.2f && u < 0.5f && v > 0.55f && v < 0.8f) {                     // a slab
+      s.push_back({0.9f + 0.4f * u, glm::vec3(-0.4f, 1.0f, 0.0f)});
+      s.push_back({0.8f + 0.4f * u, kDown});
+    }
+    if (u > 0.6f && u < 0.9f && v > 0.6f && v < 0.7f) {  // a shelf
+      s.push_back({1.35f, kUp});
+      s.push_back({1.3f, kDown});
+    }
+    const float g = 0.3f * std::sin(6.0f * u) * std::cos(5.0f * v) + 0.6f * u * u;
+    const glm::vec3 n = glm::normalize(glm::vec3(
+        -(1.8f * std::cos(6.0f * u) * std::cos(5.0f * v) + 1.2f * u) / (0.05f * float(size)), 1.0f,
+        0.0f));
+    s.push_back({g, n});
+    return s;
+  });
+}
+
+std::vector<float> random_snow(const SnowMaps& maps, float max_depth, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, max_depth);
+  std::vector<float> depth(size_t(maps.layers) * maps.grid.texels(), 0.0f);
+  for (int l = 0; l < maps.layers; ++l) {
+    for (int j = 0; j < maps.grid.height; ++j) {
+      for (int i = 0; i < maps.grid.width; ++i) {
+        const size_t k = maps.index(l, i, j);
+        const float d = u(rng);  // drawn for every texel, so seeds give the same field
+        if (maps.has_surface(l, i, j) && !gap_is_solid(maps, l, i, j)) depth[k] = d;
+      }
+    }
+  }
+  return depth;
+}
+
+// --- The landing rule ---------------------------------------------------------
+
+TEST(Column, LandingRule) {
+  // Column 0: a table (top 0.75 up, underside 0.7 down) over a floor at 0;
+  // column 1: floor only; column 2: nothing.
+  const SnowMaps maps = make_maps(3, 1, 0.1f, 4, [](float x, float) {
+    std::vector<Surface> s;
+    if (x < 0.1f) {
+      s.push_back({0.75f, kUp});
+      s.push_back({0.7f, kDown});
+    }
+    if (x < 0.2f) s.push_back({0.0f, kUp});
+    return s;
+  });
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  EXPECT_EQ(landing(maps, depth.data(), 0, 0, 1.0f), 0);              // on the table top
+  EXPECT_EQ(landing(maps, depth.data(), 0, 0, 0.72f), kLandBlocked);  // inside the top slab
+  EXPECT_EQ(landing(maps, depth.data(), 0, 0, 0.3f), 2);              // on the floor under it
+  EXPECT_EQ(landing(maps, depth.data(), 2, 0, 0.3f), kLandVoid);      // empty column
+  EXPECT_EQ(landing(maps, depth.data(), 3, 0, 0.3f), kLandVoid);      // off the map
+  EXPECT_EQ(landing_layer(maps, depth.data(), 0, 0, 0.72f), -1);
+  depth[maps.index(0, 1, 0)] = 0.2f;  // snow on the floor of column 1
+  EXPECT_EQ(landing(maps, depth.data(), 1, 0, 0.1f), kLandBlocked);  // inside that snow
+  EXPECT_EQ(landing(maps, depth.data(), 1, 0, 0.25f), 0);
+  // Continuity: snow resting at 0.68 must not pass under a ceiling 0.02 m
+  // above its support (the same thin surface continuing).
+  EXPECT_EQ(landing(maps, depth.data(), 0, 0, 0.3f, 0.69f), kLandBlocked);
+  EXPECT_EQ(landing(maps, depth.data(), 0, 0, 0.3f, 0.0f), 2);
+}
+
+// --- CPU reference on analytic maps -----------------------------------------
+
+TEST(StabilizeReference, MassIsConserved) {
+  const SnowMaps maps = bumpy_maps(64, 4);
+  std::vector<float> depth = random_snow(maps, 0.5f, 7);
+  const double before = snow_volume(maps, depth);
+  StabilizeSettings settings;
+  settings.tolerance = 0.0f;  // run every pass
+  settings.max_iterations = 600;
+  const StabilizeResult r = reference::stabilize(maps, depth, settings);
+  const double after = snow_volume(maps, depth);
+  const double drift = std::abs(after + r.lost_volume - before) / before;
+  std::printf("mass: before %.6f after %.6f lost %.6f routed %.6f drift %.2e (%d passes)\n", before,
+              after, r.lost_volume, r.routed_volume, drift, r.iterations);
+  EXPECT_EQ(r.iterations, 600);
+  EXPECT_GT(r.lost_volume, 0.0);  // the hole and the map edges swallow some
+  EXPECT_GT(r.routed_volume, 0.0);
+  EXPECT_NEAR(r.volume, after, 1e-9 * before);
+  EXPECT_LT(drift, 1e-5);
+}
+
+TEST(StabilizeReference, ConvergedSnowIsAtRest) {
+  const SnowMaps maps = bumpy_maps(64, 4);
+  std::vector<float> depth = random_snow(maps, 0.5f, 11);
+  StabilizeSettings settings;
+  const StabilizeResult r = reference::stabilize(maps, depth, settings);
+  ASSERT_TRUE(r.converged) << "residual " << r.residual;
+  const float excess = largest_excess(maps, depth, settings, settings.tolerance);
+  std::printf("at rest: %d passes, residual %.2e, largest excess %.2e m\n", r.iterations,
+              r.residual, excess);
+  EXPECT_LE(excess, 2.0f * settings.tolerance);
+  // Nothing above a ceiling.
+  for (size_t k = 0; k < depth.size(); ++k) {
+    if (!std::isnan(maps.ground[k])) {
+      EXPECT_LE(maps.ground[k] + depth[k], maps.ceiling[k] + 1e-4f);
+    }
+  }
+}
+
+TEST(StabilizeReference, TableEdgesRoundOff) {
+  // A 1 m table top, 0.75 m high, 0.05 m thick, in a 3.2 m room; 0.3 m of snow
+  // on every top surface.
+  const float texel = 0.05f;
+  const SnowMaps maps = make_maps(64, 64, texel, 4, table(1.6f, 1.6f, 0.5f, 0.75f, 0.05f));
+  std::vector<float> depth = snow_on_top(maps, 0.3f);
+  StabilizeSettings settings;
+  const StabilizeResult r = reference::stabilize(maps, depth, settings);
+  ASSERT_TRUE(r.converged);
+  // Along the row through the table's centre.
+  const int j = 32;
+  auto top_of = [&](int i) { return depth[maps.index(0, i, j)]; };
+  const int edge = 22;  // first texel on the table (x = 1.1..1.15)
+  ASSERT_TRUE(maps.ground[maps.index(0, edge, j)] > 0.5f);
+  ASSERT_FALSE(maps.ground[maps.index(0, edge - 1, j)] > 0.5f);
+  // The edge texel keeps little, the middle keeps the full depth, and the
+  // profile rises at most at the repose angle (+ jitter) from the edge.
+  EXPECT_LT(top_of(edge), 0.06f);
+  EXPECT_NEAR(top_of(32), 0.3f, 1e-3f);
+  for (int i = edge; i < 32; ++i) {
+    EXPECT_LE(top_of(i), (float(i - edge) + 0.5f) * texel * std::tan(48.0f * kDeg) + 2e-4f) << i;
+  }
+  // Under the table: nothing from the top. The floor snow round the table
+  // slumps in at the repose angle from the shadow's edge (0.3 m of snow: at
+  // most 0.3 / tan(42 deg) + 1 texel), the rest stays bare.
+  const float reach = 0.3f / std::tan(42.0f * kDeg) + texel;
+  double under = 0.0;
+  for (int jj = 0; jj < 64; ++jj) {
+    for (int i = 0; i < 64; ++i) {
+      if (!maps.has_surface(2, i, jj)) continue;
+      const glm::vec2 c = maps.grid.center(i, jj);
+      const float inside = 0.5f - std::max(std::abs(c.x - 1.6f), std::abs(c.y - 1.6f));
+      if (inside > reach) under += depth[maps.index(2, i, jj)];
+    }
+  }
+  EXPECT_EQ(under, 0.0);
+  EXPECT_GT(depth[maps.index(0, edge - 1, j)], 0.3f);
+  EXPECT_NEAR(top_of(edge - 6), 0.3f, 0.02f);  // the floor further out is untouched
+}
+
+TEST(StabilizeReference, LowCeilingCapsDepth) {
+  // A shelf whose underside is 0.1 m above the floor, with 0.3 m of snow
+  // forced under it.
+  const SnowMaps maps = make_maps(48, 48, 0.05f, 4, [](float x, float z) {
+    std::vector<Surface> s;
+    if (x > 0.8f && x < 1.6f && z > 0.8f && z < 1.6f) {
+      s.push_back({0.15f, kUp});
+      s.push_back({0.1f, kDown});
+    }
+    s.push_back({0.0f, kUp});
+    return s;
+  });
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  for (size_t k = 0; k < depth.size(); ++k) {
+    if (!std::isnan(maps.ground[k]) && maps.ground[k] == 0.0f) depth[k] = 0.3f;
+  }
+  const double before = snow_volume(maps, depth);
+  const StabilizeResult r = reference::stabilize(maps, depth, StabilizeSettings{});
+  ASSERT_TRUE(r.converged);
+  float deepest_under = 0.0f;
+  for (int j = 0; j < 48; ++j) {
+    for (int i = 0; i < 48; ++i) {
+      if (maps.has_surface(2, i, j))
+        deepest_under = std::max(deepest_under, depth[maps.index(2, i, j)]);
+    }
+  }
+  EXPECT_LE(deepest_under, 0.1f + 1e-4f);
+  EXPECT_GT(deepest_under, 0.05f);
+  EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);
+}
+
+TEST(StabilizeReference, LeanToRoofs) {
+  // One-sided lean-to roofs (no thickness) over a floor, eave at x = 3 m.
+  for (float pitch : {60.0f, 30.0f}) {
+    const SnowMaps maps =
+        make_maps(96, 48, 0.05f, 4, lean_to_roof(0.5f, 3.0f, 0.6f, 1.8f, 1.5f, pitch));
+    std::vector<float> depth = snow_on_top(maps, 0.3f);
+    auto on_roof = [&](int l, int i, int j) {
+      return l == 0 && maps.ground[maps.index(0, i, j)] > 0.5f;
+    };
+    const double roof_before = sum_where(maps, depth, on_roof);
+    const StabilizeResult r = reference::stabilize(maps, depth, StabilizeSettings{});
+    const double roof_after = sum_where(maps, depth, on_roof);
+    std::printf("%.0f deg lean-to: %d passes (+%d routing), roof %.3f -> %.4f m^3\n", pitch,
+                r.iterations, r.route_passes, roof_before, roof_after);
+    EXPECT_TRUE(r.converged);
+    if (pitch > 45.0f) {
+      EXPECT_LT(roof_after, 0.01 * roof_before);
+    } else {
+      EXPECT_GT(roof_after, 0.4 * roof_before);  // a narrow roof: its edges round off
+    }
+    // No snow passed through the thin roof into the space under it: under the
+    // roof, snow only slumps in from the open sides, the back and the eave
+    // (each at most about 1 m here).
+    const double through = sum_where(maps, depth, [&](int l, int i, int j) {
+      const glm::vec2 c = maps.grid.center(i, j);
+      return l == 1 && c.x > 1.0f && c.x < 2.0f && c.y > 1.0f && c.y < 1.4f;
+    });
+    EXPECT_EQ(through, 0.0);
+  }
+}
+
+// --- GPU against the CPU reference ------------------------------------------
+
+void expect_same(const std::vector<float>& gpu, const std::vector<float>& cpu, float tolerance) {
+  ASSERT_EQ(gpu.size(), cpu.size());
+  float worst = 0.0f;
+  for (size_t k = 0; k < gpu.size(); ++k) worst = std::max(worst, std::abs(gpu[k] - cpu[k]));
+  std::printf("GPU vs CPU: largest difference %.3e m\n", worst);
+  EXPECT_LE(worst, tolerance);
+}
+
+TEST(StabilizeGpu, MatchesReference) {
+  REQUIRE_GL();
+  const SnowMaps maps = bumpy_maps(64, 4);
+  const std::vector<float> start = random_snow(maps, 0.5f, 3);
+  StabilizeSettings settings;
+  settings.tolerance = 0.0f;
+  for (int passes : {0, 1, 2, 7, 60}) {
+    settings.max_iterations = passes;
+    std::vector<float> cpu = start, gpu = start;
+    const StabilizeResult rc = reference::stabilize(maps, cpu, settings);
+    const StabilizeResult rg = stabilize(maps, gpu, settings);
+    SCOPED_TRACE(passes);
+    EXPECT_EQ(rg.iterations, rc.iterations);
+    EXPECT_EQ(rg.route_passes, rc.route_passes);
+    EXPECT_NEAR(rg.lost_volume, rc.lost_volume, 1e-4);
+    EXPECT_NEAR(rg.volume, rc.volume, 1e-4);
+    expect_same(gpu, cpu, 1e-4f);
+  }
+}
+
+}  // namespace
+}  // namespace snow
