@@ -20,14 +20,18 @@
 #define SNOW_PEEL_PREV_TEXTURE 0  // sampler2D RGBA32F: previous layer (height, normal)
 #define SNOW_PEEL_TRIANGLES 0     // SSBO vec4 per triangle: unit normal as wound, object id bits
 
-// --- Shadow maps (shadow.vert/.frag, shadow_snow.vert, src/snow/coverage.cpp)
+// --- Shadow maps (shadow.vert, shadow_snow.vert, depth_only.frag, coverage.cpp)
 #define SNOW_SHADOW_SNOW_TEXTURE 0  // sampler2DArray RG32F per layer: (ground + depth, depth)
 
-// --- Coverage counting (coverage.comp, src/snow/coverage.cpp) --------------
+// --- Coverage counting (coverage_*.comp/.glsl, src/snow/coverage.cpp) ------
 #define SNOW_COVERAGE_SHADOW_TEXTURE 0  // sampler2DArray DEPTH32F: the batch's shadow maps
+#define SNOW_COVERAGE_SNOW_TEXTURE 1    // sampler2DArray RG32F: as SNOW_SHADOW_SNOW_TEXTURE
 #define SNOW_COVERAGE_RECEIVERS 0       // SSBO uvec4 per receiver (texel, height, normal)
 #define SNOW_COVERAGE_COUNTS 1          // SSBO uint per receiver: lit directions so far
-#define SNOW_COVERAGE_DIRECTIONS 2      // SSBO vec4 per direction: (shear a, b, origin u0, v0)
+#define SNOW_COVERAGE_QUEUE 2           // SSBO: uncertain-pair count, then receiver << 6 | k
+#define SNOW_COVERAGE_DISPATCH 3        // SSBO uvec4: indirect dispatch size of the exact pass
+#define SNOW_COVERAGE_BVH_NODES 4       // SSBO snow::Bvh::Node (32 B) per node
+#define SNOW_COVERAGE_BVH_TRIANGLES 5   // SSBO float[9] per triangle, BVH leaf order
 
 // --- Stabilizer (stabilize_*.vert/.geom/.frag, src/snow/stabilize.cpp) ------
 // Texture arrays with one layer per map layer, texel (i, j) at (x, y).

@@ -13,6 +13,7 @@ uniform vec2 map_extent;    // metres covered by the whole shadow map in u and v
 uniform float y_top;        // metres, maps to depth 0
 uniform float y_range;      // metres, y_top - y_range maps to depth 1
 
+
 void main() {
   vec2 uv = vec2(position.x - shear_origin.z - position.y * shear_origin.x,
                  position.z - shear_origin.w - position.y * shear_origin.y);

@@ -19,6 +19,7 @@ uniform vec2 map_extent;
 uniform float y_top;
 uniform float y_range;
 
+
 const ivec2 kCorner[4] = ivec2[](ivec2(0, 0), ivec2(1, 0), ivec2(1, 1), ivec2(0, 1));
 const int kTriangleCorner[6] = int[](0, 1, 2, 0, 2, 3);
 

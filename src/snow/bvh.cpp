@@ -58,6 +58,12 @@ Bvh::Bvh(std::vector<glm::vec3> corners) : corners_(std::move(corners)) {
   if (n == 0) return;
   nodes_.reserve(2 * (n / 2 + 1));
   build(0, n, centroids);
+  // Store the triangles in leaf order.
+  std::vector<glm::vec3> sorted(corners_.size());
+  for (uint32_t k = 0; k < n; ++k) {
+    for (int c = 0; c < 3; ++c) sorted[3 * size_t(k) + c] = corners_[3 * size_t(order_[k]) + c];
+  }
+  corners_ = std::move(sorted);
 }
 
 uint32_t Bvh::build(uint32_t first, uint32_t count, std::vector<glm::vec3>& centroids) {
@@ -90,36 +96,34 @@ uint32_t Bvh::build(uint32_t first, uint32_t count, std::vector<glm::vec3>& cent
                    order_.begin() + first + count,
                    [&](uint32_t a, uint32_t b) { return centroids[a][axis] < centroids[b][axis]; });
   build(first, half, centroids);
-  const uint32_t right = build(first + half, count - half, centroids);
-  nodes_[index].first = right;
+  build(first + half, count - half, centroids);
+  nodes_[index].first = static_cast<uint32_t>(nodes_.size());  // skip: past the subtree
   nodes_[index].count = 0;
   return index;
 }
 
 bool Bvh::occluded(const glm::vec3& origin, const glm::vec3& direction, float t_min,
                    float t_max) const {
-  if (nodes_.empty()) return false;
+  // Stackless pre-order walk: a hit inner node goes on to its left child (the
+  // next node), a missed one skips its subtree; leaves go on to the next node.
   const glm::vec3 inv_dir = 1.0f / direction;
-  uint32_t stack[64];
-  int top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const Node& node = nodes_[stack[--top]];
-    if (!hit_box(node.min, node.max, origin, inv_dir, t_min, t_max)) continue;
-    if (node.count > 0) {
-      for (uint32_t k = node.first; k < node.first + node.count; ++k) {
-        const uint32_t t = order_[k];
+  const uint32_t n = static_cast<uint32_t>(nodes_.size());
+  for (uint32_t i = 0; i < n;) {
+    const Node& node = nodes_[i];
+    const bool hit = hit_box(node.min, node.max, origin, inv_dir, t_min, t_max);
+    if (node.count == 0) {
+      i = hit ? i + 1 : node.first;
+      continue;
+    }
+    if (hit) {
+      for (uint32_t t = node.first; t < node.first + node.count; ++t) {
         if (hit_triangle(corners_[3 * t], corners_[3 * t + 1], corners_[3 * t + 2], origin,
                          direction, t_min, t_max)) {
           return true;
         }
       }
-    } else {
-      const uint32_t self = static_cast<uint32_t>(&node - nodes_.data());
-      if (top + 2 > 64) return true;  // cannot happen for median splits of < 2^60 triangles
-      stack[top++] = node.first;
-      stack[top++] = self + 1;
     }
+    ++i;
   }
   return false;
 }

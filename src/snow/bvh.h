@@ -1,7 +1,12 @@
 #pragma once
-// A small bounding volume hierarchy over a triangle soup for the CPU
-// reference passes (occlusion rays). Median split on the longest centroid
-// axis, up to 4 triangles per leaf; plenty for test scenes.
+// A bounding volume hierarchy over a triangle soup, for occlusion rays: the
+// CPU reference passes use it directly, the coverage pass uploads it for its
+// exact ray casts (shaders/coverage_exact.glsl mirrors occluded()). Median
+// split on the longest centroid axis, up to 4 triangles per leaf. Nodes are
+// stored in pre-order (an inner node's left child follows it, its right
+// subtree follows the left one) with skip links, so rays walk the tree
+// without a stack; the node layout is what std430 storage buffers read as
+// is, and the triangles are stored in leaf order.
 #include <cstdint>
 #include <vector>
 
@@ -12,6 +17,14 @@ namespace snow {
 class Bvh {
  public:
   Bvh() = default;
+  /// 32 bytes, the std430 layout of struct { vec3 min; uint first; vec3 max; uint count; }.
+  struct Node {
+    glm::vec3 min{0.0f};
+    uint32_t first = 0;  // leaf: first triangle (leaf order); inner: the node after its subtree
+    glm::vec3 max{0.0f};
+    uint32_t count = 0;  // leaf: triangle count (> 0); 0 for inner nodes
+  };
+
   /// Builds over triangles t = (corners[3t], corners[3t+1], corners[3t+2]).
   explicit Bvh(std::vector<glm::vec3> corners);
 
@@ -21,13 +34,14 @@ class Bvh {
                 float t_max) const;
 
   size_t triangle_count() const { return corners_.size() / 3; }
+  /// The nodes, root first (empty for no triangles).
+  const std::vector<Node>& nodes() const { return nodes_; }
+  /// The triangles' corners in leaf order (3 per triangle).
+  const std::vector<glm::vec3>& corners() const { return corners_; }
+  /// Original index of the triangle at each leaf-order position.
+  const std::vector<uint32_t>& order() const { return order_; }
 
  private:
-  struct Node {
-    glm::vec3 min, max;
-    uint32_t first = 0;  // leaf: first index into order_; inner: right child (left = this + 1)
-    uint32_t count = 0;  // leaf: triangle count; 0 for inner nodes
-  };
   uint32_t build(uint32_t first, uint32_t count, std::vector<glm::vec3>& centroids);
 
   std::vector<glm::vec3> corners_;

@@ -4,7 +4,10 @@
 // flake flutter and wind after Fearing, "Computer Modelling of Fallen Snow"
 // (SIGGRAPH 2000), section 4.1. Direction sampling: stratified in cos(angle)
 // with a golden-ratio azimuth sequence (a jittered spherical Fibonacci
-// pattern), uniform in solid angle over the cone.
+// pattern), uniform in solid angle over the cone. Shadow-map comparison with
+// a receiver-plane depth bias (Isidoro, "Shadow Mapping: GPU-based Tips and
+// Techniques", GDC 2006); uncertain texels resolved by exact ray casting
+// through a BVH (shaders/coverage_common.glsl explains the two passes).
 #include "snow/coverage.h"
 
 #include <algorithm>
@@ -22,6 +25,7 @@
 #include "gl/objects.h"
 #include "gl/program.h"
 #include "shaders/bindings.h"
+#include "snow/bvh.h"
 #include "snow/gpu_scene.h"
 
 namespace snow {
@@ -33,7 +37,6 @@ constexpr uint64_t kJitterStream = 0xD1B54A32D192ED03ull;
 constexpr float kNoSnowSurface = -3.0e38f;  // "no surface" in the snow-surface texture
 constexpr int kLocalSize = 64;              // coverage.comp's local_size_x
 constexpr int kMaxShadowSide = 16384;       // texels, also capped by GL_MAX_TEXTURE_SIZE
-constexpr float kMaxBiasTexels = 3.0f;      // cap of the slope bias, shadow texels of height
 
 /// splitmix64 (Steele, Lea and Flood 2014): tiny, fast, same stream everywhere.
 class SplitMix64 {
@@ -69,9 +72,6 @@ void validate(const CoverageSettings& s) {
     throw InputError("shadow-map batch must be in 1..64, got " + std::to_string(s.batch));
   }
   if (!std::isfinite(s.bias)) throw InputError("shadow bias must be finite");
-  if (!(s.slope_bias >= 0.0f) || !std::isfinite(s.slope_bias)) {
-    throw InputError("slope bias must be a finite number >= 0, got " + number(s.slope_bias));
-  }
   const glm::dvec3 m(mean_fall_direction(s));
   const double tilt = std::acos(std::clamp(-m.y, -1.0, 1.0)) * 180.0 / kPi;
   if (tilt + s.flutter_deg > kMaxFallAngleDeg) {
@@ -81,6 +81,13 @@ void validate(const CoverageSettings& s) {
                      " degrees of flutter that exceeds " + number(kMaxFallAngleDeg) +
                      " degrees from the vertical");
   }
+}
+
+// Uploads the batch's direction parameters to `batch_directions[]`.
+void set_batch_directions(const gl::Program& program, const glm::vec4* params, int n) {
+  const GLint location = glGetUniformLocation(program.id(), "batch_directions");
+  glProgramUniform4fv(program.id(), location, n, &params[0].x);
+  program.set("direction_count", n);
 }
 
 glm::vec3 gradient_normal(const SnowMaps& maps, const std::vector<float>& top, int l, int i,
@@ -162,43 +169,86 @@ std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& s) {
 
 struct CoverageRenderer::Impl {
   explicit Impl(const Scene& scene)
-      : gpu(scene),
-        bounds(scene.bounds),
-        shadow({"shadow.vert", "shadow.frag"}),
-        shadow_snow({"shadow_snow.vert", "shadow.frag"}),
-        composite({"coverage.comp"}),
-        empty_vao(gl::create_vertex_array()) {}
+      : bounds(scene.bounds),
+        shadow({"shadow.vert", "depth_only.frag"}),
+        shadow_snow({"shadow_snow.vert", "depth_only.frag"}),
+        count({"coverage.comp"}),
+        count_snow({"coverage_snow.comp"}),
+        exact({"coverage_exact.comp"}),
+        exact_snow({"coverage_exact_snow.comp"}),
+        dispatch({"coverage_dispatch.comp"}),
+        vao(gl::create_vertex_array()),
+        empty_vao(gl::create_vertex_array()) {
+    if (scene.triangle_count() * 3 > size_t(0x7fffffff)) {
+      throw InputError("scene has " + std::to_string(scene.triangle_count()) +
+                       " triangles, more than one draw call can take");
+    }
+    // One buffer of triangles in BVH leaf order: drawn into the shadow maps
+    // (vertex buffer) and ray cast by the exact pass (storage buffer).
+    const Bvh bvh(scene.positions);
+    triangles = bvh.triangle_count();
+    if (triangles == 0) return;
+    triangle_buffer = gl::create_buffer();
+    glNamedBufferStorage(triangle_buffer.id(), GLsizeiptr(bvh.corners().size() * sizeof(glm::vec3)),
+                         bvh.corners().data(), 0);
+    gl::check_error("coverage scene triangles");
+    nodes = bvh.nodes().size();
+    node_buffer = gl::create_buffer();
+    glNamedBufferStorage(node_buffer.id(), GLsizeiptr(nodes * sizeof(Bvh::Node)),
+                         bvh.nodes().data(), 0);
+    gl::check_error("coverage scene BVH");
+    glVertexArrayVertexBuffer(vao.id(), 0, triangle_buffer.id(), 0, sizeof(glm::vec3));
+    glEnableVertexArrayAttrib(vao.id(), SNOW_ATTR_POSITION);
+    glVertexArrayAttribFormat(vao.id(), SNOW_ATTR_POSITION, 3, GL_FLOAT, GL_FALSE, 0);
+    glVertexArrayAttribBinding(vao.id(), SNOW_ATTR_POSITION, 0);
+    gl::check_error("coverage scene vertex array");
+  }
 
-  GpuScene gpu;
   Bounds bounds;
-  gl::Program shadow;
-  gl::Program shadow_snow;
-  gl::Program composite;
+  gl::Program shadow;       // scene depth into a shadow map
+  gl::Program shadow_snow;  // snow heightfield depth into a shadow map
+  gl::Program count;        // pass 1: certain cases counted, the others queued
+  gl::Program count_snow;   // the same with a snow surface in the shadow maps
+  gl::Program exact;        // pass 2: exact ray casts of the queued pairs
+  gl::Program exact_snow;
+  gl::Program dispatch;  // queue length -> indirect dispatch size
+  gl::VertexArray vao;
   gl::VertexArray empty_vao;
+  gl::Buffer triangle_buffer;  // float[9] per triangle, BVH leaf order
+  gl::Buffer node_buffer;      // Bvh::Node per node
+  size_t triangles = 0;
+  size_t nodes = 0;
 
-  gl::Texture shadow_maps;  // DEPTH32F array
+  // Shadow maps: one DEPTH32F array layer per direction of a batch.
+  gl::Texture shadow_depth;
   glm::ivec2 shadow_size{0};
   int shadow_layers = 0;
   std::vector<gl::Framebuffer> fbos;
   gl::Texture snow_surface;  // RG32F array (top, depth)
   glm::ivec3 snow_size{0};
-  gl::Buffer receivers, counts, directions;
+  gl::Buffer receivers, counts, queue, dispatch_args;
 
   Timings timings;
   bool profiling = false;
 
+  void draw_scene() const {
+    if (triangles == 0) return;
+    glBindVertexArray(vao.id());
+    glDrawArrays(GL_TRIANGLES, 0, GLsizei(triangles * 3));
+  }
+
   void ensure_shadow_maps(glm::ivec2 size, int layers) {
-    if (shadow_maps && size == shadow_size && layers == shadow_layers) return;
+    if (shadow_depth && size == shadow_size && layers == shadow_layers) return;
     fbos.clear();
-    shadow_maps.reset();
-    shadow_maps = gl::create_texture_2d_array(GL_DEPTH_COMPONENT32F, size.x, size.y, layers,
-                                              "coverage shadow maps");
-    glTextureParameteri(shadow_maps.id(), GL_TEXTURE_COMPARE_MODE, GL_NONE);
+    shadow_depth.reset();
+    shadow_depth = gl::create_texture_2d_array(GL_DEPTH_COMPONENT32F, size.x, size.y, layers,
+                                               "coverage shadow maps");
+    glTextureParameteri(shadow_depth.id(), GL_TEXTURE_COMPARE_MODE, GL_NONE);
     shadow_size = size;
     shadow_layers = layers;
     for (int k = 0; k < layers; ++k) {
       gl::Framebuffer fbo = gl::create_framebuffer();
-      glNamedFramebufferTextureLayer(fbo.id(), GL_DEPTH_ATTACHMENT, shadow_maps.id(), 0, k);
+      glNamedFramebufferTextureLayer(fbo.id(), GL_DEPTH_ATTACHMENT, shadow_depth.id(), 0, k);
       glNamedFramebufferDrawBuffer(fbo.id(), GL_NONE);
       glNamedFramebufferReadBuffer(fbo.id(), GL_NONE);
       gl::check_framebuffer(fbo, "coverage shadow framebuffer");
@@ -222,11 +272,29 @@ glm::ivec2 CoverageRenderer::shadow_map_size() const { return impl_->shadow_size
 
 std::vector<float> CoverageRenderer::compute(const SnowMaps& maps, const CoverageSettings& settings,
                                              const std::vector<float>* snow_depth) {
+  return compute(maps, fall_directions(settings), shadow_origin_jitter(settings), settings,
+                 snow_depth);
+}
+
+std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
+                                             const std::vector<glm::vec3>& dirs,
+                                             const std::vector<glm::vec2>& jitter,
+                                             const CoverageSettings& settings,
+                                             const std::vector<float>* snow_depth) {
   Impl& im = *impl_;
   im.timings = Timings{};
   const double t_start = now_seconds();
-  const std::vector<glm::vec3> dirs = fall_directions(settings);  // validates settings
-  const std::vector<glm::vec2> jitter = shadow_origin_jitter(settings);
+  validate(settings);
+  if (dirs.empty() || jitter.size() != dirs.size()) {
+    throw InputError("coverage: " + std::to_string(dirs.size()) + " directions and " +
+                     std::to_string(jitter.size()) + " shadow-origin offsets");
+  }
+  for (const glm::vec3& d : dirs) {
+    if (!(d.y < -0.2f) || !std::isfinite(d.x) || !std::isfinite(d.z)) {
+      throw InputError(
+          "coverage: a fall direction points less than 11.5 degrees below the horizon");
+    }
+  }
   const MapGrid& grid = maps.grid;
   const size_t texels = grid.texels();
   const size_t total = size_t(std::max(maps.layers, 0)) * texels;
@@ -296,8 +364,9 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps, const Coverag
                      " layer texels; use a coarser texel size");
   }
   if (recv.empty()) return coverage;
-  if (recv.size() > size_t(std::numeric_limits<int32_t>::max())) {
-    throw InputError("coverage: more than 2^31 surface texels; use a coarser texel size");
+  if (recv.size() >= (size_t(1) << 26)) {
+    throw InputError("coverage: " + std::to_string(recv.size()) +
+                     " surface texels, more than 2^26; use a coarser texel size");
   }
 
   // Depth range: the scene and every receiver (snow tops may rise above the scene).
@@ -337,7 +406,7 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps, const Coverag
   }
   const int batch = std::min(settings.batch, int(k_count));
   const float bias =
-      settings.bias >= 0.0f ? settings.bias : float(0.05 * grid.texel + 1e-5 * y_range);
+      settings.bias >= 0.0f ? settings.bias : float(0.25 * grid.texel + 1e-5 * y_range);
 
   GlStateGuard state;
   im.ensure_shadow_maps(size, batch);
@@ -345,8 +414,12 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps, const Coverag
   Impl::upload(im.counts, nullptr, recv.size() * sizeof(uint32_t), "coverage counts");
   const GLuint zero = 0;
   glClearNamedBufferData(im.counts.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
-  Impl::upload(im.directions, dir_params.data(), dir_params.size() * sizeof(glm::vec4),
-               "coverage directions");
+  // Queue of uncertain pairs: a 16-byte header (the count), then up to one
+  // entry per receiver and direction of a batch.
+  Impl::upload(im.queue, nullptr, 16 + recv.size() * size_t(batch) * sizeof(uint32_t),
+               "coverage queue");
+  const GLuint dispatch_init[4] = {1, 1, 1, 0};
+  Impl::upload(im.dispatch_args, dispatch_init, sizeof dispatch_init, "coverage dispatch");
   if (!snowy_layers.empty()) {
     std::vector<glm::vec2> surface(total);
     for (size_t k = 0; k < total; ++k) {
@@ -376,17 +449,37 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps, const Coverag
   im.shadow_snow.set("grid_origin", grid.origin);
   im.shadow_snow.set("texel", grid.texel);
   im.shadow_snow.set("cut", kSnowSurfaceCutTexels * grid.texel);
-  gl::Program& comp = im.composite;
-  comp.set("receiver_count", int(recv.size()));
-  comp.set("grid_origin", grid.origin);
-  comp.set("texel", grid.texel);
-  comp.set("shadow_texel", float(st));
-  comp.set("shadow_size", size);
-  comp.set("y_top", y_top);
-  comp.set("y_range", y_range);
-  comp.set("bias", bias);
-  comp.set("slope_bias", settings.slope_bias);
-  comp.set("max_bias", float(kMaxBiasTexels * st));
+  const bool snow = !snowy_layers.empty();
+  gl::Program& count = snow ? im.count_snow : im.count;
+  gl::Program& exact = snow ? im.exact_snow : im.exact;
+  for (gl::Program* p : {&count, &exact}) {
+    p->set("grid_origin", grid.origin);
+    p->set("texel", grid.texel);
+    p->set("shadow_texel", float(st));
+    p->set("shadow_size", size);
+    p->set("bias", bias);
+    p->set("y_top", y_top);
+    p->set("y_range", y_range);
+  }
+  count.set("receiver_count", int(recv.size()));
+  exact.set("node_count", int(im.nodes));
+  if (snow) {
+    exact.set("grid_size", glm::ivec2(grid.width, grid.height));
+    exact.set("cut", kSnowSurfaceCutTexels * grid.texel);
+    std::vector<GLint> layers(snowy_layers.begin(), snowy_layers.end());
+    std::vector<GLfloat> tops(layers.size(), -kOpenSky);
+    for (size_t m = 0; m < layers.size(); ++m) {
+      for (size_t t = 0; t < texels; ++t) {
+        const float h = top[size_t(layers[m]) * texels + t];
+        if (!std::isnan(h)) tops[m] = std::max(tops[m], h);
+      }
+    }
+    exact.set("snow_layer_count", int(layers.size()));
+    glProgramUniform1iv(exact.id(), glGetUniformLocation(exact.id(), "snow_layers"),
+                        GLsizei(layers.size()), layers.data());
+    glProgramUniform1fv(exact.id(), glGetUniformLocation(exact.id(), "snow_top"),
+                        GLsizei(tops.size()), tops.data());
+  }
 
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
@@ -410,14 +503,14 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps, const Coverag
       glClearBufferfv(GL_DEPTH, 0, &clear_depth);
       im.shadow.set("shear_origin", dir_params[b0 + size_t(k)]);
       im.shadow.use();
-      im.gpu.draw();
+      im.draw_scene();
       if (!snowy_layers.empty() && quads > 0) {
         im.shadow_snow.set("shear_origin", dir_params[b0 + size_t(k)]);
         im.shadow_snow.use();
         glBindTextureUnit(SNOW_SHADOW_SNOW_TEXTURE, im.snow_surface.id());
         glBindVertexArray(im.empty_vao.id());
         for (int l : snowy_layers) {
-          im.shadow_snow.set("layer", l);
+          im.shadow_snow.set("layer", l);  // both stages of the program
           glDrawArrays(GL_TRIANGLES, 0, 6 * quads);
         }
       }
@@ -429,20 +522,39 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps, const Coverag
       im.timings.shadow += t - t_mark;
       t_mark = t;
     }
-    comp.use();
-    comp.set("first_direction", int(b0));
-    comp.set("direction_count", n);
-    glBindTextureUnit(SNOW_COVERAGE_SHADOW_TEXTURE, im.shadow_maps.id());
+    glBindTextureUnit(SNOW_COVERAGE_SHADOW_TEXTURE, im.shadow_depth.id());
+    if (snow) glBindTextureUnit(SNOW_COVERAGE_SNOW_TEXTURE, im.snow_surface.id());
+    if (im.triangles > 0) {
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_BVH_NODES, im.node_buffer.id());
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_BVH_TRIANGLES,
+                       im.triangle_buffer.id());
+    }
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_RECEIVERS, im.receivers.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_COUNTS, im.counts.id());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_DIRECTIONS, im.directions.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_QUEUE, im.queue.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_DISPATCH, im.dispatch_args.id());
+    glClearNamedBufferSubData(im.queue.id(), GL_R32UI, 0, 4, GL_RED_INTEGER, GL_UNSIGNED_INT,
+                              &zero);
+    // Pass 1: certain cases counted, uncertain ones queued.
+    count.use();
+    set_batch_directions(count, &dir_params[b0], n);
     for (size_t first = 0; first < recv.size(); first += size_t(max_groups) * kLocalSize) {
       const size_t left = recv.size() - first;
       const GLuint groups =
           GLuint(std::min<size_t>(max_groups, (left + kLocalSize - 1) / kLocalSize));
-      comp.set("first_receiver", int(first));
+      count.set("first_receiver", int(first));
       glDispatchCompute(groups, 1, 1);
     }
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    im.dispatch.use();
+    glDispatchCompute(1, 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
+    // Pass 2: exact tests of the queue, sized on the GPU (no readback).
+    exact.use();
+    set_batch_directions(exact, &dir_params[b0], n);
+    glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, im.dispatch_args.id());
+    glDispatchComputeIndirect(0);
+    glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, 0);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     gl::check_error("coverage counting pass");
     if (im.profiling) {
@@ -466,6 +578,7 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps, const Coverag
                           counts.data());
   gl::check_error("coverage readback");
   glBindTextureUnit(SNOW_COVERAGE_SHADOW_TEXTURE, 0);
+  glBindTextureUnit(SNOW_COVERAGE_SNOW_TEXTURE, 0);
   glBindTextureUnit(SNOW_SHADOW_SNOW_TEXTURE, 0);
   for (size_t r = 0; r < counts.size(); ++r) {
     coverage[recv_index[r]] =

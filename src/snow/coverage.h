@@ -9,6 +9,18 @@
 // spreads the directions uniformly (in solid angle) over a cone of half-angle
 // flutter_deg around it. Coverage p of a surface point = the share of the K
 // directions from which the point sees the sky (nothing above it along -d).
+//
+// GPU method: one orthographic depth map per direction (a shear along d onto
+// the horizontal plane, so shadow texels line up with the snow map's, texel
+// matched to it, origin jittered by a sub-texel offset), rendered in batches
+// into a 2D array texture. A compute pass per batch classifies every (surface
+// texel, direction) pair from the four shadow texels around the point,
+// against the point's own plane extended to each of them (a receiver-plane,
+// hence slope-scaled, depth bias): all below -> lit, all above -> blocked,
+// mixed (a silhouette or the foot of a wall passes within a texel) -> queued.
+// A second pass casts the queued pairs' rays exactly through a BVH of the
+// scene (and the snow heightfield). No CPU readback until the end. Results
+// match the ray-cast reference up to occluders thinner than a shadow texel.
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -27,12 +39,12 @@ struct CoverageSettings {
   float fall_speed = 1.0f;    // m/s, flakes' still-air fall speed (dry snow about 1, wet 1.5..2)
   uint64_t seed = 1;          // seed of the direction and shadow-origin jitter; same seed, same
                               // result bit for bit
-  int batch = 8;              // shadow maps per GPU batch (1..64); memory: batch * 4 B per
-                              // shadow texel
-  float bias = -1.0f;         // metres, constant shadow depth bias; < 0 = automatic: 0.05 texel
-                              // plus 1e-5 of the scene's height range
-  float slope_bias = 1.5f;    // factor (>= 0) on the receiver's height change across half a
-                              // shadow texel (slope-scaled bias); capped at 3 texels of height
+  int batch = 8;              // shadow maps per GPU batch (1..64); memory: batch * (4 B per
+                              // shadow texel + 4 B per surface texel for the exact-pass queue)
+  float bias = -1.0f;         // metres, receiver-plane depth bias: a shadow-map surface less
+                              // than this above the receiver's own plane (extended to that
+                              // shadow texel, so the bias follows the slope) is the receiver
+                              // itself; < 0 = automatic: 0.25 texel + 1e-5 of the height range
 };
 
 /// Largest tilt + flutter allowed (degrees): directions closer than 15
@@ -65,21 +77,23 @@ std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& settings);
 /// call, including destruction.
 class CoverageRenderer {
  public:
-  /// Uploads the scene (one vertex buffer, one draw call per shadow map).
-  /// Throws GLError when GL fails (GL_OUT_OF_MEMORY included).
+  /// Builds the scene's BVH (CPU, O(n log n)) and uploads its triangles in
+  /// leaf order (the vertex buffer of the one draw call per shadow map, and
+  /// the exact pass's storage buffer) and nodes. Throws GLError when GL fails
+  /// (GL_OUT_OF_MEMORY included).
   explicit CoverageRenderer(const Scene& scene);
   ~CoverageRenderer();
   CoverageRenderer(const CoverageRenderer&) = delete;
   CoverageRenderer& operator=(const CoverageRenderer&) = delete;
 
   /// Coverage per layer texel in [0,1] (the maps' layout, size
-  /// maps.layers * maps.grid.texels()); 0 where there is no surface. Renders
-  /// K orthographic depth maps along fall_directions(settings), texel matched
-  /// to the snow map (coarser only where the shadow map would exceed
-  /// GL_MAX_TEXTURE_SIZE), origin jittered by shadow_origin_jitter, in
-  /// batches of settings.batch into a 2D array texture; a compute pass per
-  /// batch adds, for every surface texel, the number of directions that see
-  /// it (receiver-slope-scaled bias); one readback at the end.
+  /// maps.layers * maps.grid.texels()); 0 where there is no surface; the
+  /// point of a texel is its centre at the surface height. K directions from
+  /// fall_directions(settings), shadow origins jittered by
+  /// shadow_origin_jitter(settings); the method is the one in this file's
+  /// head comment. Shadow texels are the snow map's, coarser only where a
+  /// map would exceed GL_MAX_TEXTURE_SIZE (16384 at most). One readback at
+  /// the end; progress is reported.
   /// With snow_depth (the maps' layout, metres, >= 0) the snow surface
   /// ground + depth (a heightfield per layer through the texel centres, cut
   /// where neighbours differ by more than 6 texels or lack a surface) is also
@@ -89,12 +103,21 @@ class CoverageRenderer {
   std::vector<float> compute(const SnowMaps& maps, const CoverageSettings& settings,
                              const std::vector<float>* snow_depth = nullptr);
 
-  /// Wall seconds of the last compute(), by stage (glFinish at each stage
-  /// boundary only when profiling is on, since it stalls the pipeline).
+  /// Same with explicit fall directions (unit, pointing down, at least 11.5
+  /// degrees below the horizon) and shadow-origin offsets (in [0,1)^2
+  /// shadow texels, one per direction); settings.directions, flutter, wind,
+  /// fall_speed and seed are then unused. For tests and experiments.
+  std::vector<float> compute(const SnowMaps& maps, const std::vector<glm::vec3>& directions,
+                             const std::vector<glm::vec2>& jitter, const CoverageSettings& settings,
+                             const std::vector<float>* snow_depth = nullptr);
+
+  /// Wall seconds of the last compute(), by stage. With profiling off (the
+  /// default; glFinish at every stage boundary stalls the pipeline) shadow
+  /// holds shadow and counting together and composite is 0.
   struct Timings {
     double setup = 0;      // receivers, buffers, uploads
     double shadow = 0;     // K shadow-map depth passes
-    double composite = 0;  // lit counting (compute passes)
+    double composite = 0;  // counting: classification and exact ray casts (compute passes)
     double readback = 0;   // one readback of the counts
   };
   const Timings& timings() const;

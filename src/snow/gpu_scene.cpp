@@ -1,6 +1,7 @@
 // Scene upload and GL state guard shared by the peel and coverage passes.
 #include "snow/gpu_scene.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <vector>

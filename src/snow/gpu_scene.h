@@ -16,7 +16,8 @@ namespace snow {
 /// bits in w). Needs a current context for its whole life.
 class GpuScene {
  public:
-  /// Uploads the positions. Throws GLError on GL_OUT_OF_MEMORY.
+  /// Uploads the positions (and the requested per-triangle buffers). Throws
+  /// GLError on GL_OUT_OF_MEMORY.
   explicit GpuScene(const Scene& scene, bool with_triangle_info = false);
 
   /// Draws every triangle (one glDrawArrays) with the bound program;

@@ -24,6 +24,7 @@
 namespace snow {
 namespace {
 
+constexpr double kPiDouble = 3.14159265358979323846;
 constexpr double kMaxSide = double(1 << 30);  // texels; beyond this a grid is absurd
 constexpr float kEmptyHeight = -3.0e38f;      // "no surface" in the peel targets
 
@@ -60,6 +61,8 @@ double nice_ceil(double x) {
 constexpr double kMapsPerLayerTexel = 24 + 4;          // SnowMaps + coverage
 constexpr double kPeelPerTexel = 2 * 20 + 4 + 16;      // ping-pong targets, depth, readback
 constexpr double kCoveragePerLayerTexel = 16 + 4 + 8;  // receivers, counts, snow surface
+constexpr double kQueuePerLayerTexelAndBatch = 4;      // exact-pass queue entries
+constexpr double kPerTriangle = 140;                   // GPU copies, BVH nodes and build scratch
 constexpr double kLaterPerLayerTexel = 48;             // stabilizer, depth, polygonize scratch
 
 void validate_peel_settings(const PeelSettings& s) {
@@ -123,31 +126,32 @@ MapGrid make_grid(const Bounds& bounds, const PeelSettings& settings) {
 }
 
 uint64_t estimate_memory(const MapGrid& grid, int layers, const CoverageSettings& coverage,
-                         float scene_height) {
+                         float scene_height, uint64_t triangles) {
   const double texels = double(std::max(grid.width, 0)) * double(std::max(grid.height, 0));
   const double layer_texels = texels * std::max(layers, 1);
   // Shadow map: the grid grown by the shear of the steepest direction.
   const double angle = std::min(
       double(kMaxFallAngleDeg),
       std::atan2(double(glm::length(coverage.wind)), std::max(1e-6f, coverage.fall_speed)) * 180.0 /
-              M_PI +
+              kPiDouble +
           std::max(0.0f, coverage.flutter_deg));
-  const double grow =
-      grid.texel > 0 ? std::max(0.0f, scene_height) * std::tan(angle * M_PI / 180.0) / grid.texel
-                     : 0.0;
+  const double grow = grid.texel > 0 ? std::max(0.0f, scene_height) *
+                                           std::tan(angle * kPiDouble / 180.0) / grid.texel
+                                     : 0.0;
   const double shadow_texels =
       (double(grid.width) + 2 * grow + 2) * (double(grid.height) + 2 * grow + 2);
   const double batch = std::clamp(coverage.batch, 1, std::max(1, coverage.directions));
-  const double bytes =
-      layer_texels * (kMapsPerLayerTexel + kCoveragePerLayerTexel + kLaterPerLayerTexel) +
-      texels * kPeelPerTexel + batch * shadow_texels * 4;
+  const double bytes = layer_texels * (kMapsPerLayerTexel + kCoveragePerLayerTexel +
+                                       batch * kQueuePerLayerTexelAndBatch + kLaterPerLayerTexel) +
+                       texels * kPeelPerTexel + batch * shadow_texels * 4 +
+                       double(triangles) * kPerTriangle;
   if (!(bytes < 1.8e19)) return std::numeric_limits<uint64_t>::max();
   return uint64_t(bytes);
 }
 
 void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings& coverage,
-                         uint64_t budget, float scene_height) {
-  const uint64_t need = estimate_memory(grid, layers, coverage, scene_height);
+                         uint64_t budget, float scene_height, uint64_t triangles) {
+  const uint64_t need = estimate_memory(grid, layers, coverage, scene_height, triangles);
   if (need <= budget) return;
   // Memory grows with 1 / texel^2: suggest a texel that fits.
   const double ratio = double(need) / double(std::max<uint64_t>(budget, 1));
@@ -169,7 +173,7 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings
   }
   const float scene_height = scene.bounds.empty() ? 0.0f : scene.bounds.size().y;
   check_memory_budget(grid, settings.layers, CoverageSettings{}, settings.memory_budget,
-                      scene_height);
+                      scene_height, scene.triangle_count());
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
   if (max_size > 0 && (grid.width > max_size || grid.height > max_size)) {
@@ -301,7 +305,7 @@ double time_depth_passes(const Scene& scene, int width, int height, int passes) 
   if (width < 1 || height < 1 || passes < 1 || scene.bounds.empty()) return 0.0;
   GlStateGuard state;
   GpuScene gpu(scene);
-  gl::Program program({"shadow.vert", "shadow.frag"});
+  gl::Program program({"shadow.vert", "depth_only.frag"});
   gl::Renderbuffer depth = gl::create_renderbuffer();
   glNamedRenderbufferStorage(depth.id(), GL_DEPTH_COMPONENT32F, width, height);
   gl::check_error("depth pass buffer");

@@ -34,22 +34,23 @@ MapGrid make_grid(const Bounds& scene_bounds, const PeelSettings& settings);
 
 /// Bytes that the maps pipeline needs for `grid` with `layers` layers, CPU
 /// and GPU memory together (on a software rasterizer both are host memory):
-/// the SnowMaps (24 B per layer texel) and coverage (4 B), the peel's GPU
-/// targets (2 ping-pong sets of 20 B + depth 4 B + readback 16 B per texel),
-/// coverage's receivers, counts and snow-surface textures (28 B per layer
-/// texel), one batch of shadow maps (4 B per shadow texel; the shadow map
-/// is the grid grown by scene_height * tan(tilt + flutter) on each side),
-/// and later stages (stabilizer ping-pong and snow depth, polygonize
-/// scratch: 48 B per layer texel). An upper bound, saturating at
-/// UINT64_MAX; it never overflows.
+/// the SnowMaps (24 B per layer texel) and coverage (4 B); the peel's GPU
+/// targets (2 ping-pong sets of 20 B + depth 4 B + readback 16 B per texel);
+/// coverage's receivers, counts and snow surface (28 B per layer texel) and
+/// exact-pass queue (4 B per layer texel and batch entry); one batch of
+/// shadow maps (4 B per shadow texel; a shadow map is the grid grown by
+/// scene_height * tan(tilt + flutter) on each side); the scene on the GPU
+/// and its BVH (about 140 B per triangle); later stages (stabilizer
+/// ping-pong, snow depth, polygonize scratch: 48 B per layer texel). An
+/// upper bound (every layer counted full), saturating at UINT64_MAX.
 uint64_t estimate_memory(const MapGrid& grid, int layers, const CoverageSettings& coverage,
-                         float scene_height = 0.0f);
+                         float scene_height = 0.0f, uint64_t triangles = 0);
 
 /// Throws InputError("maps of W x H texels x L layers need 37.2 GiB, over
 /// the 4 GiB budget; use a coarser texel size, e.g. --texel 0.05") when
 /// estimate_memory(...) > budget. Allocates nothing.
 void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings& coverage,
-                         uint64_t budget, float scene_height = 0.0f);
+                         uint64_t budget, float scene_height = 0.0f, uint64_t triangles = 0);
 
 /// GPU depth peeling. Needs a current GL context (snow::gl::create_context).
 /// Makes the grid with make_grid, checks the memory budget (with default

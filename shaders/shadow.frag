@@ -1,3 +1,0 @@
-#version 450 core
-// Depth only: the shadow maps need no colour.
-void main() {}

@@ -1,0 +1,427 @@
+// Tests of stage 2 (src/snow/coverage.h): fall directions, GPU coverage on
+// canned scenes (soft table edges, closed box, wind), against the CPU
+// ray-cast reference (src/snow/reference/coverage_ref.h).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <string>
+
+#include "core/error.h"
+#include "gl/context.h"
+#include "scene/builder.h"
+#include "snow/coverage.h"
+#include "snow/peel.h"
+#include "snow/reference/coverage_ref.h"
+
+namespace snow {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+gl::Context* context() {
+  static std::unique_ptr<gl::Context> ctx = []() -> std::unique_ptr<gl::Context> {
+    try {
+      return gl::create_context();
+    } catch (const GLError& e) {
+      std::fprintf(stderr, "no GL context: %s\n", e.what());
+      return nullptr;
+    }
+  }();
+  if (ctx) ctx->make_current();
+  return ctx.get();
+}
+
+#define REQUIRE_GL() \
+  if (!context()) GTEST_SKIP() << "no OpenGL context"
+
+SnowMaps peel(const Scene& scene, int side, int layers = 6) {
+  PeelSettings s;
+  s.max_side = side;
+  s.layers = layers;
+  return peel_layers(scene, s);
+}
+
+glm::ivec2 texel_at(const MapGrid& g, float x, float z) {
+  return glm::ivec2(int(std::floor((x - g.origin.x) / g.texel)),
+                    int(std::floor((z - g.origin.y) / g.texel)));
+}
+
+// Coverage of the lowest surface of column (i, j) lying within 1 cm of
+// height y (the floor under a table is layer 2, elsewhere layer 0).
+float coverage_at_height(const SnowMaps& maps, const std::vector<float>& cov, int i, int j,
+                         float y) {
+  for (int l = 0; l < maps.layers; ++l) {
+    const size_t k = maps.index(l, i, j);
+    if (!std::isnan(maps.ground[k]) && std::abs(maps.ground[k] - y) < 0.01f) return cov[k];
+  }
+  ADD_FAILURE() << "no surface at y = " << y << " in column " << i << ", " << j;
+  return -1.0f;
+}
+
+struct Difference {
+  double mean = 0;
+  float max = 0;
+  size_t count = 0;
+};
+
+Difference compare(const SnowMaps& maps, const std::vector<float>& a, const std::vector<float>& b) {
+  Difference d;
+  for (size_t k = 0; k < a.size(); ++k) {
+    if (std::isnan(maps.ground[k])) {
+      EXPECT_EQ(a[k], 0.0f);
+      EXPECT_EQ(b[k], 0.0f);
+      continue;
+    }
+    const float e = std::abs(a[k] - b[k]);
+    d.mean += e;
+    d.max = std::max(d.max, e);
+    ++d.count;
+  }
+  if (d.count) d.mean /= double(d.count);
+  return d;
+}
+
+// --- Directions ---------------------------------------------------------------
+
+TEST(FallDirections, UnitDownwardInsideTheCone) {
+  CoverageSettings s;
+  const std::vector<glm::vec3> dirs = fall_directions(s);
+  ASSERT_EQ(dirs.size(), 64u);
+  const double cos_max = std::cos(15.0 * kPi / 180.0);
+  int inner = 0;
+  for (const glm::vec3& d : dirs) {
+    EXPECT_NEAR(glm::length(d), 1.0f, 1e-6);
+    EXPECT_LT(d.y, 0.0f);
+    EXPECT_GE(-d.y, cos_max - 1e-6);  // no wind: the cone is around -Y
+    inner += -d.y > std::cos(7.5 * kPi / 180.0);
+  }
+  // Uniform in solid angle: the inner half-angle cone holds about
+  // (1 - cos 7.5) / (1 - cos 15) = 25.1 % of the directions (stratified: exactly +-1).
+  EXPECT_NEAR(inner, 16, 1);
+  // Azimuths spread all around: the mean direction is close to -Y.
+  glm::dvec3 mean(0);
+  for (const glm::vec3& d : dirs) mean += glm::dvec3(d);
+  mean = glm::normalize(mean);
+  EXPECT_GT(-mean.y, std::cos(1.0 * kPi / 180.0));
+}
+
+TEST(FallDirections, WindTiltsTheMeanDownwind) {
+  CoverageSettings s;
+  s.wind = glm::vec2(0.5f, 0.0f);  // 0.5 m/s along +x, fall 1 m/s: tilt atan(0.5) = 26.57 deg
+  const glm::vec3 m = mean_fall_direction(s);
+  EXPECT_NEAR(std::atan2(m.x, -m.y), std::atan(0.5), 1e-6);
+  EXPECT_NEAR(m.z, 0.0f, 1e-7);
+  const std::vector<glm::vec3> dirs = fall_directions(s);
+  glm::dvec3 mean(0);
+  for (const glm::vec3& d : dirs) {
+    EXPECT_GE(glm::dot(d, m), std::cos(15.0 * kPi / 180.0) - 1e-6);
+    EXPECT_GT(d.x, 0.0f);  // every flake drifts downwind (tilt > flutter)
+    mean += glm::dvec3(d);
+  }
+  mean = glm::normalize(mean);
+  EXPECT_NEAR(std::atan2(mean.x, -mean.y), std::atan(0.5), 0.01);
+}
+
+TEST(FallDirections, SameSeedSameBitsDifferentSeedDifferentJitter) {
+  CoverageSettings a;
+  CoverageSettings b;
+  const auto da = fall_directions(a), db = fall_directions(b);
+  ASSERT_EQ(da.size(), db.size());
+  EXPECT_EQ(std::memcmp(da.data(), db.data(), da.size() * sizeof(glm::vec3)), 0);
+  const auto ja = shadow_origin_jitter(a), jb = shadow_origin_jitter(b);
+  EXPECT_EQ(std::memcmp(ja.data(), jb.data(), ja.size() * sizeof(glm::vec2)), 0);
+  b.seed = 2;
+  const auto dc = fall_directions(b);
+  const auto jc = shadow_origin_jitter(b);
+  int differ = 0;
+  for (size_t k = 0; k < da.size(); ++k) differ += da[k] != dc[k];
+  EXPECT_EQ(differ, int(da.size()));
+  differ = 0;
+  for (size_t k = 0; k < ja.size(); ++k) {
+    differ += ja[k] != jc[k];
+    EXPECT_GE(jc[k].x, 0.0f);
+    EXPECT_LT(jc[k].x, 1.0f);
+    EXPECT_GE(jc[k].y, 0.0f);
+    EXPECT_LT(jc[k].y, 1.0f);
+  }
+  EXPECT_EQ(differ, int(ja.size()));
+}
+
+TEST(FallDirections, RejectsBadSettings) {
+  CoverageSettings s;
+  s.directions = 0;
+  EXPECT_THROW(fall_directions(s), InputError);
+  s = {};
+  s.flutter_deg = 70;
+  EXPECT_THROW(fall_directions(s), InputError);
+  s = {};
+  s.fall_speed = 0;
+  EXPECT_THROW(fall_directions(s), InputError);
+  s = {};
+  s.wind = glm::vec2(10.0f, 0.0f);  // tilt 84 degrees
+  try {
+    fall_directions(s);
+    FAIL() << "no exception";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("tilts the snow"), std::string::npos) << e.what();
+  }
+  s = {};
+  s.wind = glm::vec2(std::nanf(""), 0.0f);
+  EXPECT_THROW(fall_directions(s), InputError);
+}
+
+// --- Coverage on canned scenes ------------------------------------------------
+
+TEST(Coverage, OpenPlaneIsFullyCovered) {
+  REQUIRE_GL();
+  const Scene scene = make_open_plane(10.0f);
+  const SnowMaps maps = peel(scene, 128);
+  const std::vector<float> cov = compute_coverage(scene, maps, {});
+  ASSERT_EQ(cov.size(), maps.ground.size());
+  size_t plane = 0;
+  float lowest = 1.0f;
+  for (int j = 0; j < maps.grid.height; ++j) {
+    for (int i = 0; i < maps.grid.width; ++i) {
+      const size_t k = maps.index(0, i, j);
+      if (std::isnan(maps.ground[k])) {
+        EXPECT_EQ(cov[k], 0.0f);
+        continue;
+      }
+      const glm::vec2 c = maps.grid.center(i, j);
+      if (std::max(std::abs(c.x), std::abs(c.y)) > 5.0f - 2 * maps.grid.texel) continue;
+      lowest = std::min(lowest, cov[k]);
+      ++plane;
+    }
+  }
+  EXPECT_GT(plane, 10000u);
+  EXPECT_GT(lowest, 0.99f);
+}
+
+TEST(Coverage, TableShadowsTheFloorWithSoftEdges) {
+  REQUIRE_GL();
+  const float h = 0.75f;  // top of the table
+  const Scene scene = make_table_scene(h, 1.0f, 4.0f);
+  const SnowMaps maps = peel(scene, 160);
+  CoverageSettings s;
+  const std::vector<float> cov = compute_coverage(scene, maps, s);
+  const MapGrid& g = maps.grid;
+  // Under the middle of the table.
+  const glm::ivec2 mid = texel_at(g, 0.0f, 0.0f);
+  EXPECT_LT(coverage_at_height(maps, cov, mid.x, mid.y, 0.0f), 0.05f);
+  // The table top itself is in full sky.
+  EXPECT_GT(cov[maps.index(0, mid.x, mid.y)], 0.99f);
+  // Across the edge x = 0.5 along z = 0 (between the legs): dark more than
+  // H tan(flutter) inside, bright more than that outside, within 2 texels.
+  const float reach = h * std::tan(15.0f * float(kPi) / 180.0f) + 2 * g.texel;
+  const glm::ivec2 row = texel_at(g, 0.0f, 0.0f);
+  int inside = 0, outside = 0;
+  for (int i = 0; i < g.width; ++i) {
+    const float x = g.center(i, row.y).x;
+    if (x > 0.0f && x < 0.5f - reach) {
+      EXPECT_LT(coverage_at_height(maps, cov, i, row.y, 0.0f), 0.1f) << "x = " << x;
+      ++inside;
+    }
+    if (x > 0.5f + reach && x < 1.9f) {
+      EXPECT_GT(coverage_at_height(maps, cov, i, row.y, 0.0f), 0.9f) << "x = " << x;
+      ++outside;
+    }
+  }
+  EXPECT_GT(inside, 5);
+  EXPECT_GT(outside, 20);
+  // The penumbra is really soft: some floor texel at the edge is partly lit.
+  const glm::ivec2 edge = texel_at(g, 0.5f, 0.0f);
+  const float p = coverage_at_height(maps, cov, edge.x, edge.y, 0.0f);
+  EXPECT_GT(p, 0.2f);
+  EXPECT_LT(p, 0.8f);
+}
+
+TEST(Coverage, ClosedBoxFloorGetsNoSnow) {
+  REQUIRE_GL();
+  ClosedBoxDims dims;  // 1 m cube, 10 cm walls
+  const Scene scene = make_closed_box_scene(dims);
+  const SnowMaps maps = peel(scene, 128);
+  CoverageSettings s;
+  s.wind = glm::vec2(0.3f, 0.2f);
+  const std::vector<float> cov = compute_coverage(scene, maps, s);
+  const MapGrid& g = maps.grid;
+  size_t interior = 0;
+  for (int j = 0; j < g.height; ++j) {
+    for (int i = 0; i < g.width; ++i) {
+      const glm::vec2 c = g.center(i, j);
+      if (std::max(std::abs(c.x), std::abs(c.y)) >= 0.5f) continue;
+      for (int l = 0; l < maps.layers; ++l) {
+        const size_t k = maps.index(l, i, j);
+        if (std::isnan(maps.ground[k])) break;
+        if (l == 0) {
+          EXPECT_GT(cov[k], 0.99f);  // the lid's top
+        } else {
+          EXPECT_EQ(cov[k], 0.0f) << "layer " << l << " y " << maps.ground[k];
+          ++interior;
+        }
+      }
+    }
+  }
+  EXPECT_GT(interior, 1000u);
+}
+
+// Where coverage along z (at x = 0, floor layer 0, z from the wall's face
+// outwards) first rises to 0.5, interpolated; metres from the wall's centre.
+float half_coverage_distance(const SnowMaps& maps, const std::vector<float>& cov, float start) {
+  const MapGrid& g = maps.grid;
+  const int i = texel_at(g, 0.0f, 0.0f).x;
+  float prev_z = 0, prev_p = 0;
+  bool have_prev = false;
+  for (int j = 0; j < g.height; ++j) {
+    const float z = g.center(i, j).y;
+    if (z < start) continue;
+    const size_t k = maps.index(0, i, j);
+    if (std::isnan(maps.ground[k]) || maps.ground[k] > 0.01f) continue;
+    const float p = cov[k];
+    if (p >= 0.5f) {
+      if (!have_prev) return z;
+      return prev_z + (z - prev_z) * (0.5f - prev_p) / (p - prev_p);
+    }
+    prev_z = z;
+    prev_p = p;
+    have_prev = true;
+  }
+  return NAN;
+}
+
+TEST(Coverage, WindMovesTheWallsShadowDownwind) {
+  REQUIRE_GL();
+  WallDims dims;  // 2 m high, 6 m long along x, 0.2 m thick, on a 10 m floor
+  const Scene scene = make_wall_scene(dims);
+  const SnowMaps maps = peel(scene, 256);
+  const float face = 0.5f * dims.wall_thickness;
+  CoverageSettings calm;
+  const std::vector<float> cov_calm = compute_coverage(scene, maps, calm);
+  CoverageSettings windy;
+  windy.wind = glm::vec2(0.0f, 0.5f);  // along +z: tilt atan(0.5)
+  const std::vector<float> cov_wind = compute_coverage(scene, maps, windy);
+  const float z_calm = half_coverage_distance(maps, cov_calm, face);
+  const float z_wind = half_coverage_distance(maps, cov_wind, face);
+  const float expected = dims.wall_height * 0.5f;  // H tan(tilt) = 2 * 0.5
+  EXPECT_NEAR(z_wind - z_calm, expected, 2 * maps.grid.texel)
+      << "calm " << z_calm << " windy " << z_wind;
+  EXPECT_NEAR(z_wind - face, expected, 2 * maps.grid.texel);
+  // Upwind (-z) every direction comes from away from the wall: fully covered
+  // two texels from its face.
+  const MapGrid& g = maps.grid;
+  const glm::ivec2 up = texel_at(g, 0.0f, -face - 2.5f * g.texel);
+  EXPECT_GT(cov_wind[maps.index(0, up.x, up.y)], 0.99f);
+}
+
+TEST(Coverage, GpuMatchesRayCastReference) {
+  REQUIRE_GL();
+  struct Case {
+    const char* name;
+    Scene scene;
+    glm::vec2 wind;
+  };
+  Case cases[] = {
+      {"open plane", make_open_plane(10.0f), {0.0f, 0.0f}},
+      {"table", make_table_scene(0.75f, 1.0f, 4.0f), {0.0f, 0.0f}},
+      {"table in wind", make_table_scene(0.75f, 1.0f, 4.0f), {0.4f, -0.3f}},
+      {"closed box", make_closed_box_scene(1.0f), {0.0f, 0.0f}},
+      {"wall in wind", make_wall_scene(2.0f, 6.0f, 10.0f), {0.0f, 0.5f}},
+      {"house", make_house_scene(45.0f, 0.5f), {0.3f, 0.0f}},
+      {"stairs", make_stairs_scene(), {0.0f, 0.2f}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const SnowMaps maps = peel(c.scene, 128);
+    CoverageSettings s;
+    s.wind = c.wind;
+    const std::vector<float> gpu = compute_coverage(c.scene, maps, s);
+    const std::vector<float> cpu = reference::compute_coverage(c.scene, maps, fall_directions(s));
+    const Difference d = compare(maps, gpu, cpu);
+    std::printf("%-14s mean |gpu - cpu| %.4f, max %.3f over %zu layer texels\n", c.name, d.mean,
+                d.max, d.count);
+    EXPECT_GT(d.count, 1000u);
+    EXPECT_LT(d.mean, 0.02);
+    EXPECT_LT(d.max, 0.1f);
+  }
+}
+
+TEST(Coverage, SameSeedSameOutputDifferentSeedDifferentJitter) {
+  REQUIRE_GL();
+  const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
+  const SnowMaps maps = peel(scene, 96);
+  CoverageSettings s;
+  const std::vector<float> a = compute_coverage(scene, maps, s);
+  CoverageRenderer renderer(scene);  // a second renderer, called twice
+  const std::vector<float> b = renderer.compute(maps, s);
+  const std::vector<float> b2 = renderer.compute(maps, s);
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0);
+  EXPECT_EQ(std::memcmp(b.data(), b2.data(), b.size() * sizeof(float)), 0);
+  s.seed = 7;
+  const std::vector<float> c = renderer.compute(maps, s);
+  size_t differ = 0;
+  for (size_t k = 0; k < a.size(); ++k) differ += a[k] != c[k];
+  EXPECT_GT(differ, 10u);  // the penumbra moves with the jitter
+  // ... but only in the penumbra: the mean barely changes.
+  EXPECT_LT(compare(maps, a, c).mean, 0.02);
+}
+
+TEST(Coverage, BatchSizeDoesNotChangeTheResult) {
+  REQUIRE_GL();
+  const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
+  const SnowMaps maps = peel(scene, 64);
+  CoverageSettings s;
+  s.directions = 20;
+  s.batch = 8;  // 8 + 8 + 4
+  const std::vector<float> a = compute_coverage(scene, maps, s);
+  s.batch = 1;
+  const std::vector<float> b = compute_coverage(scene, maps, s);
+  EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0);
+}
+
+TEST(Coverage, SnowOnSnowOccludesAndRaisesPoints) {
+  REQUIRE_GL();
+  const Scene scene = make_open_plane(6.0f);
+  const SnowMaps maps = peel(scene, 96, 2);
+  // A 1 m high ridge of snow along x, crest |z| < 0.236, flanks at 70
+  // degrees down to |z| = 0.6, on the open plane.
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  const MapGrid& g = maps.grid;
+  for (int j = 0; j < g.height; ++j) {
+    for (int i = 0; i < g.width; ++i) {
+      const glm::vec2 c = g.center(i, j);
+      if (std::abs(c.x) > 2.5f) continue;
+      depth[maps.index(0, i, j)] = std::clamp(2.75f * (0.6f - std::abs(c.y)), 0.0f, 1.0f);
+    }
+  }
+  CoverageSettings s;
+  s.wind = glm::vec2(0.0f, 0.8f);  // blowing across the ridge: tilt 38.7 degrees
+  const std::vector<float> gpu = compute_coverage(scene, maps, s, &depth);
+  const std::vector<float> cpu =
+      reference::compute_coverage(scene, maps, fall_directions(s), &depth);
+  const Difference d = compare(maps, gpu, cpu);
+  std::printf("snow on snow: mean |gpu - cpu| %.4f, max %.3f\n", d.mean, d.max);
+  // The ridge's crest sees the sky; the bare plane in its lee is shadowed.
+  const glm::ivec2 crest = texel_at(g, 0.0f, 0.0f);
+  EXPECT_GT(gpu[maps.index(0, crest.x, crest.y)], 0.99f);
+  const glm::ivec2 lee = texel_at(g, 0.0f, 0.75f);  // 0.15 m past the ridge's foot
+  EXPECT_LT(gpu[maps.index(0, lee.x, lee.y)], 0.5f);
+  // Without the snow surface the plane is open sky everywhere.
+  const std::vector<float> bare = compute_coverage(scene, maps, s);
+  EXPECT_GT(bare[maps.index(0, lee.x, lee.y)], 0.99f);
+}
+
+TEST(Coverage, RejectsMismatchedSnowDepth) {
+  REQUIRE_GL();
+  const Scene scene = make_open_plane(2.0f);
+  const SnowMaps maps = peel(scene, 32, 2);
+  std::vector<float> depth(3, 0.0f);
+  EXPECT_THROW(compute_coverage(scene, maps, {}, &depth), InputError);
+  CoverageSettings bad;
+  bad.batch = 0;
+  EXPECT_THROW(compute_coverage(scene, maps, bad), InputError);
+}
+
+}  // namespace
+}  // namespace snow

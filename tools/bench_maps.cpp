@@ -1,0 +1,207 @@
+// Benchmark of pipeline stages 1 and 2 (not a test): depth peeling and
+// coverage time per stage, against the raw rasterization work they contain
+// (the peel's passes and the K shadow passes as bare depth passes of the
+// same sizes), so the overhead ratio is visible. Results go to
+// tools/RESULTS.md ("Peel and coverage").
+//
+// Usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]
+//                             [--big-side N] [--big-triangles T] [--no-big | --big-only]
+//                             [scene.glb|scene.gltf ...]
+// Without scene arguments it runs the bundled courtyard, a few scenes from
+// ../shared/scenes (when present) and a generated scene of about
+// --big-triangles triangles (default 1M) at --big-side (default 2048).
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "gl/context.h"
+#include "scene/builder.h"
+#include "scene/load_gltf.h"
+#include "snow/coverage.h"
+#include "snow/peel.h"
+
+namespace {
+
+double seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+struct Options {
+  int side = 1024;
+  int layers = 8;
+  int directions = 64;
+  int big_side = 2048;
+  int big_triangles = 1000000;
+  bool big = true;
+  bool big_only = false;
+  int repeat = 1;  // coverage runs per scene; the last one is reported (the first JITs shaders)
+  std::vector<std::string> scenes;
+};
+
+// A rolling terrain of about `triangles` triangles over 100 x 100 m with a
+// few tables and walls on it: many small triangles, a few occluders.
+snow::Scene make_big_scene(int triangles) {
+  snow::SceneBuilder builder;
+  const int quads_side = std::max(2, int(std::sqrt(double(triangles - 200) / 2.0)));
+  const float size = 100.0f;
+  std::vector<glm::vec3> positions;
+  std::vector<uint32_t> indices;
+  positions.reserve(size_t(quads_side + 1) * (quads_side + 1));
+  for (int j = 0; j <= quads_side; ++j) {
+    for (int i = 0; i <= quads_side; ++i) {
+      const float x = -size / 2 + size * i / quads_side;
+      const float z = -size / 2 + size * j / quads_side;
+      const float y =
+          1.5f * std::sin(x * 0.11f) * std::cos(z * 0.07f) + 0.3f * std::sin(x * 0.9f + z * 0.6f);
+      positions.push_back({x, y, z});
+    }
+  }
+  const uint32_t row = uint32_t(quads_side + 1);
+  for (int j = 0; j < quads_side; ++j) {
+    for (int i = 0; i < quads_side; ++i) {
+      const uint32_t a = uint32_t(j) * row + uint32_t(i);
+      indices.insert(indices.end(), {a, a + row, a + row + 1, a, a + row + 1, a + 1});
+    }
+  }
+  builder.add_mesh("Terrain", positions, indices);
+  for (int k = 0; k < 8; ++k) {
+    const float x = -40.0f + 11.0f * k, z = 10.0f * std::sin(float(k));
+    builder.add_box("Table" + std::to_string(k), {x - 1.5f, 2.5f, z - 1.0f},
+                    {x + 1.5f, 2.6f, z + 1.0f});
+    builder.add_box("Wall" + std::to_string(k), {x - 3.0f, -2.0f, z + 4.0f},
+                    {x + 3.0f, 4.0f, z + 4.3f});
+  }
+  return builder.build();
+}
+
+struct Row {
+  std::string name;
+  size_t triangles = 0;
+  int width = 0, height = 0, layers_found = 0, peel_passes = 0;
+  glm::ivec2 shadow{0};
+  double peel = 0, setup = 0, shadow_s = 0, composite = 0, readback = 0;
+  double raw_peel = 0, raw_shadow = 0;
+};
+
+Row run(const std::string& name, const snow::Scene& scene, int side, const Options& o) {
+  Row r;
+  r.name = name;
+  r.triangles = scene.triangle_count();
+  snow::PeelSettings ps;
+  ps.max_side = side;
+  ps.layers = o.layers;
+  const double t0 = seconds();
+  const snow::SnowMaps maps = snow::peel_layers(scene, ps);
+  r.peel = seconds() - t0;
+  r.width = maps.grid.width;
+  r.height = maps.grid.height;
+  for (int l = 0; l < maps.layers; ++l) {
+    bool any = false;
+    for (size_t t = 0; t < maps.grid.texels() && !any; ++t) {
+      any = !std::isnan(maps.ground[size_t(l) * maps.grid.texels() + t]);
+    }
+    if (any) r.layers_found = l + 1;
+  }
+  // The peel ran one pass per layer found, plus the one that found nothing
+  // (or counted the overflow).
+  r.peel_passes = std::min(r.layers_found + 1, o.layers + 1);
+
+  snow::CoverageSettings cs;
+  cs.directions = o.directions;
+  snow::CoverageRenderer renderer(scene);
+  renderer.set_profiling(true);
+  for (int k = 0; k < o.repeat; ++k) renderer.compute(maps, cs);
+  const auto& t = renderer.timings();
+  r.setup = t.setup;
+  r.shadow_s = t.shadow;
+  r.composite = t.composite;
+  r.readback = t.readback;
+  r.shadow = renderer.shadow_map_size();
+
+  r.raw_peel = snow::time_depth_passes(scene, r.width, r.height, r.peel_passes);
+  r.raw_shadow = snow::time_depth_passes(scene, r.shadow.x, r.shadow.y, o.directions);
+  return r;
+}
+
+void print(const Row& r) {
+  const double total = r.peel + r.setup + r.shadow_s + r.composite + r.readback;
+  const double raw = r.raw_peel + r.raw_shadow;
+  std::printf(
+      "| %s | %zu | %dx%d | %d | %.2f | %dx%d | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | "
+      "%.2f |\n",
+      r.name.c_str(), r.triangles, r.width, r.height, r.layers_found, r.peel, r.shadow.x,
+      r.shadow.y, r.setup, r.shadow_s, r.composite, r.readback, total, r.raw_peel, r.raw_shadow,
+      total / raw);
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    const auto next = [&]() { return i + 1 < argc ? std::atoi(argv[++i]) : 0; };
+    if (a == "--side")
+      o.side = next();
+    else if (a == "--layers")
+      o.layers = next();
+    else if (a == "--directions")
+      o.directions = next();
+    else if (a == "--big-side")
+      o.big_side = next();
+    else if (a == "--big-triangles")
+      o.big_triangles = next();
+    else if (a == "--no-big")
+      o.big = false;
+    else if (a == "--big-only")
+      o.big_only = true;
+    else if (a == "--repeat")
+      o.repeat = std::max(1, next());
+    else
+      o.scenes.push_back(a);
+  }
+  try {
+    snow::set_log_level(snow::LogLevel::Warn);
+    auto context = snow::gl::create_context();
+    std::printf("GL: %s\n", context->description().c_str());
+    std::printf("maps side %d (generated scene %d), L = %d, K = %d\n\n", o.side, o.big_side,
+                o.layers, o.directions);
+    std::printf(
+        "| scene | triangles | map | layers | peel s | shadow map | setup s | shadow s | count s | "
+        "readback s | total s | raw peel s | raw shadow s | total / raw |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    std::vector<std::string> scenes = o.scenes;
+    if (scenes.empty()) {
+      const std::filesystem::path root(SNOW_SOURCE_DIR);
+      scenes.push_back((root / "assets/scenes/courtyard.glb").string());
+      const std::filesystem::path shared = root / "../shared/scenes";
+      for (const char* s : {"kenney-city/building-small-a.glb", "kenney-city/pavement-fountain.glb",
+                            "kenney-city/road-straight-lightposts.glb",
+                            "khronos/SheenChair/SheenChair.gltf", "khronos/ToyCar/ToyCar.gltf"}) {
+        if (std::filesystem::exists(shared / s)) scenes.push_back((shared / s).string());
+      }
+    }
+    if (o.big_only) scenes.clear();
+    for (const std::string& path : scenes) {
+      snow::LoadSettings ls;
+      ls.load_images = false;
+      const snow::Scene scene = snow::load_scene(path, ls);
+      print(run(std::filesystem::path(path).filename().string(), scene, o.side, o));
+    }
+    if (o.big && (o.scenes.empty() || o.big_only)) {
+      const snow::Scene big = make_big_scene(o.big_triangles);
+      print(run("generated terrain", big, o.big_side, o));
+    }
+  } catch (const snow::Error& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return e.exit_code();
+  }
+  return 0;
+}
