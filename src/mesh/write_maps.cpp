@@ -1,1 +1,254 @@
-// Placeholder: this file is written by the module's issue.
+// The --maps writer: OpenEXR float images (tinyexr), 16-bit PNG previews
+// (PNG 1.2 specification, W3C; zlib from stb_image_write) and a JSON
+// manifest. Format: tools/MAPS.md.
+#include "mesh/write_maps.h"
+
+#include <tinyexr.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <system_error>
+
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "core/fs.h"
+
+// Debian's libstb exports the zlib encoder of stb_image_write, which its
+// header declares only in the implementation part.
+extern "C" unsigned char* stbi_zlib_compress(unsigned char* data, int data_len, int* out_len,
+                                             int quality);
+
+namespace snow {
+namespace {
+
+constexpr int kFormatVersion = 1;
+
+uint32_t crc32(const uint8_t* data, size_t size, uint32_t crc = 0) {
+  static const std::array<uint32_t, 256> table = [] {
+    std::array<uint32_t, 256> t{};
+    for (uint32_t n = 0; n < 256; ++n) {
+      uint32_t c = n;
+      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+      t[n] = c;
+    }
+    return t;
+  }();
+  crc = ~crc;
+  for (size_t k = 0; k < size; ++k) crc = table[(crc ^ data[k]) & 0xFF] ^ (crc >> 8);
+  return ~crc;
+}
+
+void put_u32(std::vector<uint8_t>& out, uint32_t v) {
+  out.push_back(uint8_t(v >> 24));
+  out.push_back(uint8_t(v >> 16));
+  out.push_back(uint8_t(v >> 8));
+  out.push_back(uint8_t(v));
+}
+
+void put_chunk(std::vector<uint8_t>& out, const char type[4], const uint8_t* data, size_t size) {
+  put_u32(out, uint32_t(size));
+  const size_t start = out.size();
+  out.insert(out.end(), type, type + 4);
+  if (size) out.insert(out.end(), data, data + size);
+  put_u32(out, crc32(out.data() + start, size + 4));
+}
+
+bool layer_has_surface(const SnowMaps& maps, int l) {
+  const size_t texels = maps.grid.texels();
+  const float* g = maps.ground.data() + size_t(l) * texels;
+  for (size_t t = 0; t < texels; ++t) {
+    if (!std::isnan(g[t])) return true;
+  }
+  return false;
+}
+
+// Range of the values of `v` at texels with a surface (finite ones only).
+std::pair<float, float> value_range(const SnowMaps& maps, const std::vector<float>& v) {
+  float lo = std::numeric_limits<float>::max(), hi = -std::numeric_limits<float>::max();
+  for (size_t k = 0; k < v.size(); ++k) {
+    if (std::isnan(maps.ground[k]) || !std::isfinite(v[k])) continue;
+    lo = std::min(lo, v[k]);
+    hi = std::max(hi, v[k]);
+  }
+  if (lo > hi) lo = hi = 0.0f;
+  return {lo, hi};
+}
+
+}  // namespace
+
+std::vector<uint8_t> encode_png16(const std::vector<uint16_t>& grey, int width, int height) {
+  if (width < 1 || height < 1 || grey.size() != size_t(width) * size_t(height)) {
+    throw InputError("16-bit PNG: " + std::to_string(grey.size()) + " samples for " +
+                     std::to_string(width) + " x " + std::to_string(height));
+  }
+  const size_t row = size_t(width) * 2 + 1;
+  if (row * size_t(height) > size_t(std::numeric_limits<int>::max())) {
+    throw InputError("16-bit PNG: " + std::to_string(width) + " x " + std::to_string(height) +
+                     " is too large for one zlib stream");
+  }
+  // Filter type 1 (Sub) on big-endian samples: byte x minus byte x - 2.
+  std::vector<uint8_t> raw(row * size_t(height));
+  for (int j = 0; j < height; ++j) {
+    uint8_t* out = raw.data() + size_t(j) * row;
+    out[0] = 1;
+    uint8_t prev_hi = 0, prev_lo = 0;
+    for (int i = 0; i < width; ++i) {
+      const uint16_t v = grey[size_t(j) * size_t(width) + size_t(i)];
+      const uint8_t hi = uint8_t(v >> 8), lo = uint8_t(v & 0xFF);
+      out[1 + 2 * i] = uint8_t(hi - prev_hi);
+      out[2 + 2 * i] = uint8_t(lo - prev_lo);
+      prev_hi = hi;
+      prev_lo = lo;
+    }
+  }
+  int zlen = 0;
+  unsigned char* z = stbi_zlib_compress(raw.data(), int(raw.size()), &zlen, 6);
+  if (!z) throw InputError("16-bit PNG: zlib compression failed");
+  std::vector<uint8_t> png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  std::vector<uint8_t> ihdr;
+  put_u32(ihdr, uint32_t(width));
+  put_u32(ihdr, uint32_t(height));
+  ihdr.insert(ihdr.end(), {16, 0, 0, 0, 0});  // depth 16, grey, deflate, filters, no interlace
+  put_chunk(png, "IHDR", ihdr.data(), ihdr.size());
+  put_chunk(png, "IDAT", z, size_t(zlen));
+  std::free(z);
+  put_chunk(png, "IEND", nullptr, 0);
+  return png;
+}
+
+std::vector<uint8_t> encode_exr(const std::vector<float>& values, int width, int height) {
+  if (width < 1 || height < 1 || values.size() != size_t(width) * size_t(height)) {
+    throw InputError("EXR: " + std::to_string(values.size()) + " values for " +
+                     std::to_string(width) + " x " + std::to_string(height));
+  }
+  EXRHeader header;
+  InitEXRHeader(&header);
+  EXRImage image;
+  InitEXRImage(&image);
+  EXRChannelInfo channel;
+  std::memset(&channel, 0, sizeof channel);
+  std::strncpy(channel.name, "Y", sizeof channel.name - 1);
+  int pixel_type = TINYEXR_PIXELTYPE_FLOAT;
+  int requested = TINYEXR_PIXELTYPE_FLOAT;
+  header.num_channels = 1;
+  header.channels = &channel;
+  header.pixel_types = &pixel_type;
+  header.requested_pixel_types = &requested;
+  header.compression_type = TINYEXR_COMPRESSIONTYPE_ZIP;
+  const float* plane = values.data();
+  image.num_channels = 1;
+  image.images = reinterpret_cast<unsigned char**>(const_cast<float**>(&plane));
+  image.width = width;
+  image.height = height;
+  unsigned char* memory = nullptr;
+  const char* err = nullptr;
+  const size_t size = SaveEXRImageToMemory(&image, &header, &memory, &err);
+  if (size == 0 || !memory) {
+    const std::string message = err ? err : "unknown error";
+    if (err) FreeEXRErrorMessage(err);
+    throw IOError("EXR encoding failed: " + message);
+  }
+  std::vector<uint8_t> out(memory, memory + size);
+  std::free(memory);
+  return out;
+}
+
+void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
+                const std::vector<float>* coverage, const std::vector<float>* depth) {
+  const MapGrid& g = maps.grid;
+  const size_t texels = g.texels();
+  const size_t total = size_t(std::max(maps.layers, 0)) * texels;
+  if (maps.ground.size() != total || g.width < 1 || g.height < 1) {
+    throw InputError("maps writer: the snow maps are inconsistent (arrays do not match the grid)");
+  }
+  for (const auto* v : {coverage, depth}) {
+    if (v && v->size() != total) {
+      throw InputError("maps writer: " + std::string(v == coverage ? "coverage" : "snow depth") +
+                       " has " + std::to_string(v->size()) + " values, the maps have " +
+                       std::to_string(total));
+    }
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec || !std::filesystem::is_directory(dir)) {
+    throw IOError("cannot create the maps folder " + dir.string() +
+                  (ec ? ": " + ec.message() : std::string()));
+  }
+
+  struct Kind {
+    const char* name;
+    const std::vector<float>* values;  // nullptr: the heights
+    const char* unit;
+    const char* meaning;
+  };
+  std::vector<Kind> kinds = {{"height", nullptr, "m", "surface height, world Y"}};
+  if (coverage) kinds.push_back({"coverage", coverage, "1", "share of fall directions that reach"});
+  if (depth) kinds.push_back({"depth", depth, "m", "snow depth, vertical"});
+
+  nlohmann::ordered_json files = nlohmann::ordered_json::array();
+  nlohmann::ordered_json ranges = nlohmann::ordered_json::object();
+  std::vector<float> plane(texels);
+  std::vector<uint16_t> preview(texels);
+  int written_layers = 0;
+  for (const Kind& kind : kinds) {
+    const std::vector<float>& all = kind.values ? *kind.values : maps.ground;
+    auto [lo, hi] = std::string(kind.name) == "coverage" ? std::pair<float, float>(0.0f, 1.0f)
+                                                         : value_range(maps, all);
+    ranges[kind.name] = {{"png_black", lo}, {"png_white", hi}, {"unit", kind.unit}};
+    const float scale = hi > lo ? 65535.0f / (hi - lo) : 0.0f;
+    for (int l = 0; l < maps.layers; ++l) {
+      if (!layer_has_surface(maps, l)) continue;
+      if (&kind == &kinds.front()) written_layers = l + 1;
+      const size_t base = size_t(l) * texels;
+      for (size_t t = 0; t < texels; ++t) {
+        const bool surface = !std::isnan(maps.ground[base + t]);
+        const float v = all[base + t];
+        plane[t] = kind.values ? (surface && std::isfinite(v) ? v : 0.0f) : v;
+        const float n =
+            surface && std::isfinite(v) ? std::clamp((v - lo) * scale, 0.0f, 65535.0f) : 0.0f;
+        preview[t] = uint16_t(std::lround(n));
+      }
+      const std::string stem = "layer" + std::to_string(l) + "_" + kind.name;
+      const std::vector<uint8_t> exr = encode_exr(plane, g.width, g.height);
+      write_bytes_atomically(dir / (stem + ".exr"), exr.data(), exr.size());
+      const std::vector<uint8_t> png = encode_png16(preview, g.width, g.height);
+      write_bytes_atomically(dir / (stem + ".png"), png.data(), png.size());
+      files.push_back({{"layer", l},
+                       {"kind", kind.name},
+                       {"exr", stem + ".exr"},
+                       {"png", stem + ".png"},
+                       {"unit", kind.unit}});
+    }
+  }
+
+  nlohmann::ordered_json manifest;
+  manifest["format"] = "snowmodel-maps";
+  manifest["version"] = kFormatVersion;
+  manifest["units"] = "metres";
+  manifest["up_axis"] = "+Y";
+  manifest["origin"] = {g.origin.x, g.origin.y};
+  manifest["origin_axes"] = "world (x, z) of the corner of texel (0, 0)";
+  manifest["texel_size"] = g.texel;
+  manifest["width"] = g.width;
+  manifest["height"] = g.height;
+  manifest["image_axes"] =
+      "column i along +X, row j along +Z, row 0 first (the scene seen from +Y, +X right, +Z "
+      "down); texel (i, j) centre at origin + ((i + 0.5), (j + 0.5)) * texel_size";
+  manifest["layers"] = written_layers;
+  manifest["map_layers"] = maps.layers;
+  manifest["layer_order"] = "top down: layer 0 is the highest surface under the sky";
+  manifest["overflow_columns"] = maps.overflow_columns;
+  manifest["no_surface"] = "height NaN; coverage and depth 0; previews 0";
+  manifest["exr"] = "one float32 channel Y, ZIP compression";
+  manifest["png"] = "16-bit grey, value = png_black + sample / 65535 * (png_white - png_black)";
+  manifest["ranges"] = ranges;
+  manifest["files"] = files;
+  write_text_atomically(dir / "manifest.json", manifest.dump(2) + "\n");
+}
+
+}  // namespace snow

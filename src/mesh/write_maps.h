@@ -1,0 +1,41 @@
+#pragma once
+// The --maps output: per layer, float images (OpenEXR) of surface height,
+// coverage and snow depth, 16-bit PNG previews of each, and a manifest.json
+// (origin, texel size, dimensions, layers, up axis, units, files) for
+// shader-based snow in engines. The format is documented in tools/MAPS.md.
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "snow/maps.h"
+
+namespace snow {
+
+/// Writes into `dir` (created if missing), for every layer l that holds a
+/// surface somewhere: layer<l>_height.exr (world Y in metres, NaN where no
+/// surface), layer<l>_coverage.exr (in [0,1], 0 where no surface; only when
+/// coverage is given), layer<l>_depth.exr (snow depth in metres, 0 where no
+/// surface; only when depth is given), a .png 16-bit grey preview of each
+/// (heights and depths scaled over their range across all layers, coverage
+/// over [0,1]; 0 where no surface), and manifest.json. Images are single
+/// channel "Y", 32-bit float, ZIP compressed; row r holds grid row j = r
+/// (smallest z first) and column i grid column i, i.e. the scene seen from
+/// +Y with +X to the right and +Z down. coverage and depth, when given, have
+/// the maps' layout (maps.layers * maps.grid.texels() values).
+/// Every file is written atomically. Throws InputError for arrays of the
+/// wrong size, IOError when the folder or a file cannot be written.
+void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
+                const std::vector<float>* coverage = nullptr,
+                const std::vector<float>* depth = nullptr);
+
+/// A 16-bit greyscale PNG (big-endian samples, Sub filter, zlib from
+/// stb_image_write) of `width` x `height` samples, rows top to bottom.
+/// Throws InputError for a size that PNG or zlib cannot hold.
+std::vector<uint8_t> encode_png16(const std::vector<uint16_t>& grey, int width, int height);
+
+/// A single-channel ("Y") 32-bit float OpenEXR image, ZIP compressed, rows
+/// top to bottom. Throws IOError with tinyexr's message on failure.
+std::vector<uint8_t> encode_exr(const std::vector<float>& values, int width, int height);
+
+}  // namespace snow
