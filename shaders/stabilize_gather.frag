@@ -12,11 +12,23 @@ layout(binding = SNOW_STABILIZE_CODE) uniform usampler2DArray u_code;
 
 layout(location = 0) out vec2 o_depth;  // depth (m), lost (m)
 
-float amount_of(ivec3 t, int n) {
-  return n < 4 ? texelFetch(u_out_a, t, 0)[n] : texelFetch(u_out_b, t, 0)[n - 4];
-}
-
 uint code_of(uvec2 packed_codes, int n) { return (packed_codes[n >> 2] >> (8 * (n & 3))) & 0xffu; }
+
+// s plus what the neighbour u_stride columns against direction n sent to this
+// texel, layer by layer.
+float inflow(ivec2 c, const int n, float s) {
+  ivec2 m = c - u_stride * kDir[n];
+  if (!in_map(m)) return s;
+  for (int lm = 0; lm < u_layers; ++lm) {
+    ivec3 t = ivec3(m, lm);
+    if ((int(texelFetch(u_cells, t, 0).w) & kCellSurface) == 0) break;  // layers are packed
+    uint code = (texelFetch(u_code, t, 0)[n >> 2] >> (8 * (n & 3))) & 0xffu;
+    if (code == uint(u_layer)) {
+      s += n < 4 ? texelFetch(u_out_a, t, 0)[n] : texelFetch(u_out_b, t, 0)[n - 4];
+    }
+  }
+  return s;
+}
 
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
@@ -24,6 +36,10 @@ void main() {
   vec2 d = texelFetch(u_depth, t, 0).rg;
   float s = d.r;
   float lost = d.g;
+  if ((int(texelFetch(u_cells, t, 0).w) & kCellSurface) == 0) {
+    o_depth = d;  // nothing lies or lands here
+    return;
+  }
   vec4 a = texelFetch(u_out_a, t, 0);
   vec4 b = texelFetch(u_out_b, t, 0);
   uvec2 own = texelFetch(u_code, t, 0).rg;
@@ -32,13 +48,14 @@ void main() {
     s -= amount;
     if (code_of(own, n) == kCodeVoid) lost += amount;
   }
-  for (int n = 0; n < 8; ++n) {
-    ivec2 m = c - u_stride * kDir[n];
-    if (!in_map(m)) continue;
-    for (int lm = 0; lm < u_layers; ++lm) {
-      uvec2 codes = texelFetch(u_code, ivec3(m, lm), 0).rg;
-      if (code_of(codes, n) == uint(u_layer)) s += amount_of(ivec3(m, lm), n);
-    }
-  }
+  // Inflow, in direction order as the reference adds it.
+  s = inflow(c, 0, s);
+  s = inflow(c, 1, s);
+  s = inflow(c, 2, s);
+  s = inflow(c, 3, s);
+  s = inflow(c, 4, s);
+  s = inflow(c, 5, s);
+  s = inflow(c, 6, s);
+  s = inflow(c, 7, s);
   o_depth = vec2(s, lost);
 }

@@ -19,7 +19,8 @@ void main() {
   uint k = uint(gl_VertexID);
   ivec3 t = texel_of_index(k);
   uint p = texelFetch(u_pointer, t, 0).r;
-  v_out.emit = (p != k && p != kPointerVoid) ? 1 : 0;
+  bool surface = (int(texelFetch(u_cells, t, 0).w) & kCellSurface) != 0;  // else p is not set
+  v_out.emit = (surface && p != k && p != kPointerVoid) ? 1 : 0;
   v_out.target = v_out.emit != 0 ? texel_of_index(p) : ivec3(0);
   v_out.amount = (texelFetch(u_cells, t, 0).x + texelFetch(u_depth, t, 0).r) -
                  texelFetch(u_stable, t, 0).r;

@@ -10,13 +10,17 @@
 // neighbouring column comes to rest in this column on the highest layer whose
 // snow top (ground + depth) lies at or below h and whose gap contains h.
 //
-// Solid gaps: a down-facing surface with an up-facing surface directly above
-// it is the bottom of a closed solid, and its gap is the solid's inside
-// (table top slab, a wall, a roof slab). Snow never lands in such a gap: at
-// those heights the column is a wall. Flipped normals in real assets only
-// make the rule more permissive (a gap is then taken for free space, as it
-// would be without the rule); coverage already keeps falling snow out of
-// closed things.
+// Solid gaps: crossing a surface from above enters a solid through its top
+// (up-facing) or leaves one through its bottom (down-facing). So the gap of
+// layer l is the inside of a closed solid when layer l faces down (a solid's
+// bottom, the solid above it) or layer l-1 faces up (a solid's top, the solid
+// below it). Either is enough: where two solids touch, or a box stands on
+// the floor, the peel merges the coincident surfaces into one layer keeping
+// one normal, and only the other side of the contact still tells. Snow never
+// lands in a solid gap: at those heights the column is a wall. The price of
+// "either": under a one-sided (open) canopy or a flipped-normal object the
+// gap counts as solid too, so snow does not slump in under it; it never
+// leaks into a closed thing. Coverage keeps falling snow out of closed things.
 //
 // Continuity: a thin one-sided surface (a roof plane without thickness) has
 // no solid gap under it, and snow lying thinly on it would otherwise slip
@@ -41,11 +45,12 @@ constexpr int kLandVoid = -2;     // nothing below h in that column (empty, or o
 constexpr float kSurfaceContinuityTexels = 6.0f;
 
 /// True when the gap of layer l of column (i, j) is the inside of a closed
-/// solid: layer l faces down (normal.y < 0) and layer l-1 faces up. Layer 0
-/// (under open sky) is never solid. Needs a surface on layer l.
+/// solid: layer l faces down (normal.y < 0) or layer l-1 faces up
+/// (normal.y > 0). Layer 0 (under open sky) is never solid. Needs a surface
+/// on layer l.
 inline bool gap_is_solid(const SnowMaps& maps, int l, int i, int j) {
   if (l <= 0) return false;
-  return maps.normal[maps.index(l, i, j)].y < 0.0f && maps.normal[maps.index(l - 1, i, j)].y > 0.0f;
+  return maps.normal[maps.index(l, i, j)].y < 0.0f || maps.normal[maps.index(l - 1, i, j)].y > 0.0f;
 }
 
 /// The landing rule over any column accessor `col` with has(l), ground(l),

@@ -137,6 +137,7 @@ struct Stabilizer::Impl {
   bool lost_is_zero = true;      // no pass ran since construction or set_depth
   int cur = 0;                   // depth[cur] holds the current snow
   std::vector<uint8_t> surface;  // per layer texel: has a surface
+  std::vector<glm::ivec4> rect;  // per layer: x, y, width, height of its surfaces (0 size: none)
 
   gl::Texture cells, depth[2], out_a, out_b, code, pointer[2], stable, reduce;
   std::vector<gl::Framebuffer> fbo_outflow, fbo_depth[2], fbo_pointer[2], fbo_stable[2];
@@ -147,6 +148,16 @@ struct Stabilizer::Impl {
       residual;
 
   Impl(const SnowMaps& maps, const StabilizeSettings& s);
+  ~Impl() { release_bindings(); }
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+  // Leaves no program, vertex array or framebuffer of ours bound, so state
+  // guards of other passes never restore a name that is about to be deleted.
+  static void release_bindings() {
+    glUseProgram(0);
+    glBindVertexArray(0);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  }
   size_t count() const { return size_t(layers) * size_t(width) * size_t(height); }
   void set_common(const gl::Program& program) const;
   void per_layer(const gl::Program& program, const std::vector<gl::Framebuffer>& fbos);
@@ -171,6 +182,19 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   surface.resize(cell_data.size());
   for (size_t k = 0; k < cell_data.size(); ++k) {
     surface[k] = (int(cell_data[k].w) & kCellSurface) != 0 ? 1 : 0;
+  }
+  // Passes draw each layer only over the bounding box of its surfaces;
+  // texels outside keep their cleared values (no snow, no flow).
+  for (int l = 0; l < layers; ++l) {
+    glm::ivec2 lo(grid.width, grid.height), hi(-1, -1);
+    for (int j = 0; j < grid.height; ++j) {
+      for (int i = 0; i < grid.width; ++i) {
+        if (!surface[maps.index(l, i, j)]) continue;
+        lo = glm::min(lo, glm::ivec2(i, j));
+        hi = glm::max(hi, glm::ivec2(i, j));
+      }
+    }
+    rect.push_back(hi.x < 0 ? glm::ivec4(0) : glm::ivec4(lo, hi - lo + 1));
   }
   width = grid.width;
   height = grid.height;
@@ -197,6 +221,9 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   stable = gl::create_texture_2d_array(GL_R32F, width, height, layers, "stabilize kept height");
   reduce = gl::create_texture_2d(GL_RGBA32F, reduce_width, reduce_height, "stabilize residual");
   const float zero[4] = {0, 0, 0, 0};
+  const GLuint no_codes[2] = {0xfefefefeu, 0xfefefefeu};  // kCodeNone in every direction
+  glClearTexImage(code.id(), 0, GL_RG_INTEGER, GL_UNSIGNED_INT, no_codes);
+  glClearTexImage(stable.id(), 0, GL_RED, GL_FLOAT, zero);
   glClearTexImage(depth[0].id(), 0, GL_RG, GL_FLOAT, zero);
   glClearTexImage(depth[1].id(), 0, GL_RG, GL_FLOAT, zero);
   glClearTexImage(out_a.id(), 0, GL_RGBA, GL_FLOAT, zero);
@@ -258,6 +285,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     p->set("u_stride", 1);
   }
   residual.set("u_block", kReduceBlock);
+  release_bindings();
   gl::check_error("stabilize: set-up");
 }
 
@@ -274,11 +302,16 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
   program.use();
   glBindVertexArray(vao.id());
   glViewport(0, 0, width, height);
+  glEnable(GL_SCISSOR_TEST);
   for (int l = 0; l < layers; ++l) {
+    const glm::ivec4 r = rect[size_t(l)];
+    if (r.z == 0) continue;
     program.set("u_layer", l);
+    glScissor(r.x, r.y, r.z, r.w);
     glBindFramebuffer(GL_FRAMEBUFFER, fbos[size_t(l)].id());
     glDrawArrays(GL_TRIANGLES, 0, 3);
   }
+  glDisable(GL_SCISSOR_TEST);
 }
 
 void Stabilizer::Impl::upload_depth(const std::vector<float>& d) {
@@ -298,6 +331,7 @@ void Stabilizer::Impl::add_snow(const std::vector<float>& amount) {
   bind(SNOW_STABILIZE_ADD, out_a);
   per_layer(add, fbo_depth[1 - cur]);
   cur = 1 - cur;
+  release_bindings();
   gl::check_error("stabilize: add snow");
 }
 
@@ -309,10 +343,15 @@ GLuint Stabilizer::Impl::count_fragments(const gl::Program& program) {
   glBindVertexArray(vao.id());
   glViewport(0, 0, width, height);
   glBindFramebuffer(GL_FRAMEBUFFER, fbo_empty.id());
+  glEnable(GL_SCISSOR_TEST);
   for (int l = 0; l < layers; ++l) {
+    const glm::ivec4 r = rect[size_t(l)];
+    if (r.z == 0) continue;
     program.set("u_layer", l);
+    glScissor(r.x, r.y, r.z, r.w);
     glDrawArrays(GL_TRIANGLES, 0, 3);
   }
+  glDisable(GL_SCISSOR_TEST);
   glEndQuery(GL_SAMPLES_PASSED);
   GLuint samples = 0;
   glGetQueryObjectuiv(query.id(), GL_QUERY_RESULT, &samples);
@@ -450,6 +489,7 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
     }
   }
   if (!measured) sums = reduce_blocks(false);
+  release_bindings();
   result.volume = sums.y * area;
   result.lost_volume = sums.z * area - lost_before;
   return result;
@@ -483,7 +523,7 @@ void Stabilizer::add_snow(const std::vector<float>& amount, float scale) {
   std::vector<float> add(amount.size());
   for (size_t k = 0; k < amount.size(); ++k) {
     const float a = amount[k] * scale;
-    add[k] = a > 0.0f ? a : 0.0f;  // NaN and negative add nothing
+    add[k] = impl_->surface[k] && a > 0.0f ? a : 0.0f;  // NaN and negative add nothing
   }
   impl_->add_snow(add);
   impl_->route_pending = true;

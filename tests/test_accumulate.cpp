@@ -1,0 +1,138 @@
+// Tests of time-stepped accumulation (src/snow/accumulate.h): coverage times
+// fresh snow per step, stabilized after each step; mass bookkeeping, steps,
+// snow on snow, closed things stay empty.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <vector>
+
+#include "core/error.h"
+#include "gl/context.h"
+#include "scene/builder.h"
+#include "snow/accumulate.h"
+#include "snow/peel.h"
+#include "snow/reference/peel_ref.h"
+
+namespace snow {
+namespace {
+
+gl::Context* context() {
+  static std::unique_ptr<gl::Context> ctx = []() -> std::unique_ptr<gl::Context> {
+    try {
+      return gl::create_context();
+    } catch (const Error& e) {
+      std::fprintf(stderr, "no GL context: %s\n", e.what());
+      return nullptr;
+    }
+  }();
+  return ctx.get();
+}
+#define REQUIRE_GL() \
+  if (!context()) GTEST_SKIP() << "no OpenGL context"
+
+SnowMaps scene_maps(const Scene& scene, int side, int layers = 6) {
+  PeelSettings settings;
+  settings.max_side = side;
+  settings.layers = layers;
+  return reference::peel_layers(scene, make_grid(scene.bounds, settings), layers);
+}
+
+CoverageSettings few_directions() {
+  CoverageSettings c;
+  c.directions = 8;
+  return c;
+}
+
+TEST(Accumulate, MassAddsUp) {
+  REQUIRE_GL();
+  const Scene scene = make_table_scene();
+  const SnowMaps maps = scene_maps(scene, 64);
+  AccumulateSettings settings;
+  settings.fall_depth = 0.3f;
+  settings.steps = 3;
+  const SnowResult r = accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings);
+  std::printf("fell %.5f, lies %.5f, lost %.5f m^3 (%d passes)\n", r.fallen_volume, r.volume,
+              r.lost_volume, r.iterations);
+  ASSERT_GT(r.fallen_volume, 0.0);
+  EXPECT_NEAR(r.volume + r.lost_volume, r.fallen_volume, 1e-5 * r.fallen_volume);
+  EXPECT_NEAR(r.volume, snow_volume(maps, r.depth), 1e-9);
+  EXPECT_EQ(r.coverage_updates, 1);
+  // Open floor far from the table and the map edges holds the fall depth.
+  const int i = maps.grid.width / 8, j = maps.grid.height / 2;
+  ASSERT_TRUE(maps.has_surface(0, i + 4, j));
+  EXPECT_NEAR(r.depth[maps.index(0, i + 4, j)], 0.3f, 0.01f);
+}
+
+TEST(Accumulate, StepsSplitTheFall) {
+  REQUIRE_GL();
+  const Scene scene = make_table_scene();
+  const SnowMaps maps = scene_maps(scene, 64);
+  AccumulateSettings one, four;
+  four.steps = 4;
+  const SnowResult a = accumulate(scene, maps, few_directions(), StabilizeSettings{}, one);
+  const SnowResult b = accumulate(scene, maps, few_directions(), StabilizeSettings{}, four);
+  // Without snow on snow the coverage is the same, so the same snow falls.
+  EXPECT_NEAR(a.fallen_volume, b.fallen_volume, 1e-5 * a.fallen_volume);
+  EXPECT_NEAR(a.volume + a.lost_volume, b.volume + b.lost_volume, 1e-4 * a.fallen_volume);
+  EXPECT_GE(b.iterations, a.iterations);
+}
+
+TEST(Accumulate, SnowOnSnowUpdatesCoverage) {
+  REQUIRE_GL();
+  const Scene scene = make_table_scene();
+  const SnowMaps maps = scene_maps(scene, 64);
+  AccumulateSettings settings;
+  settings.steps = 5;
+  settings.snow_on_snow_every = 2;
+  const SnowResult r = accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings);
+  EXPECT_EQ(r.coverage_updates, 3);  // before step 0, 2 and 4
+  EXPECT_NEAR(r.volume + r.lost_volume, r.fallen_volume, 1e-5 * r.fallen_volume);
+}
+
+TEST(Accumulate, ClosedBoxStaysEmpty) {
+  REQUIRE_GL();
+  const Scene scene = make_closed_box_scene();
+  const SnowMaps maps = scene_maps(scene, 64);
+  AccumulateSettings settings;
+  settings.steps = 2;
+  const SnowResult r = accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings);
+  // The cavity (the inside of the walls, below the lid) gets nothing.
+  const ClosedBoxDims dims;
+  const float inner = dims.size / 2 - dims.wall;
+  double inside = 0.0;
+  for (int l = 1; l < maps.layers; ++l) {
+    for (int j = 0; j < maps.grid.height; ++j) {
+      for (int i = 0; i < maps.grid.width; ++i) {
+        const glm::vec2 c = maps.grid.center(i, j);
+        const size_t k = maps.index(l, i, j);
+        if (std::abs(c.x) < inner && std::abs(c.y) < inner && maps.has_surface(l, i, j) &&
+            maps.ground[k] < dims.size - dims.wall) {
+          inside += r.depth[k];
+        }
+      }
+    }
+  }
+  EXPECT_EQ(inside, 0.0);
+  EXPECT_GT(r.volume, 0.0);
+}
+
+TEST(Accumulate, RejectsBadSettings) {
+  REQUIRE_GL();
+  const Scene scene = make_open_plane(2.0f);
+  const SnowMaps maps = scene_maps(scene, 16, 2);
+  AccumulateSettings bad;
+  bad.steps = 0;
+  EXPECT_THROW(accumulate(scene, maps, few_directions(), StabilizeSettings{}, bad), InputError);
+  bad = AccumulateSettings{};
+  bad.fall_depth = -1.0f;
+  EXPECT_THROW(accumulate(scene, maps, few_directions(), StabilizeSettings{}, bad), InputError);
+  StabilizeSettings bad_stabilize;
+  bad_stabilize.repose_deg = 95.0f;
+  EXPECT_THROW(accumulate(scene, maps, few_directions(), bad_stabilize, AccumulateSettings{}),
+               InputError);
+}
+
+}  // namespace
+}  // namespace snow

@@ -1,0 +1,109 @@
+// Benchmark of stage 3, the stabilizer (src/snow/stabilize.h): iterations to
+// converge and time per iteration on the GL renderer at hand, for a canned
+// scene with 0.3 m of snow on every top surface. Results: tools/RESULTS.md.
+//
+//   snowmodel_bench_stabilize [--scene courtyard|house60|house30] [--side N]
+//                             [--layers L] [--max-stride S] [--passes P]
+// With --passes P, runs exactly P passes (tolerance 0) to time them;
+// otherwise runs to convergence (default settings).
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "gl/context.h"
+#include "scene/builder.h"
+#include "snow/peel.h"
+#include "snow/stabilize.h"
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace snow;
+  std::string scene_name = "courtyard";
+  int side = 1024, layers = 4, passes = -1;
+  StabilizeSettings settings;
+  for (int a = 1; a + 1 < argc; a += 2) {
+    const std::string key = argv[a];
+    const char* value = argv[a + 1];
+    if (key == "--scene")
+      scene_name = value;
+    else if (key == "--side")
+      side = std::atoi(value);
+    else if (key == "--layers")
+      layers = std::atoi(value);
+    else if (key == "--max-stride")
+      settings.max_stride = std::atoi(value);
+    else if (key == "--passes")
+      passes = std::atoi(value);
+    else if (key == "--max-iterations")
+      settings.max_iterations = std::atoi(value);
+    else {
+      std::fprintf(stderr, "unknown option %s\n", key.c_str());
+      return 2;
+    }
+  }
+  try {
+    set_log_level(LogLevel::Warn);
+    auto context = gl::create_context();
+    Scene scene;
+    if (scene_name == "courtyard")
+      scene = make_courtyard().build();
+    else if (scene_name == "house60")
+      scene = make_house_scene(60.0f);
+    else if (scene_name == "house30")
+      scene = make_house_scene(30.0f);
+    else
+      throw InputError("unknown scene " + scene_name);
+
+    PeelSettings peel;
+    peel.max_side = side;
+    peel.layers = layers;
+    auto t0 = std::chrono::steady_clock::now();
+    const SnowMaps maps = peel_layers(scene, peel);
+    const double peel_s = seconds_since(t0);
+    std::vector<float> depth(size_t(maps.layers) * maps.grid.texels(), 0.0f);
+    for (int j = 0; j < maps.grid.height; ++j) {
+      for (int i = 0; i < maps.grid.width; ++i) {
+        if (maps.has_surface(0, i, j)) depth[maps.index(0, i, j)] = 0.3f;
+      }
+    }
+    if (passes >= 0) {
+      settings.tolerance = 0.0f;
+      settings.max_iterations = passes;
+    }
+    t0 = std::chrono::steady_clock::now();
+    Stabilizer stabilizer(maps, settings);
+    stabilizer.set_depth(depth);
+    const double setup_s = seconds_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    const StabilizeResult route = stabilizer.iterate(0);  // routing only
+    const double route_s = seconds_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    const StabilizeResult r = stabilizer.iterate(settings.max_iterations);
+    const double relax_s = seconds_since(t0);
+    std::printf(
+        "renderer: %s\nscene %s, %d x %d texels (%.4f m), %d layers, max_stride %d\n"
+        "peel %.2f s, upload %.2f s, routing %d passes %.2f s (%.3f m^3 routed)\n"
+        "relaxation: %d passes, converged %s, residual %.2e m, %.2f s, %.1f ms per pass\n"
+        "volume %.3f m^3, lost %.3f m^3\n",
+        context->description().c_str(), scene_name.c_str(), maps.grid.width, maps.grid.height,
+        maps.grid.texel, maps.layers, settings.max_stride, peel_s, setup_s, route.route_passes,
+        route_s, route.routed_volume, r.iterations, r.converged ? "yes" : "no", r.residual, relax_s,
+        1000.0 * relax_s / std::max(1, r.iterations), r.volume, route.lost_volume + r.lost_volume);
+  } catch (const Error& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return e.exit_code();
+  }
+  return 0;
+}
