@@ -17,8 +17,7 @@
 #define SNOW_PREVIEW_UBO 0                 // uniform block PreviewFrame
 
 // --- Depth peeling (peel.vert/.frag, src/snow/peel.cpp) --------------------
-#define SNOW_PEEL_PREV_TEXTURE 0  // sampler2D RGBA32F: previous layer (height, normal)
-#define SNOW_PEEL_TRIANGLES 0     // SSBO vec4 per triangle: unit normal as wound, object id bits
+#define SNOW_PEEL_PREV_TEXTURE 0  // usampler2D RG32UI: previous layer (height bits, triangle)
 
 // --- Shadow maps (shadow.vert, shadow_snow.vert, depth_only.frag, coverage.cpp)
 #define SNOW_SHADOW_SNOW_TEXTURE 0  // sampler2DArray RG32F per layer: (ground + depth, depth)
@@ -28,7 +27,7 @@
 #define SNOW_COVERAGE_SNOW_TEXTURE 1    // sampler2DArray RG32F: as SNOW_SHADOW_SNOW_TEXTURE
 #define SNOW_COVERAGE_RECEIVERS 0       // SSBO uvec4 per receiver (texel, height, normal)
 #define SNOW_COVERAGE_COUNTS 1          // SSBO uint per receiver: lit directions so far
-#define SNOW_COVERAGE_QUEUE 2           // SSBO: uncertain-pair count, then receiver << 6 | k
+#define SNOW_COVERAGE_QUEUE 2           // SSBO: count, then uvec2 (receiver, uncertain mask)
 #define SNOW_COVERAGE_DISPATCH 3        // SSBO uvec4: indirect dispatch size of the exact pass
 #define SNOW_COVERAGE_BVH_NODES 4       // SSBO snow::Bvh::Node (32 B) per node
 #define SNOW_COVERAGE_BVH_TRIANGLES 5   // SSBO float[9] per triangle, BVH leaf order

@@ -21,9 +21,9 @@ layout(std430, binding = SNOW_COVERAGE_RECEIVERS) readonly buffer Receivers {
 };
 layout(std430, binding = SNOW_COVERAGE_COUNTS) buffer Counts { uint counts[]; };
 layout(std430, binding = SNOW_COVERAGE_QUEUE) buffer Queue {
-  uint queue_count;  // uncertain (receiver, direction) pairs of this batch
+  uint queue_count;  // receivers with uncertain directions in this batch
   uint queue_pad[3];
-  uint queue[];      // receiver << 6 | direction in the batch
+  uvec2 queue[];     // (receiver, bit k set: direction k of the batch is uncertain)
 };
 // Depth of the highest surface per texel: height = y_top - depth * y_range.
 layout(binding = SNOW_COVERAGE_SHADOW_TEXTURE) uniform sampler2DArray shadow_maps;
@@ -34,6 +34,7 @@ uniform vec2 grid_origin;     // metres
 uniform float texel;          // snow-map texel, metres
 uniform float shadow_texel;   // shadow-map texel, metres
 uniform ivec2 shadow_size;    // texels
+uniform vec2 shadow_scale;    // 1 / (shadow_texel * shadow_size): metres to texture coordinates
 uniform float bias;           // metres, receiver-plane depth bias
 uniform float y_top;          // metres, depth 0
 uniform float y_range;        // metres, depth 1 is y_top - y_range
@@ -57,26 +58,24 @@ Receiver load_receiver(uint id) {
 // 0: lit, 1: blocked, 2: uncertain, for direction k of the batch.
 int classify(Receiver rc, int k) {
   vec4 d = batch_directions[k];
-  // Shadow-texel coordinates of the receiver's line; the gather returns
-  // centres (i0, j1), (i1, j1), (i1, j0), (i0, j0), i0 = floor(f.x - 0.5).
-  vec2 f = vec2(rc.p.x - d.z - rc.p.y * d.x, rc.p.z - d.w - rc.p.y * d.y) / shadow_texel;
-  vec4 height = y_top - textureGather(shadow_maps, vec3(f / vec2(shadow_size), float(k)), 0) *
-                            y_range;
+  // The receiver's line in shadow-map metres and texture coordinates; the
+  // gather returns centres (i0, j1), (i1, j1), (i1, j0), (i0, j0), with
+  // i0 = floor(f.x - 0.5) in texels.
+  vec2 m = vec2(rc.p.x - d.z - rc.p.y * d.x, rc.p.z - d.w - rc.p.y * d.y);
+  vec2 uv = m * shadow_scale;
+  vec4 height = y_top - textureGather(shadow_maps, vec3(uv, float(k)), 0) * y_range;
   // The receiver's plane n.(q - p) = 0 meets the line over shadow-texel
   // centre (uc, vc) (q = (uc + h a, h, vc + h b)) at h = (n.p - n.x uc -
   // n.z vc) / D, D = n.(a, 1, b); D near 0: the plane is seen edge-on and
   // every stored surface above the receiver counts.
   float plane_d = dot(rc.n, vec3(d.x, 1.0, d.y));
-  vec4 own = vec4(rc.p.y);
-  if (abs(plane_d) > 1e-3) {
-    vec2 c0 = d.zw + (floor(f - 0.5) + 0.5) * shadow_texel;  // centre (i0, j0)
-    float own00 = (rc.n_dot_p - rc.n.x * c0.x - rc.n.z * c0.y) / plane_d;
-    float du = -rc.n.x * shadow_texel / plane_d;
-    float dv = -rc.n.z * shadow_texel / plane_d;
-    own = vec4(own00 + dv, own00 + du + dv, own00 + du, own00);
-  }
+  float inv_d = 1.0 / plane_d;
+  vec2 c0 = d.zw + (floor(uv * vec2(shadow_size) - 0.5) + 0.5) * shadow_texel;  // (i0, j0)
+  float own00 = (rc.n_dot_p - rc.n.x * c0.x - rc.n.z * c0.y) * inv_d;
+  float du = -rc.n.x * shadow_texel * inv_d;
+  float dv = -rc.n.z * shadow_texel * inv_d;
+  vec4 own = abs(plane_d) > 1e-3 ? vec4(own00 + dv, own00 + du + dv, own00 + du, own00)
+                                 : vec4(rc.p.y);
   bvec4 above = greaterThan(height, own + bias);
-  if (!any(above)) return 0;
-  if (all(above)) return 1;
-  return 2;
+  return !any(above) ? 0 : (all(above) ? 1 : 2);
 }

@@ -1,6 +1,7 @@
 // Coverage counting, pass 1 of 2 (see coverage_common.glsl): per receiver,
 // over the batch's directions, adds the certainly lit ones to its count and
-// queues the uncertain ones for coverage_exact. No exact test here: a
+// queues the receiver with a mask of its uncertain directions for
+// coverage_exact (one atomic per receiver, not per direction). No exact test here: a
 // software rasterizer runs every branch of a shader, so the rare expensive
 // path lives in its own pass over a compact queue.
 #include "coverage_common.glsl"
@@ -15,10 +16,12 @@ void main() {
   if (id >= receiver_count) return;
   Receiver rc = load_receiver(uint(id));
   uint lit = 0u;
+  uint uncertain = 0u;
   for (int k = 0; k < direction_count; ++k) {
     int state = classify(rc, k);
     if (state == 0) ++lit;
-    if (state == 2) queue[atomicAdd(queue_count, 1u)] = (uint(id) << 6) | uint(k);
+    if (state == 2) uncertain |= 1u << uint(k);
   }
   counts[id] += lit;
+  if (uncertain != 0u) queue[atomicAdd(queue_count, 1u)] = uvec2(uint(id), uncertain);
 }

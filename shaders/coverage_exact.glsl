@@ -1,10 +1,11 @@
-// Coverage counting, pass 2 of 2 (see coverage_common.glsl): each queued
-// (receiver, direction) pair casts the receiver's line of fall exactly
+// Coverage counting, pass 2 of 2 (see coverage_common.glsl): for each queued
+// receiver, each of its uncertain directions casts its line of fall exactly
 // through the scene's BVH (the traversal of snow::Bvh::occluded, Moller-
 // Trumbore triangle tests, as snow::reference::compute_coverage) and, with
 // a snow surface, through the snow heightfield of every snowy layer (the
 // triangles of snow::reference::snow_surface_triangles, walked cell by cell
-// along the line's path). Adds 1 to the receiver's count when nothing is hit.
+// along the line's path). Adds to the receiver's count the lines that hit
+// nothing.
 #include "coverage_common.glsl"
 
 layout(local_size_x = 64) in;
@@ -150,17 +151,19 @@ bool snow_blocks(vec3 p, vec3 dir, float s_min) {
 void main() {
   uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
   for (uint q = gl_GlobalInvocationID.x; q < queue_count; q += stride) {
-    uint item = queue[q];
-    uint id = item >> 6;
-    int k = int(item & 63u);
-    Receiver rc = load_receiver(id);
-    vec4 d = batch_directions[k];
-    vec3 dir = vec3(d.x, 1.0, d.y);
+    uvec2 item = queue[q];
+    Receiver rc = load_receiver(item.x);
     float s_min = 1e-4 + 1e-6 * abs(rc.p.y);  // as snow::reference::compute_coverage
-    bool blocked = scene_blocks(rc.p, dir, s_min, 3.0e38);
+    uint lit = 0u;
+    for (uint mask = item.y; mask != 0u; mask &= mask - 1u) {
+      vec4 d = batch_directions[findLSB(mask)];
+      vec3 dir = vec3(d.x, 1.0, d.y);
+      bool blocked = scene_blocks(rc.p, dir, s_min, 3.0e38);
 #if COVERAGE_SNOW
-    blocked = blocked || snow_blocks(rc.p, dir, s_min);
+      blocked = blocked || snow_blocks(rc.p, dir, s_min);
 #endif
-    if (!blocked) atomicAdd(counts[id], 1u);
+      if (!blocked) ++lit;
+    }
+    if (lit != 0u) atomicAdd(counts[item.x], lit);
   }
 }

@@ -68,8 +68,8 @@ void validate(const CoverageSettings& s) {
   if (!(s.flutter_deg >= 0.0f && s.flutter_deg <= 60.0f)) {
     throw InputError("flutter must be in 0..60 degrees, got " + number(s.flutter_deg));
   }
-  if (s.batch < 1 || s.batch > 64) {
-    throw InputError("shadow-map batch must be in 1..64, got " + std::to_string(s.batch));
+  if (s.batch < 1 || s.batch > 32) {
+    throw InputError("shadow-map batch must be in 1..32, got " + std::to_string(s.batch));
   }
   if (!std::isfinite(s.bias)) throw InputError("shadow bias must be finite");
   const glm::dvec3 m(mean_fall_direction(s));
@@ -364,9 +364,9 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
                      " layer texels; use a coarser texel size");
   }
   if (recv.empty()) return coverage;
-  if (recv.size() >= (size_t(1) << 26)) {
+  if (recv.size() > size_t(std::numeric_limits<int32_t>::max())) {
     throw InputError("coverage: " + std::to_string(recv.size()) +
-                     " surface texels, more than 2^26; use a coarser texel size");
+                     " surface texels, more than 2^31; use a coarser texel size");
   }
 
   // Depth range: the scene and every receiver (snow tops may rise above the scene).
@@ -414,10 +414,9 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
   Impl::upload(im.counts, nullptr, recv.size() * sizeof(uint32_t), "coverage counts");
   const GLuint zero = 0;
   glClearNamedBufferData(im.counts.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
-  // Queue of uncertain pairs: a 16-byte header (the count), then up to one
-  // entry per receiver and direction of a batch.
-  Impl::upload(im.queue, nullptr, 16 + recv.size() * size_t(batch) * sizeof(uint32_t),
-               "coverage queue");
+  // Queue of receivers with uncertain directions: a 16-byte header (the
+  // count), then up to one (receiver, direction mask) entry per receiver.
+  Impl::upload(im.queue, nullptr, 16 + recv.size() * sizeof(glm::uvec2), "coverage queue");
   const GLuint dispatch_init[4] = {1, 1, 1, 0};
   Impl::upload(im.dispatch_args, dispatch_init, sizeof dispatch_init, "coverage dispatch");
   if (!snowy_layers.empty()) {
@@ -457,6 +456,7 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
     p->set("texel", grid.texel);
     p->set("shadow_texel", float(st));
     p->set("shadow_size", size);
+    p->set("shadow_scale", glm::vec2(float(1.0 / (st * size.x)), float(1.0 / (st * size.y))));
     p->set("bias", bias);
     p->set("y_top", y_top);
     p->set("y_range", y_range);

@@ -39,8 +39,8 @@ struct CoverageSettings {
   float fall_speed = 1.0f;    // m/s, flakes' still-air fall speed (dry snow about 1, wet 1.5..2)
   uint64_t seed = 1;          // seed of the direction and shadow-origin jitter; same seed, same
                               // result bit for bit
-  int batch = 8;              // shadow maps per GPU batch (1..64); memory: batch * (4 B per
-                              // shadow texel + 4 B per surface texel for the exact-pass queue)
+  int batch = 8;              // shadow maps per GPU batch (1..32); memory: batch * 4 B per
+                              // shadow texel
   float bias = -1.0f;         // metres, receiver-plane depth bias: a shadow-map surface less
                               // than this above the receiver's own plane (extended to that
                               // shadow texel, so the bias follows the slope) is the receiver

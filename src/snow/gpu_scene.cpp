@@ -1,10 +1,7 @@
 // Scene upload and GL state guard shared by the peel and coverage passes.
 #include "snow/gpu_scene.h"
 
-#include <algorithm>
 #include <chrono>
-#include <cstring>
-#include <vector>
 
 #include <glm/glm.hpp>
 
@@ -13,8 +10,7 @@
 
 namespace snow {
 
-GpuScene::GpuScene(const Scene& scene, bool with_triangle_info)
-    : triangles_(scene.triangle_count()) {
+GpuScene::GpuScene(const Scene& scene) : triangles_(scene.triangle_count()) {
   if (triangles_ * 3 > size_t(0x7fffffff)) {
     throw InputError("scene has " + std::to_string(triangles_) +
                      " triangles, more than one draw call can take");
@@ -30,50 +26,11 @@ GpuScene::GpuScene(const Scene& scene, bool with_triangle_info)
   glVertexArrayAttribFormat(vao_.id(), SNOW_ATTR_POSITION, 3, GL_FLOAT, GL_FALSE, 0);
   glVertexArrayAttribBinding(vao_.id(), SNOW_ATTR_POSITION, 0);
   gl::check_error("scene vertex array");
-  if (!with_triangle_info) return;
-
-  std::vector<glm::vec4> info(triangles_, glm::vec4(0.0f));
-  for (size_t t = 0; t < triangles_; ++t) {
-    const glm::dvec3 a(scene.positions[3 * t]);
-    const glm::dvec3 n = glm::cross(glm::dvec3(scene.positions[3 * t + 1]) - a,
-                                    glm::dvec3(scene.positions[3 * t + 2]) - a);
-    const double len = glm::length(n);
-    if (len > 0) info[t] = glm::vec4(glm::vec3(n / len), 0.0f);
-  }
-  for (size_t o = 0; o < scene.objects.size(); ++o) {
-    const SceneObject& obj = scene.objects[o];
-    const int32_t id = int32_t(o);
-    float bits;
-    std::memcpy(&bits, &id, sizeof bits);
-    for (uint32_t k = 0; k < obj.triangle_count && obj.first_triangle + k < triangles_; ++k) {
-      info[obj.first_triangle + k].w = bits;
-    }
-  }
-  // Triangles outside every object range (not expected) get object -1.
-  std::vector<bool> covered(triangles_, false);
-  for (const SceneObject& obj : scene.objects) {
-    for (uint32_t k = 0; k < obj.triangle_count && obj.first_triangle + k < triangles_; ++k) {
-      covered[obj.first_triangle + k] = true;
-    }
-  }
-  const int32_t none = -1;
-  float none_bits;
-  std::memcpy(&none_bits, &none, sizeof none_bits);
-  for (size_t t = 0; t < triangles_; ++t) {
-    if (!covered[t]) info[t].w = none_bits;
-  }
-  triangle_info_ = gl::create_buffer();
-  glNamedBufferStorage(triangle_info_.id(), GLsizeiptr(info.size() * sizeof(glm::vec4)),
-                       info.data(), 0);
-  gl::check_error("scene triangle buffer");
 }
 
 void GpuScene::draw() const {
   if (triangles_ == 0) return;
   glBindVertexArray(vao_.id());
-  if (triangle_info_) {
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_PEEL_TRIANGLES, triangle_info_.id());
-  }
   glDrawArrays(GL_TRIANGLES, 0, GLsizei(triangles_ * 3));
 }
 

@@ -10,31 +10,27 @@
 namespace snow {
 
 /// The scene's triangles in one vertex buffer (positions at
-/// SNOW_ATTR_POSITION, triangle soup, the Scene's order, so gl_PrimitiveID
-/// is the triangle index), and on request a storage buffer with one vec4 per
-/// triangle: its unit geometric normal as wound and its object index (int
-/// bits in w). Needs a current context for its whole life.
+/// SNOW_ATTR_POSITION, triangle soup in the Scene's order, so gl_PrimitiveID
+/// is the triangle index). Needs a current context for its whole life.
 class GpuScene {
  public:
-  /// Uploads the positions (and the requested per-triangle buffers). Throws
-  /// GLError on GL_OUT_OF_MEMORY.
-  explicit GpuScene(const Scene& scene, bool with_triangle_info = false);
+  /// Uploads the positions. Throws InputError for more triangles than one
+  /// draw call takes, GLError on GL_OUT_OF_MEMORY.
+  explicit GpuScene(const Scene& scene);
 
-  /// Draws every triangle (one glDrawArrays) with the bound program;
-  /// binds the triangle buffer at SNOW_PEEL_TRIANGLES when it exists.
+  /// Draws every triangle (one glDrawArrays) with the bound program.
   void draw() const;
   size_t triangle_count() const { return triangles_; }
 
  private:
   gl::VertexArray vao_;
   gl::Buffer positions_;
-  gl::Buffer triangle_info_;
   size_t triangles_ = 0;
 };
 
 /// Saves the GL state the map passes change (framebuffer, viewport, program,
-/// vertex array, depth, cull, blend and scissor state, clip depth mode is
-/// left at the default) and restores it on destruction.
+/// vertex array, depth, cull, blend and scissor state) and restores it on
+/// destruction.
 class GlStateGuard {
  public:
   GlStateGuard();

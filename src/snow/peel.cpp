@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <new>
 #include <string>
@@ -58,12 +59,11 @@ double nice_ceil(double x) {
 }
 
 // Bytes per unit, see estimate_memory's contract.
-constexpr double kMapsPerLayerTexel = 24 + 4;          // SnowMaps + coverage
-constexpr double kPeelPerTexel = 2 * 20 + 4 + 16;      // ping-pong targets, depth, readback
-constexpr double kCoveragePerLayerTexel = 16 + 4 + 8;  // receivers, counts, snow surface
-constexpr double kQueuePerLayerTexelAndBatch = 4;      // exact-pass queue entries
-constexpr double kPerTriangle = 140;                   // GPU copies, BVH nodes and build scratch
-constexpr double kLaterPerLayerTexel = 48;             // stabilizer, depth, polygonize scratch
+constexpr double kMapsPerLayerTexel = 24 + 4;              // SnowMaps + coverage
+constexpr double kPeelPerTexel = 2 * 20 + 4 + 16;          // ping-pong targets, depth, readback
+constexpr double kCoveragePerLayerTexel = 16 + 4 + 8 + 8;  // receivers, counts, snow, queue
+constexpr double kPerTriangle = 140;        // GPU copies, BVH nodes and build scratch
+constexpr double kLaterPerLayerTexel = 48;  // stabilizer, depth, polygonize scratch
 
 void validate_peel_settings(const PeelSettings& s) {
   if (s.layers < 1 || s.layers > 64) {
@@ -141,10 +141,9 @@ uint64_t estimate_memory(const MapGrid& grid, int layers, const CoverageSettings
   const double shadow_texels =
       (double(grid.width) + 2 * grow + 2) * (double(grid.height) + 2 * grow + 2);
   const double batch = std::clamp(coverage.batch, 1, std::max(1, coverage.directions));
-  const double bytes = layer_texels * (kMapsPerLayerTexel + kCoveragePerLayerTexel +
-                                       batch * kQueuePerLayerTexelAndBatch + kLaterPerLayerTexel) +
-                       texels * kPeelPerTexel + batch * shadow_texels * 4 +
-                       double(triangles) * kPerTriangle;
+  const double bytes =
+      layer_texels * (kMapsPerLayerTexel + kCoveragePerLayerTexel + kLaterPerLayerTexel) +
+      texels * kPeelPerTexel + batch * shadow_texels * 4 + double(triangles) * kPerTriangle;
   if (!(bytes < 1.8e19)) return std::numeric_limits<uint64_t>::max();
   return uint64_t(bytes);
 }
@@ -185,38 +184,53 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings
   }
 
   SnowMaps maps;
-  std::vector<glm::vec4> surface;
-  std::vector<int32_t> object;
+  std::vector<glm::uvec2> surface;  // readback: (height bits, triangle)
+  std::vector<glm::vec3> tri_normal;
+  std::vector<int32_t> tri_object;
   try {
     maps.allocate(grid, settings.layers);
     surface.resize(grid.texels());
-    object.resize(grid.texels());
+    tri_normal.resize(scene.triangle_count());
+    tri_object.assign(scene.triangle_count(), -1);
   } catch (const std::bad_alloc&) {
     throw InputError("out of memory allocating maps of " + std::to_string(grid.width) + " x " +
                      std::to_string(grid.height) + " texels x " + std::to_string(settings.layers) +
                      " layers; use a coarser texel size");
   }
   if (scene.triangle_count() == 0 || scene.bounds.empty()) return maps;
+  // Per triangle: unit geometric normal as wound, and object index.
+  for (size_t t = 0; t < tri_normal.size(); ++t) {
+    const glm::dvec3 a(scene.positions[3 * t]);
+    const glm::dvec3 n = glm::cross(glm::dvec3(scene.positions[3 * t + 1]) - a,
+                                    glm::dvec3(scene.positions[3 * t + 2]) - a);
+    const double len = glm::length(n);
+    tri_normal[t] = len > 0 ? glm::vec3(n / len) : glm::vec3(0.0f);
+  }
+  for (size_t o = 0; o < scene.objects.size(); ++o) {
+    const SceneObject& obj = scene.objects[o];
+    for (uint32_t k = 0; k < obj.triangle_count && obj.first_triangle + k < tri_object.size();
+         ++k) {
+      tri_object[obj.first_triangle + k] = int32_t(o);
+    }
+  }
 
   GlStateGuard state;
-  GpuScene gpu(scene, /*with_triangle_info=*/true);
+  GpuScene gpu(scene);
   gl::Program program({"peel.vert", "peel.frag"});
 
+  // Ping-pong targets: RG32UI (height bits, triangle); the previous layer is
+  // read from the other one.
   gl::Texture surface_tex[2];
-  gl::Texture object_tex[2];
   gl::Framebuffer fbo[2];
   gl::Renderbuffer depth = gl::create_renderbuffer();
   glNamedRenderbufferStorage(depth.id(), GL_DEPTH_COMPONENT32F, grid.width, grid.height);
   gl::check_error("peel depth buffer");
   for (int s = 0; s < 2; ++s) {
-    surface_tex[s] = gl::create_texture_2d(GL_RGBA32F, grid.width, grid.height, "peel surface");
-    object_tex[s] = gl::create_texture_2d(GL_R32I, grid.width, grid.height, "peel object ids");
+    surface_tex[s] = gl::create_texture_2d(GL_RG32UI, grid.width, grid.height, "peel surface");
     fbo[s] = gl::create_framebuffer();
     glNamedFramebufferTexture(fbo[s].id(), GL_COLOR_ATTACHMENT0, surface_tex[s].id(), 0);
-    glNamedFramebufferTexture(fbo[s].id(), GL_COLOR_ATTACHMENT1, object_tex[s].id(), 0);
     glNamedFramebufferRenderbuffer(fbo[s].id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id());
-    const GLenum buffers[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
-    glNamedFramebufferDrawBuffers(fbo[s].id(), 2, buffers);
+    glNamedFramebufferDrawBuffer(fbo[s].id(), GL_COLOR_ATTACHMENT0);
     gl::check_framebuffer(fbo[s], "peel framebuffer");
   }
   gl::Query query = gl::create_query(GL_ANY_SAMPLES_PASSED);
@@ -243,20 +257,24 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings
 
   Progress progress("peel", settings.layers);
   const size_t texels = grid.texels();
-  const GLsizei surface_bytes = GLsizei(texels * sizeof(glm::vec4));
-  const GLsizei object_bytes = GLsizei(texels * sizeof(int32_t));
-  if (texels * sizeof(glm::vec4) > size_t(0x7fffffff)) {
+  if (texels * sizeof(glm::uvec2) > size_t(0x7fffffff)) {
     throw InputError("maps of " + std::to_string(grid.width) + " x " + std::to_string(grid.height) +
                      " texels are too large to read back; use a coarser texel size");
   }
+  const GLsizei surface_bytes = GLsizei(texels * sizeof(glm::uvec2));
+  uint32_t empty_bits;
+  std::memcpy(&empty_bits, &kEmptyHeight, sizeof empty_bits);
+  const auto height_of = [](uint32_t bits) {
+    float h;
+    std::memcpy(&h, &bits, sizeof h);
+    return h;
+  };
   for (int l = 0; l <= settings.layers; ++l) {
     const int cur = l % 2;
     glBindFramebuffer(GL_FRAMEBUFFER, fbo[cur].id());
-    const float clear_surface[4] = {kEmptyHeight, 0.0f, 0.0f, 0.0f};
-    const GLint clear_object[4] = {-1, 0, 0, 0};
+    const GLuint clear_surface[4] = {empty_bits, 0u, 0u, 0u};
     const GLfloat clear_depth = 1.0f;
-    glClearBufferfv(GL_COLOR, 0, clear_surface);
-    glClearBufferiv(GL_COLOR, 1, clear_object);
+    glClearBufferuiv(GL_COLOR, 0, clear_surface);
     glClearBufferfv(GL_DEPTH, 0, &clear_depth);
     glBindTextureUnit(SNOW_PEEL_PREV_TEXTURE, surface_tex[1 - cur].id());
     program.set("first_layer", l == 0 ? 1 : 0);
@@ -268,25 +286,22 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings
     glGetQueryObjectuiv(query.id(), GL_QUERY_RESULT, &any);
     if (!any) break;  // this and every lower layer is empty
 
+    glGetTextureImage(surface_tex[cur].id(), 0, GL_RG_INTEGER, GL_UNSIGNED_INT, surface_bytes,
+                      surface.data());
+    gl::check_error("peel readback");
     if (l == settings.layers) {
       // One layer too many: count the columns that hold it.
-      std::vector<float> heights(texels);
-      glGetTextureImage(surface_tex[cur].id(), 0, GL_RED, GL_FLOAT, GLsizei(texels * sizeof(float)),
-                        heights.data());
-      gl::check_error("peel overflow readback");
-      for (float h : heights) maps.overflow_columns += h > 0.5f * kEmptyHeight ? 1 : 0;
+      for (const glm::uvec2& s : surface) maps.overflow_columns += s.x != empty_bits;
       break;
     }
-    glGetTextureImage(surface_tex[cur].id(), 0, GL_RGBA, GL_FLOAT, surface_bytes, surface.data());
-    glGetTextureImage(object_tex[cur].id(), 0, GL_RED_INTEGER, GL_INT, object_bytes, object.data());
-    gl::check_error("peel readback");
     const size_t base = size_t(l) * texels;
     for (size_t t = 0; t < texels; ++t) {
-      const glm::vec4& s = surface[t];
-      if (!(s.x > 0.5f * kEmptyHeight)) continue;
-      maps.ground[base + t] = s.x;
-      maps.normal[base + t] = glm::vec3(s.y, s.z, s.w);
-      maps.object[base + t] = object[t];
+      const glm::uvec2& s = surface[t];
+      const uint32_t tri = s.y;
+      if (s.x == empty_bits || tri >= tri_normal.size()) continue;
+      maps.ground[base + t] = height_of(s.x);
+      maps.normal[base + t] = tri_normal[tri];
+      maps.object[base + t] = tri_object[tri];
       if (l > 0) maps.ceiling[base + t] = maps.ground[base - texels + t];
     }
     progress.update(l + 1);

@@ -36,8 +36,8 @@ MapGrid make_grid(const Bounds& scene_bounds, const PeelSettings& settings);
 /// and GPU memory together (on a software rasterizer both are host memory):
 /// the SnowMaps (24 B per layer texel) and coverage (4 B); the peel's GPU
 /// targets (2 ping-pong sets of 20 B + depth 4 B + readback 16 B per texel);
-/// coverage's receivers, counts and snow surface (28 B per layer texel) and
-/// exact-pass queue (4 B per layer texel and batch entry); one batch of
+/// coverage's receivers, counts, snow surface and exact-pass queue (36 B per
+/// layer texel); one batch of
 /// shadow maps (4 B per shadow texel; a shadow map is the grid grown by
 /// scene_height * tan(tilt + flutter) on each side); the scene on the GPU
 /// and its BVH (about 140 B per triangle); later stages (stabilizer
