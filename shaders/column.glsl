@@ -15,6 +15,7 @@ uniform int u_stride;    // texels, stride of a relaxation pass
 
 const int kCellSurface = 1;
 const int kCellSolid = 2;
+const int kCellDown = 4;
 
 const int kLandBlocked = -1;
 const int kLandVoid = -2;
@@ -40,7 +41,10 @@ int landing(ivec2 c, float h, float support) {
   for (int l = 0; l < u_layers; ++l) {
     vec4 cell = texelFetch(u_cells, ivec3(c, l), 0);
     int flags = int(cell.w);
-    if ((flags & kCellSurface) == 0) return kLandVoid;
+    if ((flags & kCellSurface) == 0) {
+      return l > 0 && (int(texelFetch(u_cells, ivec3(c, l - 1), 0).w) & kCellDown) == 0 ? kLandBlocked
+                                                                                   : kLandVoid;
+    }
     if (h >= cell.y) return kLandBlocked;
     float top = cell.x + texelFetch(u_depth, ivec3(c, l), 0).r;
     if (top <= h) {

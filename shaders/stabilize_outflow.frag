@@ -17,7 +17,10 @@ int gap_at(ivec2 c, float h) {
   for (int l = 0; l < u_layers; ++l) {
     vec4 cell = texelFetch(u_cells, ivec3(c, l), 0);
     int flags = int(cell.w);
-    if ((flags & kCellSurface) == 0) return kLandVoid;
+    if ((flags & kCellSurface) == 0) {
+      return l > 0 && (int(texelFetch(u_cells, ivec3(c, l - 1), 0).w) & kCellDown) == 0 ? kLandBlocked
+                                                                                   : kLandVoid;
+    }
     if (h >= cell.y) return kLandBlocked;
     if (h >= cell.x) return (flags & kCellSolid) != 0 ? kLandBlocked : l;
   }

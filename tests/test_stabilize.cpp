@@ -341,6 +341,59 @@ TEST(StabilizeReference, LowCeilingCapsDepth) {
   EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);
 }
 
+TEST(StabilizeReference, BowlFillsFromTheBottom) {
+  // A conical bowl with 60 degree walls, 1 m in radius at its rim (1.73 m
+  // deep), sunk in a floor; 0.3 m of snow on every top surface.
+  const float cx = 1.6f, rim_r = 1.0f, t60 = std::tan(60.0f * kDeg);
+  const SnowMaps maps = make_maps(64, 64, 0.05f, 4, [&](float x, float z) {
+    const float r = std::hypot(x - cx, z - cx);
+    if (r >= rim_r) return std::vector<Surface>{{0.0f, kUp}};
+    const glm::vec3 n(-(x - cx) / std::max(r, 1e-6f) * t60, 1.0f,
+                      -(z - cx) / std::max(r, 1e-6f) * t60);
+    return std::vector<Surface>{{(r - rim_r) * t60, n}};
+  });
+  std::vector<float> depth = snow_on_top(maps, 0.3f);
+  const double before = snow_volume(maps, depth);
+  const StabilizeResult r = reference::stabilize(maps, depth, StabilizeSettings{});
+  ASSERT_TRUE(r.converged);
+  EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);
+  // The snow that fell into the bowl (pi r^2 0.3 m, 0.94 m^3) collects at
+  // the bottom: the deepest snow is there, far deeper than what fell, and
+  // the walls above the fill are bare.
+  const int c = 32;
+  float deepest = 0.0f, fill_top = -10.0f;
+  double in_bowl = 0.0;
+  for (int j = 0; j < 64; ++j) {
+    for (int i = 0; i < 64; ++i) {
+      const size_t k = maps.index(0, i, j);
+      const float rr = glm::length(maps.grid.center(i, j) - glm::vec2(cx));
+      if (rr >= rim_r) continue;
+      in_bowl += depth[k];
+      if (depth[k] > deepest) deepest = depth[k];
+      if (depth[k] > 1e-3f) fill_top = std::max(fill_top, maps.ground[k] + depth[k]);
+    }
+  }
+  in_bowl *= 0.05 * 0.05;
+  float bare_above = 0.0f;
+  for (int j = 0; j < 64; ++j) {
+    for (int i = 0; i < 64; ++i) {
+      const size_t k = maps.index(0, i, j);
+      const float rr = glm::length(maps.grid.center(i, j) - glm::vec2(cx));
+      if (rr < rim_r - 0.15f && maps.ground[k] > fill_top - 0.05f * t60 && rr > 0.0f) {
+        bare_above = std::max(bare_above, depth[k]);
+      }
+    }
+  }
+  std::printf(
+      "bowl: %d passes (+%d routing), %.3f m^3 in the bowl, deepest %.3f m at the "
+      "centre %.3f m, fill top %.3f m\n",
+      r.iterations, r.route_passes, in_bowl, deepest, depth[maps.index(0, c, c)], fill_top);
+  EXPECT_GT(in_bowl, 0.85);
+  EXPECT_NEAR(depth[maps.index(0, c, c)], deepest, 0.05f);
+  EXPECT_GT(deepest, 0.6f);
+  EXPECT_LT(bare_above, 0.01f);
+}
+
 TEST(StabilizeReference, LeanToRoofs) {
   // One-sided lean-to roofs (no thickness) over a floor, eave at x = 3 m.
   for (float pitch : {60.0f, 30.0f}) {
@@ -558,6 +611,79 @@ TEST(StabilizeScenes, GentleRoofKeepsItsSnow) {
       EXPECT_GE(keeps, 0.9);
     }
   }
+}
+
+TEST(StabilizeScenes, TableSnowRoundsOffOntoTheFloor) {
+  REQUIRE_GL();
+  const Scene scene = make_table_scene();  // 1 m top at 0.75 m, 4 m floor
+  const SnowMaps maps = scene_maps(scene, 128);
+  const int top = find_object(scene, "TableTop"), floor = find_object(scene, "Floor");
+  std::vector<float> depth = snow_on_top(maps, 0.3f);
+  const std::vector<float> before = depth;
+  const StabilizeResult r = stabilize(maps, depth, StabilizeSettings{});
+  ASSERT_TRUE(r.converged);
+  const float texel = maps.grid.texel;
+  auto near_table = [&](glm::vec2 c) {  // outside and under its edges
+    return std::max(std::abs(c.x), std::abs(c.y)) < 0.5f + 0.6f;
+  };
+  auto under_table = [&](glm::vec2 c) {  // beyond the slump of the floor snow
+    return std::max(std::abs(c.x), std::abs(c.y)) < 0.5f - 0.3f / std::tan(42.0f * kDeg) - texel;
+  };
+  const double top_lost = object_volume(maps, before, top) - object_volume(maps, depth, top);
+  const double floor_gain = object_volume(maps, depth, floor, near_table) -
+                            object_volume(maps, before, floor, near_table);
+  const double under = object_volume(maps, depth, floor, under_table);
+  std::printf(
+      "table: %d passes, top gives %.4f m^3, floor next to it gains %.4f m^3, under "
+      "%.4f m^3\n",
+      r.iterations, top_lost, floor_gain, under);
+  EXPECT_GT(top_lost, 0.0);
+  EXPECT_GT(floor_gain, 0.9 * top_lost);
+  EXPECT_EQ(under, 0.0);
+  // The top keeps its snow in the middle, and the edges are rounded.
+  const int ci = maps.grid.width / 2;
+  int edge = ci;
+  while (maps.object[maps.index(0, edge - 1, ci)] == top) --edge;
+  EXPECT_NEAR(depth[maps.index(0, ci, ci)], 0.3f, 1e-3f);
+  EXPECT_LT(depth[maps.index(0, edge, ci)], 0.5f * 0.3f);
+}
+
+TEST(StabilizeScenes, StairTreadsHoldSnow) {
+  REQUIRE_GL();
+  const StairsDims dims;  // 6 steps, tread 0.3 m, riser 0.18 m, rising along +z
+  const Scene scene = make_stairs_scene(dims);
+  const SnowMaps maps = scene_maps(scene, 128);
+  const int stairs = find_object(scene, "Stairs");
+  std::vector<float> depth = snow_on_top(maps, 0.3f);
+  const double before = snow_volume(maps, depth);
+  const StabilizeResult r = stabilize(maps, depth, StabilizeSettings{});
+  std::printf("stairs: %d passes (+%d routing)\n", r.iterations, r.route_passes);
+  ASSERT_TRUE(r.converged);
+  EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);
+  // Along the middle of the flight: every tread keeps snow at its back, the
+  // snow surface still steps up at every riser, nothing lies inside.
+  const int i = maps.grid.width / 2;
+  const float z0 = -dims.steps * dims.tread / 2;
+  float last_top = -1.0f;
+  // The top tread ends in a drop to the floor at its back: its middle.
+  for (int step = 0; step < dims.steps; ++step) {
+    const float back = z0 + (step + (step + 1 < dims.steps ? 0.8f : 0.5f)) * dims.tread;
+    int j = 0;
+    while (maps.grid.center(i, j).y < back) ++j;
+    const size_t k = maps.index(0, i, j);
+    ASSERT_EQ(maps.object[k], stairs);
+    const float top = maps.ground[k] + depth[k];
+    std::printf("tread %d: ground %.2f m, snow %.3f m\n", step, maps.ground[k], depth[k]);
+    EXPECT_GT(depth[k], step + 1 < dims.steps ? 0.2f : 0.05f);
+    if (step + 1 < dims.steps) {
+      EXPECT_GT(top, last_top + 0.5f * dims.riser);
+    }
+    last_top = top;
+  }
+  const double inside = sum_where(maps, depth, [&](int l, int ii, int jj) {
+    return l > 0 && maps.object[maps.index(l, ii, jj)] == stairs;
+  });
+  EXPECT_EQ(inside, 0.0);
 }
 
 }  // namespace

@@ -36,8 +36,8 @@ namespace snow {
 
 /// landing() results other than a layer index.
 constexpr int kLandBlocked = -1;  // a wall (a solid, or snow lying higher) is in the way at h
-constexpr int kLandVoid = -2;     // nothing below h in that column (empty, or off the map):
-                                  // snow going there leaves the scene
+constexpr int kLandVoid = -2;     // nothing below h in that column (empty, off the map, or
+                                  // under a floating thing): snow going there leaves the scene
 
 /// A surface rising less than this many texels of height per texel between
 /// neighbouring columns is taken for one continuous surface (about 80
@@ -54,7 +54,8 @@ inline bool gap_is_solid(const SnowMaps& maps, int l, int i, int j) {
 }
 
 /// The landing rule over any column accessor `col` with has(l), ground(l),
-/// ceiling(l), top(l) (= ground + snow depth) and solid(l), for `layers`
+/// ceiling(l), top(l) (= ground + snow depth), solid(l) and faces_down(l)
+/// (normal.y < 0), for `layers`
 /// layers packed from the top. Snow at height h comes from a neighbouring
 /// column where it rests on a support at height `support`; a gap whose
 /// ceiling lies less than `rise` (metres) above that support is closed to it:
@@ -65,7 +66,10 @@ inline bool gap_is_solid(const SnowMaps& maps, int l, int i, int j) {
 template <class Column>
 inline int land_in_column(const Column& col, int layers, float h, float support, float rise) {
   for (int l = 0; l < layers; ++l) {
-    if (!col.has(l)) return kLandVoid;             // below the lowest surface: open void
+    // Below the lowest surface: open void under a down-facing one (the
+    // bottom of a floating thing); under an up-facing one, the ground's
+    // inside (terrain, a one-sided floor): a wall.
+    if (!col.has(l)) return l > 0 && !col.faces_down(l - 1) ? kLandBlocked : kLandVoid;
     if (h >= col.ceiling(l)) return kLandBlocked;  // inside the solid or snow above
     if (col.top(l) <= h) {
       if (col.solid(l) || col.ceiling(l) - support < rise) return kLandBlocked;
@@ -96,6 +100,7 @@ inline int landing(const SnowMaps& maps, const float* depth, int i, int j, float
     float ceiling(int l) const { return maps.ceiling[k(l)]; }
     float top(int l) const { return maps.ground[k(l)] + (depth ? depth[k(l)] : 0.0f); }
     bool solid(int l) const { return gap_is_solid(maps, l, i, j); }
+    bool faces_down(int l) const { return maps.normal[k(l)].y < 0.0f; }
   };
   return land_in_column(MapsColumn{maps, depth, i, j}, maps.layers, h, support,
                         kSurfaceContinuityTexels * maps.grid.texel);

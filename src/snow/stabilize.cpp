@@ -99,6 +99,7 @@ std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSett
         if (std::isfinite(g)) {
           int flags = kCellSurface;
           if (gap_is_solid(maps, l, i, j)) flags |= kCellSolid;
+          if (maps.normal[k].y < 0.0f) flags |= kCellDown;
           cell.x = g;
           // +inf (open sky) -> 3e38; a ceiling below the ground (inconsistent
           // maps) -> no gap.

@@ -66,9 +66,10 @@ struct StabilizeResult {
 /// Per layer texel inputs of the passes, shared by the GPU upload and the CPU
 /// reference (maps' layout): x = ground (m; 0 where no surface), y = ceiling
 /// (m; 3e38 for open sky), z = tan(repose angle + jitter), w = flags
-/// (kCellSurface | kCellSolid, stored as a float).
+/// (kCellSurface | kCellSolid | kCellDown, stored as a float).
 constexpr int kCellSurface = 1;  // the texel has a surface
 constexpr int kCellSolid = 2;    // its gap is the inside of a solid (snow::gap_is_solid)
+constexpr int kCellDown = 4;     // its surface faces down (normal.y < 0)
 constexpr float kCellOpenSky = 3.0e38f;
 /// Snow fills a gap up to this far (m) under its ceiling; deeper snow is
 /// squeezed out sideways into the neighbouring columns' gaps.

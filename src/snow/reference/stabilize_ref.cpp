@@ -83,7 +83,10 @@ int Stabilizer::land(int i, int j, float h, float support, float rise) const {
     const size_t k = index(l, i, j);
     const glm::vec4& cell = cells_[k];
     const int flags = cell_flags(cell);
-    if ((flags & kCellSurface) == 0) return kLandVoid;
+    if ((flags & kCellSurface) == 0) {
+      return l > 0 && (cell_flags(cells_[index(l - 1, i, j)]) & kCellDown) == 0 ? kLandBlocked
+                                                                                : kLandVoid;
+    }
     if (h >= cell.y) return kLandBlocked;
     const float top = cell.x + depth_[k];
     if (top <= h) {
@@ -103,7 +106,10 @@ int Stabilizer::gap_at(int i, int j, float h) const {
   for (int l = 0; l < layers_; ++l) {
     const glm::vec4& cell = cells_[index(l, i, j)];
     const int flags = cell_flags(cell);
-    if ((flags & kCellSurface) == 0) return kLandVoid;
+    if ((flags & kCellSurface) == 0) {
+      return l > 0 && (cell_flags(cells_[index(l - 1, i, j)]) & kCellDown) == 0 ? kLandBlocked
+                                                                                : kLandVoid;
+    }
     if (h >= cell.y) return kLandBlocked;
     if (h >= cell.x) return (flags & kCellSolid) != 0 ? kLandBlocked : l;
   }
