@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
 
   app::register_info(cli, global);
   app::register_render(cli, global);
+  app::register_snow(cli, global);
 
   try {
     cli.parse(argc, argv);

@@ -1,0 +1,289 @@
+// `snowmodel snow IN -o OUT [options]`: the offline batch job. Load, peel,
+// coverage, snowfall with stabilizing, polygonize, export (DESIGN.md,
+// "Pipeline and data"). This file only turns flags into stage settings and
+// calls the stages in order.
+#include <fnmatch.h>
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+
+#include "app/commands.h"
+#include "app/settings.h"
+#include "core/error.h"
+#include "core/fs.h"
+#include "core/log.h"
+#include "mesh/export.h"
+#include "mesh/write_maps.h"
+#include "render/preview.h"
+
+namespace snow::app {
+namespace {
+namespace fs = std::filesystem;
+
+struct SnowOptions {
+  std::string input;
+  std::string output;       // input scene + snow (glb/gltf), or snow only for obj/ply
+  std::string snow_output;  // snow only
+  std::string format;       // overrides the extension of --output
+  std::string maps_dir;
+  std::string preview;
+  std::string config;
+  bool snow_only = false;
+  PipelineSettings settings;
+};
+
+bool matches(const std::vector<std::string>& globs, const SceneObject& object) {
+  for (const std::string& glob : globs) {
+    if (fnmatch(glob.c_str(), object.name.c_str(), 0) == 0 ||
+        fnmatch(glob.c_str(), object.node_path.c_str(), 0) == 0) {
+      return true;
+    }
+  }
+  return false;
+}
+
+/// The scene without the objects that match `globs` (they neither receive
+/// nor shelter); warns for globs that match nothing.
+Scene without_ignored(const Scene& scene, const std::vector<std::string>& globs) {
+  if (globs.empty()) return scene;
+  Scene out;
+  out.materials = scene.materials;
+  out.images = scene.images;
+  out.stats = scene.stats;
+  out.warnings = scene.warnings;
+  for (const SceneObject& object : scene.objects) {
+    if (matches(globs, object)) {
+      log_info("ignoring object '" + object.name + "' (--ignore)");
+      continue;
+    }
+    SceneObject copy = object;
+    copy.first_triangle = uint32_t(out.triangle_count());
+    const size_t begin = size_t(object.first_triangle) * 3, end = begin + size_t(object.triangle_count) * 3;
+    out.positions.insert(out.positions.end(), scene.positions.begin() + begin, scene.positions.begin() + end);
+    out.normals.insert(out.normals.end(), scene.normals.begin() + begin, scene.normals.begin() + end);
+    if (!scene.uvs.empty()) out.uvs.insert(out.uvs.end(), scene.uvs.begin() + begin, scene.uvs.begin() + end);
+    out.objects.push_back(copy);
+  }
+  for (const glm::vec3& p : out.positions) out.bounds.extend(p);
+  if (out.positions.empty()) throw InputError("--ignore removed every object of " + std::string("the scene"));
+  return out;
+}
+
+void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, const char* flag) {
+  for (const std::string& glob : globs) {
+    const bool any = std::any_of(scene.objects.begin(), scene.objects.end(),
+                                 [&](const SceneObject& o) { return matches({glob}, o); });
+    if (!any) log_warn(std::string(flag) + " '" + glob + "' matches no object");
+  }
+}
+
+/// Warns when almost no map column receives snow, naming the objects that
+/// top most of the map (a sky dome or a ground-plane helper is the usual
+/// cause: --ignore them).
+void warn_if_sheltered(const Scene& scene, const SnowMaps& maps, const std::vector<float>& coverage) {
+  const size_t texels = maps.grid.texels();
+  size_t with_surface = 0, receiving = 0;
+  std::map<int32_t, size_t> top_objects;
+  for (size_t t = 0; t < texels; ++t) {
+    if (std::isnan(maps.ground[t])) continue;
+    ++with_surface;
+    ++top_objects[maps.object[t]];
+    float best = 0;
+    for (int l = 0; l < maps.layers; ++l) best = std::max(best, coverage[size_t(l) * texels + t]);
+    if (best > 0.5f) ++receiving;
+  }
+  if (with_surface == 0 || double(receiving) > 0.05 * double(with_surface)) return;
+  std::vector<std::pair<size_t, int32_t>> ranked;
+  for (const auto& [object, count] : top_objects) ranked.push_back({count, object});
+  std::sort(ranked.rbegin(), ranked.rend());
+  std::string names;
+  for (size_t i = 0; i < ranked.size() && i < 3; ++i) {
+    const int32_t o = ranked[i].second;
+    const std::string name = o >= 0 && size_t(o) < scene.objects.size() ? scene.objects[size_t(o)].name : "?";
+    names += (i ? ", '" : "'") + name + "' (" +
+             std::to_string(int(100.0 * double(ranked[i].first) / double(with_surface))) + "% of the map)";
+  }
+  log_warn("almost nothing receives snow (" + std::to_string(receiving) + " of " +
+           std::to_string(with_surface) + " columns); sheltered by " + names +
+           "; use --ignore for a sky dome or helper geometry");
+}
+
+/// Places `tile` at (x, y) of `canvas`.
+void blit(render::ImageRGBA8& canvas, const render::ImageRGBA8& tile, int x0, int y0) {
+  for (int y = 0; y < tile.height; ++y) {
+    std::copy_n(tile.at(0, y), size_t(tile.width) * 4,
+                canvas.pixels.begin() + ((size_t(y0 + y) * size_t(canvas.width)) + size_t(x0)) * 4);
+  }
+}
+
+/// Before (top row) and after (bottom row), 3/4 view (left) and top view
+/// (right), in one PNG.
+void write_preview(const Scene& scene, const std::vector<SnowPatch>& patches, const fs::path& path) {
+  std::vector<TriMesh> snow;
+  snow.reserve(patches.size());
+  for (const SnowPatch& p : patches) snow.push_back(p.mesh);
+  render::PreviewSettings settings;
+  settings.width = 960;
+  settings.height = 640;
+  render::ImageRGBA8 canvas;
+  canvas.width = settings.width * 2;
+  canvas.height = settings.height * 2;
+  canvas.pixels.assign(size_t(canvas.width) * size_t(canvas.height) * 4, 255);
+  const glm::vec4 snow_color(0.92f, 0.94f, 0.97f, 1.0f);
+  Progress progress("preview", 4);
+  for (int row = 0; row < 2; ++row) {
+    for (int col = 0; col < 2; ++col) {
+      settings.view = col == 0 ? render::View::ThreeQuarter : render::View::Top;
+      const render::ImageRGBA8 tile =
+          render::render_preview(scene, row == 0 ? std::vector<TriMesh>{} : snow, snow_color, settings);
+      blit(canvas, tile, col * settings.width, row * settings.height);
+      progress.update(row * 2 + col + 1);
+    }
+  }
+  render::write_png(canvas, path);
+}
+
+double peak_memory_mib() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return double(usage.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
+}
+
+void run_snow(const SnowOptions& o, const GlobalOptions& global) {
+  using clock = std::chrono::steady_clock;
+  std::vector<std::pair<std::string, double>> times;
+  auto stage = [&](const char* name, auto&& work) {
+    const auto start = clock::now();
+    work();
+    times.push_back({name, std::chrono::duration<double>(clock::now() - start).count()});
+  };
+
+  if (o.output.empty() && o.snow_output.empty() && o.maps_dir.empty() && o.preview.empty()) {
+    throw InputError("nothing to write: give -o OUT, --snow-output, --maps or --preview");
+  }
+  PipelineSettings s = o.settings;
+  if (!std::isfinite(s.memory_budget_gib) || s.memory_budget_gib <= 0) {
+    throw InputError("--memory-budget must be a positive number of GiB");
+  }
+  s.peel.memory_budget = uint64_t(double(s.memory_budget_gib) * double(1ull << 30));
+  s.stabilize.seed = uint32_t(s.coverage.seed);
+  // Fail on bad output paths before the long work starts.
+  MeshFormat format = MeshFormat::Glb;
+  if (!o.output.empty()) {
+    format = o.format.empty() ? format_from_path(o.output) : format_from_path("x." + o.format);
+  }
+  for (const std::string& path : {o.output, o.snow_output, o.preview}) {
+    if (path.empty()) continue;
+    const fs::path folder = fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
+    if (!fs::is_directory(folder)) throw IOError("cannot write " + path + ": folder " + folder.string() + " does not exist");
+  }
+  if (!o.snow_output.empty()) format_from_path(o.snow_output);
+
+  Scene scene;
+  stage("load", [&] { scene = load_scene(o.input, s.load); });
+  warn_unmatched(scene, s.ignore, "--ignore");
+  warn_unmatched(scene, s.no_snow_on, "--no-snow-on");
+  const Scene snow_scene = without_ignored(scene, s.ignore);
+  std::vector<uint8_t> receives(snow_scene.objects.size(), 1);
+  for (size_t i = 0; i < snow_scene.objects.size(); ++i) receives[i] = !matches(s.no_snow_on, snow_scene.objects[i]);
+
+  auto context = make_headless_context(global);
+  log_info("OpenGL: " + context->description());
+
+  SnowMaps maps;
+  stage("peel", [&] { maps = peel_layers(snow_scene, s.peel); });
+  log_info("maps: " + std::to_string(maps.grid.width) + " x " + std::to_string(maps.grid.height) +
+           " texels of " + std::to_string(maps.grid.texel) + " m, " + std::to_string(maps.layers) + " layers");
+  SnowResult snow;
+  stage("snowfall", [&] {
+    snow = accumulate(snow_scene, maps, s.coverage, s.stabilize, s.accumulate, receives);
+  });
+  warn_if_sheltered(snow_scene, maps, snow.coverage);
+  std::vector<SnowPatch> patches;
+  stage("polygonize", [&] { patches = polygonize(maps, snow.depth, snow_scene, s.polygonize); });
+  if (patches.empty()) log_warn("no snow patch came out: nothing in the scene holds snow");
+
+  stage("export", [&] {
+    if (!o.output.empty()) {
+      const bool combined = !o.snow_only && (format == MeshFormat::Glb || format == MeshFormat::Gltf);
+      if (!o.snow_only && !combined) log_info(std::string(format_name(format)) + " holds the snow only");
+      if (combined) {
+        write_combined_gltf(o.input, patches, o.output);
+      } else {
+        write_snow_meshes(patches, o.output, format);
+      }
+      log_info("wrote " + o.output);
+    }
+    if (!o.snow_output.empty()) {
+      write_snow_meshes(patches, o.snow_output, format_from_path(o.snow_output));
+      log_info("wrote " + o.snow_output);
+    }
+    if (!o.maps_dir.empty()) {
+      write_maps(o.maps_dir, maps, &snow.coverage, &snow.depth);
+      log_info("wrote maps to " + o.maps_dir);
+    }
+    // The effective settings, beside the first output, so the run can be repeated.
+    const fs::path first = !o.output.empty()        ? fs::path(o.output)
+                           : !o.snow_output.empty() ? fs::path(o.snow_output)
+                           : !o.maps_dir.empty()    ? fs::path(o.maps_dir) / "snow"
+                                                    : fs::path(o.preview);
+    nlohmann::json record;
+    record["snowmodel"] = "0.1.0";
+    record["input"] = o.input;
+    record["settings"] = settings_to_json(o.settings);
+    write_text_atomically(first.string() + ".settings.json", record.dump(2) + "\n");
+  });
+  if (!o.preview.empty()) {
+    stage("preview", [&] { write_preview(snow_scene, patches, o.preview); });
+    log_info("wrote " + o.preview);
+  }
+
+  // Closing summary.
+  size_t triangles_out = 0;
+  for (const SnowPatch& p : patches) triangles_out += p.mesh.indices.size() / 3;
+  std::string timing;
+  double total = 0;
+  for (const auto& [name, seconds] : times) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%s%s %.2f s", timing.empty() ? "" : ", ", name.c_str(), seconds);
+    timing += buf;
+    total += seconds;
+  }
+  char summary[512];
+  std::snprintf(summary, sizeof summary,
+                "summary: %.2f s (%s); peak memory %.0f MiB; triangles in %zu, snow out %zu in %zu "
+                "patches; snow %.3f m^3 (fell %.3f, lost off the domain %.3f); stabilizer %d passes",
+                total, timing.c_str(), peak_memory_mib(), scene.triangle_count(), triangles_out,
+                patches.size(), snow.volume, snow.fallen_volume, snow.lost_volume, snow.iterations);
+  log_info(summary);
+}
+
+}  // namespace
+
+void register_snow(CLI::App& app, const GlobalOptions& global) {
+  auto o = std::make_shared<SnowOptions>();
+  CLI::App* cmd = app.add_subcommand("snow", "Snow a glTF scene: compute where snow lands and rests, write it as meshes");
+  // --config first: CLI11 applies options in the order they were added, so
+  // flags given on the command line override the file.
+  cmd->add_option_function<std::string>(
+         "--config", [o](const std::string& path) { load_settings_file(path, o->settings); },
+         "JSON settings file (as written beside outputs: OUT.settings.json); flags override it")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("input", o->input, "glTF 2.0 scene (.gltf or .glb)")->required();
+  cmd->add_option("-o,--output", o->output,
+                  "Output: the input scene plus snow (.glb, .gltf), or snow only (.obj, .ply)");
+  cmd->add_option("--snow-output", o->snow_output, "Also write the snow only (.glb, .gltf, .obj, .ply)");
+  cmd->add_option("--format", o->format, "Format of --output, overriding its extension")
+      ->check(CLI::IsMember({"glb", "gltf", "obj", "ply"}));
+  cmd->add_flag("--snow-only", o->snow_only, "Write only the snow to --output");
+  cmd->add_option("--maps", o->maps_dir, "Write height, coverage and depth maps (EXR, PNG, manifest.json) here");
+  cmd->add_option("--preview", o->preview, "Write a before/after preview PNG (3/4 and top views)");
+  add_settings_options(*cmd, o->settings);
+  cmd->callback([o, &global] { run_snow(*o, global); });
+}
+
+}  // namespace snow::app

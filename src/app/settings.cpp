@@ -1,0 +1,137 @@
+#include "app/settings.h"
+
+#include <fstream>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/fs.h"
+
+namespace snow::app {
+namespace {
+
+using nlohmann::json;
+
+std::pair<std::string, std::string> split_key(const std::string& key) {
+  const size_t dot = key.find('.');
+  return {key.substr(0, dot), key.substr(dot + 1)};
+}
+
+json to_json_value(const glm::vec2& v) { return json::array({v.x, v.y}); }
+template <class T>
+json to_json_value(const T& v) {
+  return json(v);
+}
+
+void from_json_value(const json& j, glm::vec2& v) {
+  if (!j.is_array() || j.size() != 2 || !j[0].is_number() || !j[1].is_number()) {
+    throw json::type_error::create(302, "expected [x, z]", &j);
+  }
+  v = glm::vec2(j[0].get<float>(), j[1].get<float>());
+}
+void from_json_value(const json& j, bool& v) { v = j.get<bool>(); }
+void from_json_value(const json& j, std::vector<std::string>& v) {
+  v = j.get<std::vector<std::string>>();
+}
+template <class T>
+void from_json_value(const json& j, T& v) {
+  if (!j.is_number()) throw json::type_error::create(302, "expected a number", &j);
+  if constexpr (std::is_integral_v<T>) {
+    if (!j.is_number_integer() || (std::is_unsigned_v<T> && j.get<long long>() < 0)) {
+      throw json::type_error::create(302, "expected a whole number", &j);
+    }
+  }
+  v = j.get<T>();
+}
+
+// CLI11 parses "X,Z" into glm::vec2 through this lexical cast.
+bool parse_vec2(const std::string& text, glm::vec2& out) {
+  std::istringstream in(text);
+  char comma = 0;
+  float x = 0, z = 0;
+  if (!(in >> x >> comma >> z) || comma != ',' || !(in >> std::ws).eof()) return false;
+  out = glm::vec2(x, z);
+  return true;
+}
+
+}  // namespace
+
+json settings_to_json(const PipelineSettings& settings) {
+  json out = json::object();
+  PipelineSettings copy = settings;
+  visit_settings(
+      [&](const char* key, const char*, const char*, auto& field) {
+        auto [group, name] = split_key(key);
+        out[group][name] = to_json_value(field);
+      },
+      copy);
+  return out;
+}
+
+void settings_from_json(const json& input, PipelineSettings& settings) {
+  const json& root = input.contains("settings") ? input.at("settings") : input;
+  if (!root.is_object()) throw InputError("settings: expected a JSON object");
+  // Every key in the file must be known.
+  json known = settings_to_json(settings);
+  for (const auto& [group, members] : root.items()) {
+    if (!known.contains(group) || !members.is_object()) {
+      throw InputError("settings: unknown group '" + group + "'");
+    }
+    for (const auto& [name, value] : members.items()) {
+      if (!known[group].contains(name)) throw InputError("settings: unknown key '" + group + "." + name + "'");
+    }
+  }
+  visit_settings(
+      [&](const char* key, const char*, const char*, auto& field) {
+        auto [group, name] = split_key(key);
+        if (!root.contains(group) || !root[group].contains(name)) return;
+        try {
+          from_json_value(root[group][name], field);
+        } catch (const json::exception&) {
+          throw InputError(std::string("settings: '") + key + "' has a value of the wrong type (" +
+                           root[group][name].dump() + ")");
+        }
+      },
+      settings);
+}
+
+void load_settings_file(const std::string& path, PipelineSettings& settings) {
+  const std::vector<uint8_t> bytes = read_file_bytes(path);
+  json j = json::parse(bytes.begin(), bytes.end(), nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) throw InputError(path + ": not valid JSON");
+  try {
+    settings_from_json(j, settings);
+  } catch (const InputError& e) {
+    throw InputError(path + ": " + e.what());
+  }
+}
+
+void add_settings_options(CLI::App& cmd, PipelineSettings& settings) {
+  visit_settings(
+      [&](const char* key, const char* flag, const char* help, auto& field) {
+        using T = std::decay_t<decltype(field)>;
+        const std::string group = split_key(key).first;
+        const std::string section = group == "maps"       ? "Maps"
+                                    : group == "coverage" ? "Coverage"
+                                    : group == "snow"     ? "Snowfall and sliding"
+                                    : group == "mesh"     ? "Meshes"
+                                                          : "Object filters";
+        CLI::Option* opt = nullptr;
+        if constexpr (std::is_same_v<T, glm::vec2>) {
+          opt = cmd.add_option_function<std::string>(
+              flag,
+              [&field, flag](const std::string& text) {
+                if (!parse_vec2(text, field)) {
+                  throw CLI::ValidationError(flag, "expected X,Z (two numbers), got '" + text + "'");
+                }
+              },
+              help);
+          opt->default_str(std::to_string(field.x) + "," + std::to_string(field.y));
+        } else {
+          opt = cmd.add_option(flag, field, help)->capture_default_str();
+        }
+        opt->group(section);
+      },
+      settings);
+}
+
+}  // namespace snow::app

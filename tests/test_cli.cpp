@@ -1,0 +1,206 @@
+// End-to-end tests of the snowmodel executable: exit codes, outputs,
+// determinism, filters, settings files, and the bad-input table.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kCourtyard = fs::path(SNOW_SOURCE_DIR) / "assets/scenes/courtyard.glb";
+// Small maps and few directions keep each run to seconds on llvmpipe.
+const std::string kFast = " --max-side 96 --directions 16 --layers 6";
+
+struct RunResult {
+  int code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+RunResult run(const std::string& args) {
+  const std::string command = std::string(SNOWMODEL_EXE) + " " + args + " 2>&1";
+  RunResult result;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return result;
+  std::array<char, 4096> buffer{};
+  size_t n = 0;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) result.output.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  result.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return result;
+}
+
+fs::path temp_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("snow_cli_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string read_all(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void write_all(const fs::path& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary) << bytes;
+}
+
+size_t file_count(const fs::path& dir) {
+  return size_t(std::distance(fs::directory_iterator(dir), fs::directory_iterator()));
+}
+
+std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
+
+// A one-triangle glTF whose buffer is a data URI, with `positions` as the
+// three vertices' floats (as JSON-free raw bytes in base64 is overkill: use
+// an external .bin written next to it).
+fs::path write_triangle_gltf(const fs::path& dir, const std::string& name, const float (&xyz)[9],
+                             bool write_bin = true) {
+  if (write_bin) {
+    write_all(dir / (name + ".bin"), std::string(reinterpret_cast<const char*>(xyz), sizeof xyz));
+  }
+  const std::string json = R"({"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],
+    "nodes":[{"mesh":0,"name":"Tri"}],"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
+    "accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3"}],
+    "bufferViews":[{"buffer":0,"byteLength":36}],
+    "buffers":[{"uri":")" + name + R"(.bin","byteLength":36}]})";
+  const fs::path path = dir / (name + ".gltf");
+  write_all(path, json);
+  return path;
+}
+
+}  // namespace
+
+TEST(Cli, InfoPrintsSceneSummary) {
+  const RunResult r = run("info " + q(kCourtyard));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("OpenGL:"), std::string::npos);
+  EXPECT_NE(r.output.find("triangles: 956"), std::string::npos) << r.output;
+}
+
+TEST(Cli, InfoJson) {
+  const RunResult r = run("info --json " + q(kCourtyard));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("\"triangles\""), std::string::npos) << r.output;
+}
+
+TEST(Cli, SnowWritesAllOutputsAndIsDeterministic) {
+  const fs::path dir = temp_dir("outputs");
+  const std::string common = "snow " + q(kCourtyard) + kFast;
+  const RunResult a = run(common + " -o " + q(dir / "a.glb") + " --snow-output " + q(dir / "a_snow.obj") +
+                    " --maps " + q(dir / "maps") + " --preview " + q(dir / "a.png"));
+  ASSERT_EQ(a.code, 0) << a.output;
+  for (const char* f : {"a.glb", "a_snow.obj", "a_snow.mtl", "a.png", "a.glb.settings.json", "maps/manifest.json"}) {
+    EXPECT_TRUE(fs::exists(dir / f)) << f;
+  }
+  EXPECT_NE(a.output.find("summary:"), std::string::npos) << a.output;
+  // Same input, settings and seed: byte-identical output.
+  const RunResult b = run(common + " -o " + q(dir / "b.glb"));
+  ASSERT_EQ(b.code, 0) << b.output;
+  EXPECT_EQ(read_all(dir / "a.glb"), read_all(dir / "b.glb"));
+  // A different seed changes the jitter, hence the snow.
+  const RunResult c = run(common + " --seed 7 -o " + q(dir / "c.glb"));
+  ASSERT_EQ(c.code, 0) << c.output;
+  EXPECT_NE(read_all(dir / "a.glb"), read_all(dir / "c.glb"));
+  // The effective settings repeat the run.
+  const RunResult d = run("snow " + q(kCourtyard) + " --config " + q(dir / "a.glb.settings.json") + " -o " +
+                    q(dir / "d.glb"));
+  ASSERT_EQ(d.code, 0) << d.output;
+  EXPECT_EQ(read_all(dir / "a.glb"), read_all(dir / "d.glb"));
+}
+
+TEST(Cli, NoSnowOnAndIgnoreFilters) {
+  const fs::path dir = temp_dir("filters");
+  const RunResult plain = run("snow " + q(kCourtyard) + kFast + " --snow-only -o " + q(dir / "plain.obj"));
+  ASSERT_EQ(plain.code, 0) << plain.output;
+  const std::string plain_obj = read_all(dir / "plain.obj");
+  EXPECT_NE(plain_obj.find("o snow/TableTop"), std::string::npos);
+  EXPECT_EQ(plain_obj.find("o snow/HouseSlab"), std::string::npos) << "no snow inside the house";
+
+  const RunResult no_table = run("snow " + q(kCourtyard) + kFast + " --no-snow-on 'Table*' -o " + q(dir / "nt.obj"));
+  ASSERT_EQ(no_table.code, 0) << no_table.output;
+  EXPECT_EQ(read_all(dir / "nt.obj").find("o snow/TableTop"), std::string::npos);
+
+  const RunResult no_roof = run("snow " + q(kCourtyard) + kFast + " --ignore HouseRoof -o " + q(dir / "nr.obj"));
+  ASSERT_EQ(no_roof.code, 0) << no_roof.output;
+  EXPECT_NE(plain_obj.find("o snow/HouseRoof"), std::string::npos);
+  EXPECT_EQ(read_all(dir / "nr.obj").find("o snow/HouseRoof"), std::string::npos)
+      << "an ignored object receives no snow";
+
+  const RunResult unmatched = run("snow " + q(kCourtyard) + kFast + " --ignore 'NoSuchThing*' -o " + q(dir / "u.obj"));
+  EXPECT_EQ(unmatched.code, 0);
+  EXPECT_NE(unmatched.output.find("matches no object"), std::string::npos);
+}
+
+TEST(Cli, ExitCodesAndNoPartialOutputs) {
+  const fs::path dir = temp_dir("bad");
+  const fs::path out = dir / "out";
+  fs::create_directories(out);
+  const float good[9] = {0, 0, 0, 1, 0, 0, 0, 0, 1};
+  const float nan_xyz[9] = {0, 0, 0, 1, 0, 0, 0, NAN, 1};
+
+  struct Case {
+    std::string name;
+    fs::path input;
+    int code;
+  };
+  std::vector<Case> cases;
+  write_all(dir / "truncated.glb", read_all(kCourtyard).substr(0, 100));
+  cases.push_back({"truncated GLB", dir / "truncated.glb", 2});
+  std::string bad_magic = read_all(kCourtyard);
+  bad_magic[0] = 'X';
+  write_all(dir / "magic.glb", bad_magic);
+  cases.push_back({"wrong magic", dir / "magic.glb", 2});
+  write_all(dir / "broken.gltf", "{\"asset\": {\"version\": \"2.0\"}, \"nodes\": [");
+  cases.push_back({"broken JSON", dir / "broken.gltf", 2});
+  cases.push_back({"missing .bin", write_triangle_gltf(dir, "nobin", good, false), 2});
+  cases.push_back({"NaN position", write_triangle_gltf(dir, "nan", nan_xyz), 2});
+  write_all(dir / "empty.gltf", R"({"asset":{"version":"2.0"},"scenes":[{"nodes":[]}]})");
+  cases.push_back({"empty scene", dir / "empty.gltf", 2});
+  for (const Case& c : cases) {
+    const RunResult r = run("snow " + q(c.input) + kFast + " -o " + q(out / "x.glb") + " --preview " + q(out / "x.png"));
+    EXPECT_EQ(r.code, c.code) << c.name << ": " << r.output;
+    EXPECT_NE(r.output.find("error:"), std::string::npos) << c.name;
+    EXPECT_EQ(file_count(out), 0u) << c.name << " left files behind";
+  }
+  // I/O: unwritable output folder; no input file.
+  const RunResult unwritable = run("snow " + q(kCourtyard) + kFast + " -o /nonexistent_dir/x.glb");
+  EXPECT_EQ(unwritable.code, 4) << unwritable.output;
+  // Bad settings are bad input.
+  EXPECT_EQ(run("snow " + q(kCourtyard) + " --layers 0 -o " + q(out / "x.glb")).code, 2);
+  EXPECT_EQ(run("snow " + q(kCourtyard) + " --wind 3 -o " + q(out / "x.glb")).code, 2);
+  EXPECT_EQ(run("snow " + q(kCourtyard) + " --frobnicate -o " + q(out / "x.glb")).code, 2);
+  write_all(dir / "bad_settings.json", R"({"maps": {"texle": 0.1}})");
+  const RunResult bad_config = run("snow " + q(kCourtyard) + " --config " + q(dir / "bad_settings.json") + " -o " + q(out / "x.glb"));
+  EXPECT_EQ(bad_config.code, 2);
+  EXPECT_NE(bad_config.output.find("maps.texle"), std::string::npos) << bad_config.output;
+  // No usable GL.
+  const RunResult no_gl = run("--gl-backend egl-device snow " + q(kCourtyard) + kFast + " -o " + q(out / "x.glb"));
+  if (no_gl.code != 0) {
+    EXPECT_EQ(no_gl.code, 3) << no_gl.output;
+  }
+  fs::remove_all(out);
+  fs::create_directories(out);
+  EXPECT_EQ(file_count(out), 0u);
+}
+
+TEST(Cli, SharedScenesSnow) {
+  const fs::path shared = SNOW_SHARED_SCENES;
+  if (!fs::exists(shared)) GTEST_SKIP() << "../shared/scenes is absent";
+  const fs::path dir = temp_dir("shared");
+  for (const char* scene : {"kenney-city/building-small-a.glb", "khronos/SheenChair/SheenChair.gltf"}) {
+    const RunResult r = run("snow " + q(shared / scene) + kFast + " -o " + q(dir / "out.glb"));
+    EXPECT_EQ(r.code, 0) << scene << ": " << r.output;
+    EXPECT_TRUE(fs::exists(dir / "out.glb")) << scene;
+    fs::remove(dir / "out.glb");
+  }
+}
