@@ -158,7 +158,7 @@ void main() {
     for (uint mask = item.y; mask != 0u; mask &= mask - 1u) {
       vec4 d = batch_directions[findLSB(mask)];
       vec3 dir = vec3(d.x, 1.0, d.y);
-      bool blocked = scene_blocks(rc.p, dir, s_min, 3.0e38);
+      bool blocked = scene_blocks(rc.p, dir, s_min, y_top - rc.p.y + 1.0);
 #if COVERAGE_SNOW
       blocked = blocked || snow_blocks(rc.p, dir, s_min);
 #endif

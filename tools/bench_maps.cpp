@@ -100,6 +100,7 @@ struct Row {
   double peel = 0, setup = 0, shadow_s = 0, composite = 0, readback = 0;
   double raw_peel = 0, raw_shadow = 0;
   double coverage_cpu = 0;  // CPU seconds of one coverage run, all threads
+  double queued_share = 0;  // receivers sent to the exact pass per batch / receivers
 };
 
 Row run(const std::string& name, const snow::Scene& scene, int side, const Options& o) {
@@ -145,6 +146,9 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
     r.shadow_s = std::min(r.shadow_s, t.shadow);
     r.composite = std::min(r.composite, t.composite);
     r.readback = std::min(r.readback, t.readback);
+    r.queued_share =
+        double(t.queued) /
+        double(std::max<uint64_t>(1, t.pairs / uint64_t(std::min(cs.batch, cs.directions))));
   }
   r.shadow = renderer.shadow_map_size();
 
@@ -152,8 +156,8 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
   for (int k = 0; k < o.repeat; ++k) {
     r.raw_peel =
         std::min(r.raw_peel, snow::time_depth_passes(scene, r.width, r.height, r.peel_passes));
-    r.raw_shadow = std::min(r.raw_shadow,
-                            snow::time_depth_passes(scene, r.shadow.x, r.shadow.y, o.directions));
+    r.raw_shadow = std::min(
+        r.raw_shadow, snow::time_depth_passes(scene, r.shadow.x, r.shadow.y, o.directions, true));
   }
   return r;
 }
@@ -163,10 +167,10 @@ void print(const Row& r) {
   const double raw = r.raw_peel + r.raw_shadow;
   std::printf(
       "| %s | %zu | %dx%d | %d | %.2f | %dx%d | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | "
-      "%.2f | %.2f |\n",
+      "%.2f | %.2f | %.1f%% |\n",
       r.name.c_str(), r.triangles, r.width, r.height, r.layers_found, r.peel, r.shadow.x,
       r.shadow.y, r.setup, r.shadow_s, r.composite, r.readback, total, r.raw_peel, r.raw_shadow,
-      total / raw, r.coverage_cpu);
+      total / raw, r.coverage_cpu, 100.0 * r.queued_share);
   std::fflush(stdout);
 }
 
@@ -204,8 +208,9 @@ int main(int argc, char** argv) {
                 o.layers, o.directions);
     std::printf(
         "| scene | triangles | map | layers | peel s | shadow map | setup s | shadow s | count s | "
-        "readback s | total s | raw peel s | raw shadow s | total / raw | coverage CPU s |\n");
-    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        "readback s | total s | raw peel s | raw shadow s | total / raw | coverage CPU s | "
+        "exact |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     std::vector<std::string> scenes = o.scenes;
     if (scenes.empty()) {
       const std::filesystem::path root(SNOW_SOURCE_DIR);

@@ -197,7 +197,20 @@ struct CoverageRenderer::Impl {
     glNamedBufferStorage(node_buffer.id(), GLsizeiptr(nodes * sizeof(Bvh::Node)),
                          bvh.nodes().data(), 0);
     gl::check_error("coverage scene BVH");
-    glVertexArrayVertexBuffer(vao.id(), 0, triangle_buffer.id(), 0, sizeof(glm::vec3));
+    // The shadow passes draw welded vertices through an index buffer: the
+    // vertex shader then runs once per vertex instead of once per corner.
+    std::vector<glm::vec3> vertices;
+    std::vector<uint32_t> indices;
+    weld_vertices(bvh.corners(), vertices, indices);
+    vertex_buffer = gl::create_buffer();
+    glNamedBufferStorage(vertex_buffer.id(), GLsizeiptr(vertices.size() * sizeof(glm::vec3)),
+                         vertices.data(), 0);
+    index_buffer = gl::create_buffer();
+    glNamedBufferStorage(index_buffer.id(), GLsizeiptr(indices.size() * sizeof(uint32_t)),
+                         indices.data(), 0);
+    gl::check_error("coverage scene vertices");
+    glVertexArrayVertexBuffer(vao.id(), 0, vertex_buffer.id(), 0, sizeof(glm::vec3));
+    glVertexArrayElementBuffer(vao.id(), index_buffer.id());
     glEnableVertexArrayAttrib(vao.id(), SNOW_ATTR_POSITION);
     glVertexArrayAttribFormat(vao.id(), SNOW_ATTR_POSITION, 3, GL_FLOAT, GL_FALSE, 0);
     glVertexArrayAttribBinding(vao.id(), SNOW_ATTR_POSITION, 0);
@@ -214,8 +227,10 @@ struct CoverageRenderer::Impl {
   gl::Program dispatch;  // queue length -> indirect dispatch size
   gl::VertexArray vao;
   gl::VertexArray empty_vao;
-  gl::Buffer triangle_buffer;  // float[9] per triangle, BVH leaf order
+  gl::Buffer triangle_buffer;  // float[9] per triangle, BVH leaf order (exact pass)
   gl::Buffer node_buffer;      // Bvh::Node per node
+  gl::Buffer vertex_buffer;    // welded vertices (shadow passes)
+  gl::Buffer index_buffer;     // 3 per triangle, BVH leaf order
   size_t triangles = 0;
   size_t nodes = 0;
 
@@ -234,7 +249,7 @@ struct CoverageRenderer::Impl {
   void draw_scene() const {
     if (triangles == 0) return;
     glBindVertexArray(vao.id());
-    glDrawArrays(GL_TRIANGLES, 0, GLsizei(triangles * 3));
+    glDrawElements(GL_TRIANGLES, GLsizei(triangles * 3), GL_UNSIGNED_INT, nullptr);
   }
 
   void ensure_shadow_maps(glm::ivec2 size, int layers) {
@@ -557,8 +572,11 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
     glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, 0);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     gl::check_error("coverage counting pass");
+    im.timings.pairs += uint64_t(recv.size()) * uint64_t(n);
     if (im.profiling) {
-      glFinish();
+      GLuint queued = 0;
+      glGetNamedBufferSubData(im.queue.id(), 0, sizeof queued, &queued);
+      im.timings.queued += queued;
       const double t = now_seconds();
       im.timings.composite += t - t_mark;
       t_mark = t;

@@ -119,6 +119,8 @@ class CoverageRenderer {
     double shadow = 0;     // K shadow-map depth passes
     double composite = 0;  // counting: classification and exact ray casts (compute passes)
     double readback = 0;   // one readback of the counts
+    uint64_t queued = 0;   // receivers sent to the exact pass, summed over batches (profiling)
+    uint64_t pairs = 0;    // (receiver, direction) pairs classified
   };
   const Timings& timings() const;
   void set_profiling(bool on);

@@ -1,6 +1,7 @@
 // Scene upload and GL state guard shared by the peel and coverage passes.
 #include "snow/gpu_scene.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include <glm/glm.hpp>
@@ -10,16 +11,45 @@
 
 namespace snow {
 
-GpuScene::GpuScene(const Scene& scene) : triangles_(scene.triangle_count()) {
+void weld_vertices(const std::vector<glm::vec3>& corners, std::vector<glm::vec3>& vertices,
+                   std::vector<uint32_t>& indices) {
+  std::vector<uint32_t> order(corners.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = uint32_t(k);
+  const auto less = [&](uint32_t a, uint32_t b) {
+    const glm::vec3 &p = corners[a], &q = corners[b];
+    if (p.x != q.x) return p.x < q.x;
+    if (p.y != q.y) return p.y < q.y;
+    return p.z < q.z;
+  };
+  std::sort(order.begin(), order.end(), less);
+  indices.resize(corners.size());
+  vertices.clear();
+  for (size_t k = 0; k < order.size(); ++k) {
+    if (k == 0 || less(order[k - 1], order[k])) vertices.push_back(corners[order[k]]);
+    indices[order[k]] = uint32_t(vertices.size() - 1);
+  }
+}
+
+GpuScene::GpuScene(const Scene& scene, bool indexed) : triangles_(scene.triangle_count()) {
   if (triangles_ * 3 > size_t(0x7fffffff)) {
     throw InputError("scene has " + std::to_string(triangles_) +
                      " triangles, more than one draw call can take");
   }
   vao_ = gl::create_vertex_array();
   if (triangles_ == 0) return;
+  std::vector<glm::vec3> vertices;
+  std::vector<uint32_t> indices;
+  if (indexed) weld_vertices(scene.positions, vertices, indices);
+  const std::vector<glm::vec3>& uploaded = indexed ? vertices : scene.positions;
   positions_ = gl::create_buffer();
-  glNamedBufferStorage(positions_.id(), GLsizeiptr(triangles_ * 3 * sizeof(glm::vec3)),
-                       scene.positions.data(), 0);
+  glNamedBufferStorage(positions_.id(), GLsizeiptr(uploaded.size() * sizeof(glm::vec3)),
+                       uploaded.data(), 0);
+  if (indexed) {
+    indices_ = gl::create_buffer();
+    glNamedBufferStorage(indices_.id(), GLsizeiptr(indices.size() * sizeof(uint32_t)),
+                         indices.data(), 0);
+    glVertexArrayElementBuffer(vao_.id(), indices_.id());
+  }
   gl::check_error("scene vertex buffer");
   glVertexArrayVertexBuffer(vao_.id(), 0, positions_.id(), 0, sizeof(glm::vec3));
   glEnableVertexArrayAttrib(vao_.id(), SNOW_ATTR_POSITION);
@@ -31,7 +61,11 @@ GpuScene::GpuScene(const Scene& scene) : triangles_(scene.triangle_count()) {
 void GpuScene::draw() const {
   if (triangles_ == 0) return;
   glBindVertexArray(vao_.id());
-  glDrawArrays(GL_TRIANGLES, 0, GLsizei(triangles_ * 3));
+  if (indices_) {
+    glDrawElements(GL_TRIANGLES, GLsizei(triangles_ * 3), GL_UNSIGNED_INT, nullptr);
+  } else {
+    glDrawArrays(GL_TRIANGLES, 0, GLsizei(triangles_ * 3));
+  }
 }
 
 GlStateGuard::GlStateGuard() {

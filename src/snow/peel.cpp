@@ -316,10 +316,10 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings
   return maps;
 }
 
-double time_depth_passes(const Scene& scene, int width, int height, int passes) {
+double time_depth_passes(const Scene& scene, int width, int height, int passes, bool indexed) {
   if (width < 1 || height < 1 || passes < 1 || scene.bounds.empty()) return 0.0;
   GlStateGuard state;
-  GpuScene gpu(scene);
+  GpuScene gpu(scene, indexed);
   gl::Program program({"shadow.vert", "depth_only.frag"});
   gl::Renderbuffer depth = gl::create_renderbuffer();
   glNamedRenderbufferStorage(depth.id(), GL_DEPTH_COMPONENT32F, width, height);

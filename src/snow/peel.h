@@ -70,8 +70,12 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings
 
 /// Benchmark helper: renders the whole scene `passes` times from straight
 /// above into a depth-only target of width x height texels (no peeling test,
-/// no readback) and returns the wall seconds up to glFinish. This is the raw
-/// rasterization work a peel pass or a shadow pass of that size costs.
-double time_depth_passes(const Scene& scene, int width, int height, int passes);
+/// no readback) and returns the wall seconds from the first draw to glFinish
+/// (uploads excluded). This is the raw rasterization work a peel pass
+/// (indexed = false: the triangle soup, as peel_layers draws it) or a shadow
+/// pass (indexed = true: welded vertices, as CoverageRenderer draws them) of
+/// that size costs.
+double time_depth_passes(const Scene& scene, int width, int height, int passes,
+                         bool indexed = false);
 
 }  // namespace snow
