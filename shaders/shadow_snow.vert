@@ -1,7 +1,9 @@
 #version 450 core
 // The snow surface of one layer (ground + depth) drawn into a shadow map as
 // a heightfield through the texel centres, with no vertex buffer: vertex
-// gl_VertexID is corner (gl_VertexID % 6) of quad (gl_VertexID / 6).
+// gl_VertexID is corner (gl_VertexID % 6) of quad quad_origin + (q %
+// quad_columns, q / quad_columns), q = gl_VertexID / 6 (the draw covers the
+// layer's snowy quads only).
 // Mirrors snow::reference::snow_surface_triangles: a triangle exists when its
 // three corners have a surface, one has snow, and their heights differ by at
 // most `cut`; otherwise all its corners go outside the clip volume.
@@ -10,7 +12,8 @@
 layout(binding = SNOW_SHADOW_SNOW_TEXTURE) uniform sampler2DArray snow_surface;  // (top, depth)
 
 uniform int layer;
-uniform ivec2 grid_size;    // texels
+uniform ivec2 quad_origin;  // first quad of the drawn rectangle
+uniform int quad_columns;   // quads per row of the drawn rectangle
 uniform vec2 grid_origin;   // metres
 uniform float texel;        // metres
 uniform float cut;          // metres
@@ -26,7 +29,7 @@ const int kTriangleCorner[6] = int[](0, 1, 2, 0, 2, 3);
 void main() {
   int quad = gl_VertexID / 6;
   int corner = gl_VertexID % 6;
-  ivec2 ij = ivec2(quad % (grid_size.x - 1), quad / (grid_size.x - 1));
+  ivec2 ij = quad_origin + ivec2(quad % quad_columns, quad / quad_columns);
   int first = corner < 3 ? 0 : 3;
   bool ok = true;
   bool snowy = false;

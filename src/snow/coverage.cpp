@@ -330,6 +330,7 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
   std::vector<uint32_t> recv_index;  // layer texel index of each receiver
   std::vector<float> top;            // ground + depth per layer texel (snow-on-snow only)
   std::vector<int> snowy_layers;
+  std::vector<glm::ivec4> snowy_quads;  // per snowy layer: quads [x, z) x [y, w) to draw
   float y_lo = kOpenSky, y_hi = -kOpenSky;
   try {
     coverage.assign(total, 0.0f);
@@ -347,6 +348,8 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
     }
     for (int l = 0; l < maps.layers; ++l) {
       bool layer_has_snow = false;
+      glm::ivec4 snowy(grid.width, grid.height, -1,
+                       -1);  // texel bounds (min i, min j, max i, max j)
       for (int j = 0; j < grid.height; ++j) {
         for (int i = 0; i < grid.width; ++i) {
           const size_t k = maps.index(l, i, j);
@@ -360,6 +363,8 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
               y = top[k];
               n = gradient_normal(maps, top, l, i, j);
               layer_has_snow = true;
+              snowy = glm::ivec4(std::min(snowy.x, i), std::min(snowy.y, j), std::max(snowy.z, i),
+                                 std::max(snowy.w, j));
             }
           }
           y_lo = std::min(y_lo, y);
@@ -372,7 +377,13 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
           recv_index.push_back(uint32_t(k));
         }
       }
-      if (layer_has_snow) snowy_layers.push_back(l);
+      if (layer_has_snow && grid.width > 1 && grid.height > 1) {
+        // Quads with a snowy corner: quad (i, j) has corners i..i+1, j..j+1.
+        snowy_layers.push_back(l);
+        snowy_quads.push_back(
+            glm::ivec4(std::max(0, snowy.x - 1), std::min(grid.width - 1, snowy.z + 1),
+                       std::max(0, snowy.y - 1), std::min(grid.height - 1, snowy.w + 1)));
+      }
     }
   } catch (const std::bad_alloc&) {
     throw InputError("coverage: out of memory for " + std::to_string(total) +
@@ -459,7 +470,6 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
     p->set("y_top", y_top);
     p->set("y_range", y_range);
   }
-  im.shadow_snow.set("grid_size", glm::ivec2(grid.width, grid.height));
   im.shadow_snow.set("grid_origin", grid.origin);
   im.shadow_snow.set("texel", grid.texel);
   im.shadow_snow.set("cut", kSnowSurfaceCutTexels * grid.texel);
@@ -507,7 +517,6 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
   double t_mark = now_seconds();
   im.timings.setup = t_mark - t_start;
 
-  const int quads = (grid.width - 1) * (grid.height - 1);
   const int max_groups = 65535;
   Progress progress("coverage", double(k_count));
   for (size_t b0 = 0; b0 < k_count; b0 += size_t(batch)) {
@@ -519,14 +528,17 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
       im.shadow.set("shear_origin", dir_params[b0 + size_t(k)]);
       im.shadow.use();
       im.draw_scene();
-      if (!snowy_layers.empty() && quads > 0) {
+      if (!snowy_layers.empty()) {
         im.shadow_snow.set("shear_origin", dir_params[b0 + size_t(k)]);
         im.shadow_snow.use();
         glBindTextureUnit(SNOW_SHADOW_SNOW_TEXTURE, im.snow_surface.id());
         glBindVertexArray(im.empty_vao.id());
-        for (int l : snowy_layers) {
-          im.shadow_snow.set("layer", l);  // both stages of the program
-          glDrawArrays(GL_TRIANGLES, 0, 6 * quads);
+        for (size_t m = 0; m < snowy_layers.size(); ++m) {
+          const glm::ivec4& q = snowy_quads[m];
+          im.shadow_snow.set("layer", snowy_layers[m]);
+          im.shadow_snow.set("quad_origin", glm::ivec2(q.x, q.z));
+          im.shadow_snow.set("quad_columns", q.y - q.x);
+          glDrawArrays(GL_TRIANGLES, 0, 6 * (q.y - q.x) * (q.w - q.z));
         }
       }
     }
