@@ -16,6 +16,7 @@
 #include <limits>
 #include <new>
 #include <string>
+#include <thread>
 
 #include <glm/gtc/packing.hpp>
 
@@ -112,6 +113,117 @@ glm::vec3 gradient_normal(const SnowMaps& maps, const std::vector<float>& top, i
   return glm::normalize(glm::vec3(-slope(1, 0), 1.0f, -slope(0, 1)));
 }
 
+// Conservative bound of everything that can occlude, for culling receivers
+// that see the open sky along every direction before any GPU work: level 0
+// holds, per texel square, the highest point of every triangle (and snow
+// surface) whose xz bounding box overlaps it (clamped into the grid, which
+// only moves outside geometry closer); each further level takes the max of
+// 2 x 2 cells. A receiver at height y is open-sky when every cell satisfies
+// max <= y + eps + h * cot(theta_max), h = the cell's horizontal distance:
+// a line of fall rises at least that fast, so nothing above y + eps can be
+// in its way (eps is the pass-1 bias, below which a surface counts as the
+// receiver's own).
+class SkyBound {
+ public:
+  SkyBound(const std::vector<glm::vec3>& corners, const SnowMaps& maps,
+           const std::vector<float>* top)
+      : g_(maps.grid) {
+    const int w = g_.width, h = g_.height;
+    levels_.emplace_back(size_t(w) * size_t(h), -kOpenSky);
+    sizes_.emplace_back(w, h);
+    std::vector<float>& base = levels_[0];
+    const auto cell = [&](float v, float origin, int n) {
+      return std::clamp(int(std::floor((v - origin) / g_.texel)), 0, n - 1);
+    };
+    for (size_t t = 0; t + 2 < corners.size(); t += 3) {
+      const glm::vec3 &a = corners[t], &b = corners[t + 1], &c = corners[t + 2];
+      const float top_y = std::max({a.y, b.y, c.y});
+      const int i0 = cell(std::min({a.x, b.x, c.x}), g_.origin.x, w);
+      const int i1 = cell(std::max({a.x, b.x, c.x}), g_.origin.x, w);
+      const int j0 = cell(std::min({a.z, b.z, c.z}), g_.origin.y, h);
+      const int j1 = cell(std::max({a.z, b.z, c.z}), g_.origin.y, h);
+      for (int j = j0; j <= j1; ++j) {
+        float* row = base.data() + size_t(j) * size_t(w);
+        for (int i = i0; i <= i1; ++i) row[i] = std::max(row[i], top_y);
+      }
+    }
+    if (top) {
+      // The snow heightfield spans texel centres: spread each snowy top over
+      // its 3 x 3 cells.
+      const size_t texels = g_.texels();
+      for (int l = 0; l < maps.layers; ++l) {
+        for (int j = 0; j < h; ++j) {
+          for (int i = 0; i < w; ++i) {
+            const size_t k = size_t(l) * texels + size_t(j) * size_t(w) + size_t(i);
+            const float v = (*top)[k];
+            if (std::isnan(v) || !(v > maps.ground[k])) continue;
+            for (int dj = std::max(0, j - 1); dj <= std::min(h - 1, j + 1); ++dj) {
+              for (int di = std::max(0, i - 1); di <= std::min(w - 1, i + 1); ++di) {
+                float& m = base[size_t(dj) * size_t(w) + size_t(di)];
+                m = std::max(m, v);
+              }
+            }
+          }
+        }
+      }
+    }
+    while (sizes_.back().x > 1 || sizes_.back().y > 1) {
+      const glm::ivec2 from = sizes_.back();
+      const glm::ivec2 to((from.x + 1) / 2, (from.y + 1) / 2);
+      std::vector<float> next(size_t(to.x) * size_t(to.y), -kOpenSky);
+      const std::vector<float>& prev = levels_.back();
+      for (int j = 0; j < from.y; ++j) {
+        for (int i = 0; i < from.x; ++i) {
+          float& m = next[size_t(j / 2) * size_t(to.x) + size_t(i / 2)];
+          m = std::max(m, prev[size_t(j) * size_t(from.x) + size_t(i)]);
+        }
+      }
+      levels_.push_back(std::move(next));
+      sizes_.push_back(to);
+    }
+  }
+
+  bool open_sky(const glm::vec2& p, float y, float eps, float cot_max) const {
+    // Most receivers under or beside something fail on their own cell.
+    const glm::ivec2 own = glm::clamp(glm::ivec2(glm::floor((p - g_.origin) / g_.texel)),
+                                      glm::ivec2(0), sizes_[0] - 1);
+    if (levels_[0][size_t(own.y) * size_t(sizes_[0].x) + size_t(own.x)] > y + eps) return false;
+    struct Node {
+      int level, i, j;
+    };
+    Node stack[4 * 40];
+    int top = 0;
+    stack[top++] = {int(levels_.size()) - 1, 0, 0};
+    while (top > 0) {
+      const Node n = stack[--top];
+      const float m =
+          levels_[size_t(n.level)][size_t(n.j) * size_t(sizes_[size_t(n.level)].x) + size_t(n.i)];
+      if (m <= y + eps) continue;  // nothing above the receiver at all
+      const float span = g_.texel * float(1 << n.level);
+      const glm::vec2 lo = g_.origin + glm::vec2(n.i, n.j) * span;
+      const glm::vec2 d = glm::max(glm::max(lo - p, p - (lo + span)), glm::vec2(0.0f));
+      const float h = glm::length(d);
+      if (h > 0.0f && m <= y + eps + h * cot_max) continue;
+      if (n.level == 0) return false;
+      // Children nearest the receiver last, so they are visited first: a
+      // receiver under something fails on its own cells at once.
+      const glm::ivec2 size = sizes_[size_t(n.level) - 1];
+      const glm::vec2 mid = lo + 0.5f * span;
+      const int near_i = p.x < mid.x ? 0 : 1, near_j = p.y < mid.y ? 0 : 1;
+      for (int c = 3; c >= 0; --c) {  // c = 0: the nearest child, 3: the farthest
+        const int ci = 2 * n.i + (near_i ^ (c & 1)), cj = 2 * n.j + (near_j ^ (c >> 1));
+        if (ci < size.x && cj < size.y && top < 4 * 40) stack[top++] = {n.level - 1, ci, cj};
+      }
+    }
+    return true;
+  }
+
+ private:
+  MapGrid g_;
+  std::vector<std::vector<float>> levels_;
+  std::vector<glm::ivec2> sizes_;
+};
+
 }  // namespace
 
 glm::vec3 mean_fall_direction(const CoverageSettings& s) {
@@ -187,6 +299,7 @@ struct CoverageRenderer::Impl {
     // (vertex buffer) and ray cast by the exact pass (storage buffer).
     const Bvh bvh(scene.positions);
     triangles = bvh.triangle_count();
+    corners = bvh.corners();
     if (triangles == 0) return;
     triangle_buffer = gl::create_buffer();
     glNamedBufferStorage(triangle_buffer.id(), GLsizeiptr(bvh.corners().size() * sizeof(glm::vec3)),
@@ -218,11 +331,12 @@ struct CoverageRenderer::Impl {
   }
 
   Bounds bounds;
-  gl::Program shadow;       // scene depth into a shadow map
-  gl::Program shadow_snow;  // snow heightfield depth into a shadow map
-  gl::Program count;        // pass 1: certain cases counted, the others queued
-  gl::Program count_snow;   // the same with a snow surface in the shadow maps
-  gl::Program exact;        // pass 2: exact ray casts of the queued pairs
+  std::vector<glm::vec3> corners;  // the scene's triangles (BVH leaf order), for sky culling
+  gl::Program shadow;              // scene depth into a shadow map
+  gl::Program shadow_snow;         // snow heightfield depth into a shadow map
+  gl::Program count;               // pass 1: certain cases counted, the others queued
+  gl::Program count_snow;          // the same with a snow surface in the shadow maps
+  gl::Program exact;               // pass 2: exact ray casts of the queued pairs
   gl::Program exact_snow;
   gl::Program dispatch;  // queue length -> indirect dispatch size
   gl::VertexArray vao;
@@ -278,7 +392,14 @@ struct CoverageRenderer::Impl {
   }
 };
 
-CoverageRenderer::CoverageRenderer(const Scene& scene) : impl_(std::make_unique<Impl>(scene)) {}
+CoverageRenderer::CoverageRenderer(const Scene& scene) {
+  try {
+    impl_ = std::make_unique<Impl>(scene);
+  } catch (const std::bad_alloc&) {
+    throw InputError("coverage: out of memory uploading " + std::to_string(scene.triangle_count()) +
+                     " triangles");
+  }
+}
 CoverageRenderer::~CoverageRenderer() = default;
 
 const CoverageRenderer::Timings& CoverageRenderer::timings() const { return impl_->timings; }
@@ -296,6 +417,20 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
                                              const std::vector<glm::vec2>& jitter,
                                              const CoverageSettings& settings,
                                              const std::vector<float>* snow_depth) {
+  try {
+    return compute_checked(maps, dirs, jitter, settings, snow_depth);
+  } catch (const std::bad_alloc&) {
+    throw InputError("coverage: out of memory for maps of " + std::to_string(maps.grid.width) +
+                     " x " + std::to_string(maps.grid.height) + " texels x " +
+                     std::to_string(maps.layers) + " layers; use a coarser texel size");
+  }
+}
+
+std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
+                                                     const std::vector<glm::vec3>& dirs,
+                                                     const std::vector<glm::vec2>& jitter,
+                                                     const CoverageSettings& settings,
+                                                     const std::vector<float>* snow_depth) {
   Impl& im = *impl_;
   im.timings = Timings{};
   const double t_start = now_seconds();
@@ -401,15 +536,68 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
   const double pad = 1e-3 * std::max(1.0, double(scene_hi) - scene_lo) + 1e-3;
   const float y_top = float(scene_hi + pad);
   const float y_range = float(double(scene_hi) - scene_lo + 2 * pad);
+  const float bias =
+      settings.bias >= 0.0f ? settings.bias : float(0.25 * grid.texel + 1e-5 * y_range);
 
-  // Shadow-map regions: each direction's map covers the receivers' box
-  // projected along it, origin jittered by a sub-texel offset.
+  // Receivers open to the sky along every direction are lit without GPU work.
+  glm::ivec4 texel_box(0, 0, grid.width - 1, grid.height - 1);  // the others' (i, j) bounds
+  {
+    double tan_max = 0;
+    for (const glm::vec3& d : dirs) {
+      tan_max = std::max(tan_max, double(std::hypot(d.x, d.z)) / double(-d.y));
+    }
+    const float cot_max = tan_max > 0 ? float(1.0 / tan_max) : 1e30f;
+    const SkyBound bound(im.corners, maps, snow_depth ? &top : nullptr);
+    std::vector<uint8_t> open(recv.size(), 0);
+    const unsigned threads = std::clamp(std::thread::hardware_concurrency(), 1u, 8u);
+    std::vector<std::thread> pool;
+    for (unsigned w = 0; w < threads; ++w) {
+      pool.emplace_back([&, w] {
+        for (size_t r = w; r < recv.size(); r += threads) {
+          const glm::uvec4& rc = recv[r];
+          float y;
+          std::memcpy(&y, &rc.y, sizeof y);
+          open[r] =
+              bound.open_sky(grid.center(int(rc.x & 0xffffu), int(rc.x >> 16)), y, bias, cot_max);
+        }
+      });
+    }
+    for (std::thread& t : pool) t.join();
+    size_t kept = 0;
+    y_lo = kOpenSky;
+    y_hi = -kOpenSky;
+    texel_box = glm::ivec4(grid.width, grid.height, -1, -1);
+    for (size_t r = 0; r < recv.size(); ++r) {
+      if (open[r]) {
+        coverage[recv_index[r]] = 1.0f;
+        continue;
+      }
+      float y;
+      std::memcpy(&y, &recv[r].y, sizeof y);
+      y_lo = std::min(y_lo, y);
+      y_hi = std::max(y_hi, y);
+      const int i = int(recv[r].x & 0xffffu), j = int(recv[r].x >> 16);
+      texel_box = glm::ivec4(std::min(texel_box.x, i), std::min(texel_box.y, j),
+                             std::max(texel_box.z, i), std::max(texel_box.w, j));
+      recv[kept] = recv[r];
+      recv_index[kept] = recv_index[r];
+      ++kept;
+    }
+    recv.resize(kept);
+    recv_index.resize(kept);
+    im.timings.culled = open.size() - kept;
+  }
+  if (recv.empty()) return coverage;
+
+  // Shadow-map regions: each direction's map covers the remaining
+  // receivers' box projected along it, origin jittered by a sub-texel offset.
   GLint max_texture = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_texture);
   const int limit = std::min(kMaxShadowSide, max_texture > 0 ? int(max_texture) : kMaxShadowSide);
-  const double gx0 = grid.origin.x, gz0 = grid.origin.y;
-  const double gx1 = gx0 + double(grid.width) * grid.texel;
-  const double gz1 = gz0 + double(grid.height) * grid.texel;
+  const double gx0 = grid.origin.x + double(texel_box.x) * grid.texel;
+  const double gz0 = grid.origin.y + double(texel_box.y) * grid.texel;
+  const double gx1 = grid.origin.x + double(texel_box.z + 1) * grid.texel;
+  const double gz1 = grid.origin.y + double(texel_box.w + 1) * grid.texel;
   const size_t k_count = dirs.size();
   std::vector<glm::dvec2> shear(k_count);
   double span_u = 0, span_v = 0;
@@ -431,8 +619,6 @@ std::vector<float> CoverageRenderer::compute(const SnowMaps& maps,
                               float(v_min - jitter[k].y * st));
   }
   const int batch = std::min(settings.batch, int(k_count));
-  const float bias =
-      settings.bias >= 0.0f ? settings.bias : float(0.25 * grid.texel + 1e-5 * y_range);
 
   GlStateGuard state;
   im.ensure_shadow_maps(size, batch);

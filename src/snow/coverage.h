@@ -98,8 +98,9 @@ class CoverageRenderer {
   /// ground + depth (a heightfield per layer through the texel centres, cut
   /// where neighbours differ by more than 6 texels or lack a surface) is also
   /// drawn into the shadow maps, and points are evaluated at ground + depth.
-  /// Throws InputError for bad settings or a snow_depth of the wrong size,
-  /// GLError for GL trouble.
+  /// Throws InputError for bad settings, a snow_depth of the wrong size or
+  /// host memory running out, GLError for GL trouble (GL_OUT_OF_MEMORY
+  /// included).
   std::vector<float> compute(const SnowMaps& maps, const CoverageSettings& settings,
                              const std::vector<float>* snow_depth = nullptr);
 
@@ -119,6 +120,7 @@ class CoverageRenderer {
     double shadow = 0;     // K shadow-map depth passes
     double composite = 0;  // counting: classification and exact ray casts (compute passes)
     double readback = 0;   // one readback of the counts
+    uint64_t culled = 0;   // receivers open to the sky along every direction (no GPU work)
     uint64_t queued = 0;   // receivers sent to the exact pass, summed over batches (profiling)
     uint64_t pairs = 0;    // (receiver, direction) pairs classified
   };
@@ -128,6 +130,11 @@ class CoverageRenderer {
   glm::ivec2 shadow_map_size() const;
 
  private:
+  std::vector<float> compute_checked(const SnowMaps& maps, const std::vector<glm::vec3>& directions,
+                                     const std::vector<glm::vec2>& jitter,
+                                     const CoverageSettings& settings,
+                                     const std::vector<float>* snow_depth);
+
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

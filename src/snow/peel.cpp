@@ -65,6 +65,8 @@ constexpr double kCoveragePerLayerTexel = 16 + 4 + 8 + 8;  // receivers, counts,
 constexpr double kPerTriangle = 140;        // GPU copies, BVH nodes and build scratch
 constexpr double kLaterPerLayerTexel = 48;  // stabilizer, depth, polygonize scratch
 
+SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSettings& settings);
+
 void validate_peel_settings(const PeelSettings& s) {
   if (s.layers < 1 || s.layers > 64) {
     throw InputError("layers must be in 1..64, got " + std::to_string(s.layers));
@@ -166,6 +168,18 @@ SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings) {
 }
 
 SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings& settings) {
+  try {
+    return peel_checked(scene, grid, settings);
+  } catch (const std::bad_alloc&) {
+    throw InputError("peel: out of memory for maps of " + std::to_string(grid.width) + " x " +
+                     std::to_string(grid.height) + " texels x " + std::to_string(settings.layers) +
+                     " layers; use a coarser texel size");
+  }
+}
+
+namespace {
+
+SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSettings& settings) {
   validate_peel_settings(settings);
   if (grid.width < 1 || grid.height < 1 || !(grid.texel > 0.0f)) {
     throw InputError("peel: empty map grid");
@@ -315,6 +329,8 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings
   }
   return maps;
 }
+
+}  // namespace
 
 double time_depth_passes(const Scene& scene, int width, int height, int passes, bool indexed) {
   if (width < 1 || height < 1 || passes < 1 || scene.bounds.empty()) return 0.0;
