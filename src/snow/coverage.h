@@ -10,17 +10,21 @@
 // flutter_deg around it. Coverage p of a surface point = the share of the K
 // directions from which the point sees the sky (nothing above it along -d).
 //
-// GPU method: one orthographic depth map per direction (a shear along d onto
-// the horizontal plane, so shadow texels line up with the snow map's, texel
-// matched to it, origin jittered by a sub-texel offset), rendered in batches
-// into a 2D array texture. A compute pass per batch classifies every (surface
-// texel, direction) pair from the four shadow texels around the point,
-// against the point's own plane extended to each of them (a receiver-plane,
-// hence slope-scaled, depth bias): all below -> lit, all above -> blocked,
-// mixed (a silhouette or the foot of a wall passes within a texel) -> queued.
-// A second pass casts the queued pairs' rays exactly through a BVH of the
-// scene (and the snow heightfield). No CPU readback until the end. Results
-// match the ray-cast reference up to occluders thinner than a shadow texel.
+// Receivers that nothing can shade from any of the directions (a
+// conservative max-height pyramid of the scene shows every point of geometry
+// below the steepest line of fall) are lit without GPU work. GPU method for
+// the others: one orthographic depth map per direction (a shear along d onto
+// the horizontal plane, so shadow texels line up with the snow map's; texel
+// matched to it; origin jittered by a sub-texel offset), rendered in batches
+// into a 2D array texture. A compute pass per batch classifies every
+// (surface texel, direction) pair from the four shadow texels around the
+// point, against the point's own plane extended to each of them (a
+// receiver-plane, hence slope-scaled, depth bias): all below -> lit, all
+// above -> blocked, mixed (a silhouette or the foot of a wall passes within
+// a texel) -> queued. A second pass casts the queued pairs' rays exactly
+// through a BVH of the scene (and the snow heightfield). No CPU readback
+// until the end. Results match the ray-cast reference up to occluders or
+// gaps thinner than a shadow texel.
 #include <cstdint>
 #include <memory>
 #include <vector>
