@@ -32,7 +32,8 @@ RunResult run(const std::string& args) {
   if (!pipe) return result;
   std::array<char, 4096> buffer{};
   size_t n = 0;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) result.output.append(buffer.data(), n);
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
+    result.output.append(buffer.data(), n);
   const int status = pclose(pipe);
   result.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   return result;
@@ -88,7 +89,8 @@ fs::path write_triangle_gltf(const fs::path& dir, const std::string& name, const
     "nodes":[{"mesh":0,"name":"Tri"}],"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
     "accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3"}],
     "bufferViews":[{"buffer":0,"byteLength":36}],
-    "buffers":[{"uri":")" + name + R"(.bin","byteLength":36}]})";
+    "buffers":[{"uri":")" + name +
+                           R"(.bin","byteLength":36}]})";
   const fs::path path = dir / (name + ".gltf");
   write_all(path, json);
   return path;
@@ -112,10 +114,12 @@ TEST(Cli, InfoJson) {
 TEST(Cli, SnowWritesAllOutputsAndIsDeterministic) {
   const fs::path dir = temp_dir("outputs");
   const std::string common = "snow " + q(kCourtyard) + kFast;
-  const RunResult a = run(common + " -o " + q(dir / "a.glb") + " --snow-output " + q(dir / "a_snow.obj") +
-                    " --maps " + q(dir / "maps") + " --preview " + q(dir / "a.png"));
+  const RunResult a =
+      run(common + " -o " + q(dir / "a.glb") + " --snow-output " + q(dir / "a_snow.obj") +
+          " --maps " + q(dir / "maps") + " --preview " + q(dir / "a.png"));
   ASSERT_EQ(a.code, 0) << a.output;
-  for (const char* f : {"a.glb", "a_snow.obj", "a_snow.mtl", "a.png", "a.glb.settings.json", "maps/manifest.json"}) {
+  for (const char* f : {"a.glb", "a_snow.obj", "a_snow.mtl", "a.png", "a.glb.settings.json",
+                        "maps/manifest.json"}) {
     EXPECT_TRUE(fs::exists(dir / f)) << f;
   }
   EXPECT_NE(a.output.find("summary:"), std::string::npos) << a.output;
@@ -129,31 +133,35 @@ TEST(Cli, SnowWritesAllOutputsAndIsDeterministic) {
   ASSERT_EQ(c.code, 0) << c.output;
   EXPECT_NE(read_all(dir / "a.glb"), read_all(dir / "c.glb"));
   // The effective settings repeat the run.
-  const RunResult d = run("snow " + q(kCourtyard) + " --config " + q(dir / "a.glb.settings.json") + " -o " +
-                    q(dir / "d.glb"));
+  const RunResult d = run("snow " + q(kCourtyard) + " --config " + q(dir / "a.glb.settings.json") +
+                          " -o " + q(dir / "d.glb"));
   ASSERT_EQ(d.code, 0) << d.output;
   EXPECT_EQ(read_all(dir / "a.glb"), read_all(dir / "d.glb"));
 }
 
 TEST(Cli, NoSnowOnAndIgnoreFilters) {
   const fs::path dir = temp_dir("filters");
-  const RunResult plain = run("snow " + q(kCourtyard) + kFast + " --snow-only -o " + q(dir / "plain.obj"));
+  const RunResult plain =
+      run("snow " + q(kCourtyard) + kFast + " --snow-only -o " + q(dir / "plain.obj"));
   ASSERT_EQ(plain.code, 0) << plain.output;
   const std::string plain_obj = read_all(dir / "plain.obj");
   EXPECT_NE(plain_obj.find("o snow/TableTop"), std::string::npos);
   EXPECT_EQ(plain_obj.find("o snow/HouseSlab"), std::string::npos) << "no snow inside the house";
 
-  const RunResult no_table = run("snow " + q(kCourtyard) + kFast + " --no-snow-on 'Table*' -o " + q(dir / "nt.obj"));
+  const RunResult no_table =
+      run("snow " + q(kCourtyard) + kFast + " --no-snow-on 'Table*' -o " + q(dir / "nt.obj"));
   ASSERT_EQ(no_table.code, 0) << no_table.output;
   EXPECT_EQ(read_all(dir / "nt.obj").find("o snow/TableTop"), std::string::npos);
 
-  const RunResult no_roof = run("snow " + q(kCourtyard) + kFast + " --ignore HouseRoof -o " + q(dir / "nr.obj"));
+  const RunResult no_roof =
+      run("snow " + q(kCourtyard) + kFast + " --ignore HouseRoof -o " + q(dir / "nr.obj"));
   ASSERT_EQ(no_roof.code, 0) << no_roof.output;
   EXPECT_NE(plain_obj.find("o snow/HouseRoof"), std::string::npos);
   EXPECT_EQ(read_all(dir / "nr.obj").find("o snow/HouseRoof"), std::string::npos)
       << "an ignored object receives no snow";
 
-  const RunResult unmatched = run("snow " + q(kCourtyard) + kFast + " --ignore 'NoSuchThing*' -o " + q(dir / "u.obj"));
+  const RunResult unmatched =
+      run("snow " + q(kCourtyard) + kFast + " --ignore 'NoSuchThing*' -o " + q(dir / "u.obj"));
   EXPECT_EQ(unmatched.code, 0);
   EXPECT_NE(unmatched.output.find("matches no object"), std::string::npos);
 }
@@ -184,7 +192,8 @@ TEST(Cli, ExitCodesAndNoPartialOutputs) {
   write_all(dir / "empty.gltf", R"({"asset":{"version":"2.0"},"scenes":[{"nodes":[]}]})");
   cases.push_back({"empty scene", dir / "empty.gltf", 2});
   for (const Case& c : cases) {
-    const RunResult r = run("snow " + q(c.input) + kFast + " -o " + q(out / "x.glb") + " --preview " + q(out / "x.png"));
+    const RunResult r = run("snow " + q(c.input) + kFast + " -o " + q(out / "x.glb") +
+                            " --preview " + q(out / "x.png"));
     EXPECT_EQ(r.code, c.code) << c.name << ": " << r.output;
     EXPECT_NE(r.output.find("error:"), std::string::npos) << c.name;
     EXPECT_EQ(file_count(out), 0u) << c.name << " left files behind";
@@ -197,11 +206,13 @@ TEST(Cli, ExitCodesAndNoPartialOutputs) {
   EXPECT_EQ(run("snow " + q(kCourtyard) + " --wind 3 -o " + q(out / "x.glb")).code, 2);
   EXPECT_EQ(run("snow " + q(kCourtyard) + " --frobnicate -o " + q(out / "x.glb")).code, 2);
   write_all(dir / "bad_settings.json", R"({"maps": {"texle": 0.1}})");
-  const RunResult bad_config = run("snow " + q(kCourtyard) + " --config " + q(dir / "bad_settings.json") + " -o " + q(out / "x.glb"));
+  const RunResult bad_config = run("snow " + q(kCourtyard) + " --config " +
+                                   q(dir / "bad_settings.json") + " -o " + q(out / "x.glb"));
   EXPECT_EQ(bad_config.code, 2);
   EXPECT_NE(bad_config.output.find("maps.texle"), std::string::npos) << bad_config.output;
   // No usable GL.
-  const RunResult no_gl = run("--gl-backend egl-device snow " + q(kCourtyard) + kFast + " -o " + q(out / "x.glb"));
+  const RunResult no_gl =
+      run("--gl-backend egl-device snow " + q(kCourtyard) + kFast + " -o " + q(out / "x.glb"));
   if (no_gl.code != 0) {
     EXPECT_EQ(no_gl.code, 3) << no_gl.output;
   }
@@ -216,8 +227,8 @@ TEST(Cli, SharedScenesSnow) {
   const fs::path dir = temp_dir("shared");
   // A Kenney tile is about 1 m wide: 48 texels keep the run short.
   for (const char* scene : {"kenney-city/building-small-a.glb"}) {
-    const RunResult r = run("snow " + q(shared / scene) + " --max-side 48 --directions 16 --layers 6 -o " +
-                            q(dir / "out.glb"));
+    const RunResult r = run("snow " + q(shared / scene) +
+                            " --max-side 48 --directions 16 --layers 6 -o " + q(dir / "out.glb"));
     EXPECT_EQ(r.code, 0) << scene << ": " << r.output;
     EXPECT_TRUE(fs::exists(dir / "out.glb")) << scene;
     expect_valid_gltf(dir / "out.glb");

@@ -13,7 +13,8 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
     bool no_gl = false;
   };
   auto options = std::make_shared<Options>();
-  CLI::App* cmd = app.add_subcommand("info", "Print the OpenGL context in use and a summary of a scene");
+  CLI::App* cmd =
+      app.add_subcommand("info", "Print the OpenGL context in use and a summary of a scene");
   cmd->add_option("scene", options->scene, "glTF 2.0 scene (.gltf or .glb)");
   cmd->add_flag("--json", options->json, "Print the scene summary as JSON");
   cmd->add_flag("--no-gl", options->no_gl, "Do not create an OpenGL context");

@@ -62,14 +62,19 @@ Scene without_ignored(const Scene& scene, const std::vector<std::string>& globs)
     }
     SceneObject copy = object;
     copy.first_triangle = uint32_t(out.triangle_count());
-    const size_t begin = size_t(object.first_triangle) * 3, end = begin + size_t(object.triangle_count) * 3;
-    out.positions.insert(out.positions.end(), scene.positions.begin() + begin, scene.positions.begin() + end);
-    out.normals.insert(out.normals.end(), scene.normals.begin() + begin, scene.normals.begin() + end);
-    if (!scene.uvs.empty()) out.uvs.insert(out.uvs.end(), scene.uvs.begin() + begin, scene.uvs.begin() + end);
+    const size_t begin = size_t(object.first_triangle) * 3,
+                 end = begin + size_t(object.triangle_count) * 3;
+    out.positions.insert(out.positions.end(), scene.positions.begin() + begin,
+                         scene.positions.begin() + end);
+    out.normals.insert(out.normals.end(), scene.normals.begin() + begin,
+                       scene.normals.begin() + end);
+    if (!scene.uvs.empty())
+      out.uvs.insert(out.uvs.end(), scene.uvs.begin() + begin, scene.uvs.begin() + end);
     out.objects.push_back(copy);
   }
   for (const glm::vec3& p : out.positions) out.bounds.extend(p);
-  if (out.positions.empty()) throw InputError("--ignore removed every object of " + std::string("the scene"));
+  if (out.positions.empty())
+    throw InputError("--ignore removed every object of " + std::string("the scene"));
   return out;
 }
 
@@ -84,7 +89,8 @@ void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, c
 /// Warns when almost no map column receives snow, naming the objects that
 /// top most of the map (a sky dome or a ground-plane helper is the usual
 /// cause: --ignore them).
-void warn_if_sheltered(const Scene& scene, const SnowMaps& maps, const std::vector<float>& coverage) {
+void warn_if_sheltered(const Scene& scene, const SnowMaps& maps,
+                       const std::vector<float>& coverage) {
   const size_t texels = maps.grid.texels();
   size_t with_surface = 0, receiving = 0;
   std::map<int32_t, size_t> top_objects;
@@ -103,9 +109,11 @@ void warn_if_sheltered(const Scene& scene, const SnowMaps& maps, const std::vect
   std::string names;
   for (size_t i = 0; i < ranked.size() && i < 3; ++i) {
     const int32_t o = ranked[i].second;
-    const std::string name = o >= 0 && size_t(o) < scene.objects.size() ? scene.objects[size_t(o)].name : "?";
+    const std::string name =
+        o >= 0 && size_t(o) < scene.objects.size() ? scene.objects[size_t(o)].name : "?";
     names += (i ? ", '" : "'") + name + "' (" +
-             std::to_string(int(100.0 * double(ranked[i].first) / double(with_surface))) + "% of the map)";
+             std::to_string(int(100.0 * double(ranked[i].first) / double(with_surface))) +
+             "% of the map)";
   }
   log_warn("almost nothing receives snow (" + std::to_string(receiving) + " of " +
            std::to_string(with_surface) + " columns); sheltered by " + names +
@@ -122,7 +130,8 @@ void blit(render::ImageRGBA8& canvas, const render::ImageRGBA8& tile, int x0, in
 
 /// Before (top row) and after (bottom row), 3/4 view (left) and top view
 /// (right), in one PNG.
-void write_preview(const Scene& scene, const std::vector<SnowPatch>& patches, const fs::path& path) {
+void write_preview(const Scene& scene, const std::vector<SnowPatch>& patches,
+                   const fs::path& path) {
   std::vector<TriMesh> snow;
   snow.reserve(patches.size());
   for (const SnowPatch& p : patches) snow.push_back(p.mesh);
@@ -138,8 +147,8 @@ void write_preview(const Scene& scene, const std::vector<SnowPatch>& patches, co
   for (int row = 0; row < 2; ++row) {
     for (int col = 0; col < 2; ++col) {
       settings.view = col == 0 ? render::View::ThreeQuarter : render::View::Top;
-      const render::ImageRGBA8 tile =
-          render::render_preview(scene, row == 0 ? std::vector<TriMesh>{} : snow, snow_color, settings);
+      const render::ImageRGBA8 tile = render::render_preview(
+          scene, row == 0 ? std::vector<TriMesh>{} : snow, snow_color, settings);
       blit(canvas, tile, col * settings.width, row * settings.height);
       progress.update(row * 2 + col + 1);
     }
@@ -178,8 +187,10 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   }
   for (const std::string& path : {o.output, o.snow_output, o.preview}) {
     if (path.empty()) continue;
-    const fs::path folder = fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
-    if (!fs::is_directory(folder)) throw IOError("cannot write " + path + ": folder " + folder.string() + " does not exist");
+    const fs::path folder =
+        fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
+    if (!fs::is_directory(folder))
+      throw IOError("cannot write " + path + ": folder " + folder.string() + " does not exist");
   }
   if (!o.snow_output.empty()) format_from_path(o.snow_output);
 
@@ -189,7 +200,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_unmatched(scene, s.no_snow_on, "--no-snow-on");
   const Scene snow_scene = without_ignored(scene, s.ignore);
   std::vector<uint8_t> receives(snow_scene.objects.size(), 1);
-  for (size_t i = 0; i < snow_scene.objects.size(); ++i) receives[i] = !matches(s.no_snow_on, snow_scene.objects[i]);
+  for (size_t i = 0; i < snow_scene.objects.size(); ++i)
+    receives[i] = !matches(s.no_snow_on, snow_scene.objects[i]);
 
   auto context = make_headless_context(global);
   log_info("OpenGL: " + context->description());
@@ -197,7 +209,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   SnowMaps maps;
   stage("peel", [&] { maps = peel_layers(snow_scene, s.peel); });
   log_info("maps: " + std::to_string(maps.grid.width) + " x " + std::to_string(maps.grid.height) +
-           " texels of " + std::to_string(maps.grid.texel) + " m, " + std::to_string(maps.layers) + " layers");
+           " texels of " + std::to_string(maps.grid.texel) + " m, " + std::to_string(maps.layers) +
+           " layers");
   SnowResult snow;
   stage("snowfall", [&] {
     snow = accumulate(snow_scene, maps, s.coverage, s.stabilize, s.accumulate, receives);
@@ -209,8 +222,10 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
 
   stage("export", [&] {
     if (!o.output.empty()) {
-      const bool combined = !o.snow_only && (format == MeshFormat::Glb || format == MeshFormat::Gltf);
-      if (!o.snow_only && !combined) log_info(std::string(format_name(format)) + " holds the snow only");
+      const bool combined =
+          !o.snow_only && (format == MeshFormat::Glb || format == MeshFormat::Gltf);
+      if (!o.snow_only && !combined)
+        log_info(std::string(format_name(format)) + " holds the snow only");
       if (combined) {
         write_combined_gltf(o.input, patches, o.output);
       } else {
@@ -249,16 +264,18 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   double total = 0;
   for (const auto& [name, seconds] : times) {
     char buf[64];
-    std::snprintf(buf, sizeof buf, "%s%s %.2f s", timing.empty() ? "" : ", ", name.c_str(), seconds);
+    std::snprintf(buf, sizeof buf, "%s%s %.2f s", timing.empty() ? "" : ", ", name.c_str(),
+                  seconds);
     timing += buf;
     total += seconds;
   }
   char summary[512];
-  std::snprintf(summary, sizeof summary,
-                "summary: %.2f s (%s); peak memory %.0f MiB; triangles in %zu, snow out %zu in %zu "
-                "patches; snow %.3f m^3 (fell %.3f, lost off the domain %.3f); stabilizer %d passes",
-                total, timing.c_str(), peak_memory_mib(), scene.triangle_count(), triangles_out,
-                patches.size(), snow.volume, snow.fallen_volume, snow.lost_volume, snow.iterations);
+  std::snprintf(
+      summary, sizeof summary,
+      "summary: %.2f s (%s); peak memory %.0f MiB; triangles in %zu, snow out %zu in %zu "
+      "patches; snow %.3f m^3 (fell %.3f, lost off the domain %.3f); stabilizer %d passes",
+      total, timing.c_str(), peak_memory_mib(), scene.triangle_count(), triangles_out,
+      patches.size(), snow.volume, snow.fallen_volume, snow.lost_volume, snow.iterations);
   log_info(summary);
 }
 
@@ -266,7 +283,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
 
 void register_snow(CLI::App& app, const GlobalOptions& global) {
   auto o = std::make_shared<SnowOptions>();
-  CLI::App* cmd = app.add_subcommand("snow", "Snow a glTF scene: compute where snow lands and rests, write it as meshes");
+  CLI::App* cmd = app.add_subcommand(
+      "snow", "Snow a glTF scene: compute where snow lands and rests, write it as meshes");
   // --config first: CLI11 applies options in the order they were added, so
   // flags given on the command line override the file.
   cmd->add_option_function<std::string>(
@@ -276,11 +294,13 @@ void register_snow(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("input", o->input, "glTF 2.0 scene (.gltf or .glb)")->required();
   cmd->add_option("-o,--output", o->output,
                   "Output: the input scene plus snow (.glb, .gltf), or snow only (.obj, .ply)");
-  cmd->add_option("--snow-output", o->snow_output, "Also write the snow only (.glb, .gltf, .obj, .ply)");
+  cmd->add_option("--snow-output", o->snow_output,
+                  "Also write the snow only (.glb, .gltf, .obj, .ply)");
   cmd->add_option("--format", o->format, "Format of --output, overriding its extension")
       ->check(CLI::IsMember({"glb", "gltf", "obj", "ply"}));
   cmd->add_flag("--snow-only", o->snow_only, "Write only the snow to --output");
-  cmd->add_option("--maps", o->maps_dir, "Write height, coverage and depth maps (EXR, PNG, manifest.json) here");
+  cmd->add_option("--maps", o->maps_dir,
+                  "Write height, coverage and depth maps (EXR, PNG, manifest.json) here");
   cmd->add_option("--preview", o->preview, "Write a before/after preview PNG (3/4 and top views)");
   add_settings_options(*cmd, o->settings);
   cmd->callback([o, &global] { run_snow(*o, global); });

@@ -31,7 +31,9 @@ int main(int argc, char** argv) {
                  "(env SNOWMODEL_GL_BACKEND)")
       ->capture_default_str();
   cli.parse_complete_callback([&] {
-    set_log_level(global.quiet ? LogLevel::Quiet : global.verbose ? LogLevel::Debug : LogLevel::Info);
+    set_log_level(global.quiet     ? LogLevel::Quiet
+                  : global.verbose ? LogLevel::Debug
+                                   : LogLevel::Info);
   });
 
   app::register_info(cli, global);

@@ -77,7 +77,8 @@ void settings_from_json(const json& input, PipelineSettings& settings) {
       throw InputError("settings: unknown group '" + group + "'");
     }
     for (const auto& [name, value] : members.items()) {
-      if (!known[group].contains(name)) throw InputError("settings: unknown key '" + group + "." + name + "'");
+      if (!known[group].contains(name))
+        throw InputError("settings: unknown key '" + group + "." + name + "'");
     }
   }
   visit_settings(
@@ -121,7 +122,8 @@ void add_settings_options(CLI::App& cmd, PipelineSettings& settings) {
               flag,
               [&field, flag](const std::string& text) {
                 if (!parse_vec2(text, field)) {
-                  throw CLI::ValidationError(flag, "expected X,Z (two numbers), got '" + text + "'");
+                  throw CLI::ValidationError(flag,
+                                             "expected X,Z (two numbers), got '" + text + "'");
                 }
               },
               help);

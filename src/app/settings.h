@@ -34,29 +34,36 @@ struct PipelineSettings {
 template <class Visitor>
 void visit_settings(Visitor&& v, PipelineSettings& s) {
   // Maps (peel).
-  v("maps.texel", "--texel", "Map texel size in metres (0 = automatic from --max-side)", s.peel.texel);
+  v("maps.texel", "--texel", "Map texel size in metres (0 = automatic from --max-side)",
+    s.peel.texel);
   v("maps.max_side", "--max-side", "Longest map side in texels when --texel is 0", s.peel.max_side);
   v("maps.layers", "--layers", "Surfaces kept per map column, top down (L)", s.peel.layers);
-  v("maps.margin", "--margin", "Border around the scene in metres (negative = automatic)", s.peel.margin);
+  v("maps.margin", "--margin", "Border around the scene in metres (negative = automatic)",
+    s.peel.margin);
   v("maps.merge_distance", "--merge-distance",
     "Surfaces closer than this in metres count as one layer", s.peel.merge_distance);
-  v("maps.memory_budget_gib", "--memory-budget", "Memory budget in GiB; larger runs stop before allocating",
-    s.memory_budget_gib);
+  v("maps.memory_budget_gib", "--memory-budget",
+    "Memory budget in GiB; larger runs stop before allocating", s.memory_budget_gib);
   // Coverage.
-  v("coverage.directions", "--directions", "Fall directions sampled (K shadow maps)", s.coverage.directions);
-  v("coverage.flutter_deg", "--flutter", "Flake flutter: half-angle of the cone of fall directions, degrees",
-    s.coverage.flutter_deg);
-  v("coverage.wind", "--wind", "Horizontal wind X,Z in m/s (tilts the fall by atan(wind/fall speed))",
-    s.coverage.wind);
-  v("coverage.fall_speed", "--fall-speed", "Flakes' still-air fall speed in m/s", s.coverage.fall_speed);
+  v("coverage.directions", "--directions", "Fall directions sampled (K shadow maps)",
+    s.coverage.directions);
+  v("coverage.flutter_deg", "--flutter",
+    "Flake flutter: half-angle of the cone of fall directions, degrees", s.coverage.flutter_deg);
+  v("coverage.wind", "--wind",
+    "Horizontal wind X,Z in m/s (tilts the fall by atan(wind/fall speed))", s.coverage.wind);
+  v("coverage.fall_speed", "--fall-speed", "Flakes' still-air fall speed in m/s",
+    s.coverage.fall_speed);
   v("coverage.seed", "--seed", "Seed of all jitter; same seed, same output", s.coverage.seed);
   v("coverage.batch", "--shadow-batch", "Shadow maps rendered per GPU batch", s.coverage.batch);
-  v("coverage.bias", "--shadow-bias", "Shadow depth bias in metres (negative = automatic)", s.coverage.bias);
+  v("coverage.bias", "--shadow-bias", "Shadow depth bias in metres (negative = automatic)",
+    s.coverage.bias);
   // Accumulation and stabilizer.
   v("snow.depth", "--depth", "Fresh snow that falls, metres", s.accumulate.fall_depth);
-  v("snow.steps", "--steps", "Time steps of snowfall, each followed by stabilizing", s.accumulate.steps);
+  v("snow.steps", "--steps", "Time steps of snowfall, each followed by stabilizing",
+    s.accumulate.steps);
   v("snow.snow_on_snow_every", "--snow-on-snow-every",
-    "Re-render shadows with the lying snow every N steps (0 = off)", s.accumulate.snow_on_snow_every);
+    "Re-render shadows with the lying snow every N steps (0 = off)",
+    s.accumulate.snow_on_snow_every);
   v("snow.repose_deg", "--repose", "Angle of repose of the snow, degrees", s.stabilize.repose_deg);
   v("snow.repose_jitter_deg", "--repose-jitter", "Per-texel jitter of the repose angle, +- degrees",
     s.stabilize.repose_jitter_deg);
@@ -64,14 +71,15 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     s.stabilize.tolerance);
   v("snow.max_iterations", "--max-iterations", "Stabilizer passes at most per step",
     s.stabilize.max_iterations);
-  v("snow.route_steep", "--route-steep", "Route snow off supports steeper than repose in one go (true/false)",
-    s.stabilize.route_steep);
+  v("snow.route_steep", "--route-steep",
+    "Route snow off supports steeper than repose in one go (true/false)", s.stabilize.route_steep);
   // Meshes.
   v("mesh.min_thickness", "--min-thickness", "Snow thinner than this is no snow, metres",
     s.polygonize.min_thickness);
-  v("mesh.decimate_error", "--decimate-error", "Decimation error bound in metres (negative = half a texel)",
-    s.polygonize.decimate_error);
-  v("mesh.smooth_iterations", "--smooth", "Smoothing passes over the snow top", s.polygonize.smooth_iterations);
+  v("mesh.decimate_error", "--decimate-error",
+    "Decimation error bound in metres (negative = half a texel)", s.polygonize.decimate_error);
+  v("mesh.smooth_iterations", "--smooth", "Smoothing passes over the snow top",
+    s.polygonize.smooth_iterations);
   v("mesh.min_patch_area", "--min-patch-area", "Drop snow patches smaller than this, square metres",
     s.polygonize.min_patch_area);
   v("mesh.closed", "--closed", "Closed snow solids (true) or open top surfaces only (false)",
@@ -81,8 +89,8 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   // Object filters.
   v("filters.no_snow_on", "--no-snow-on",
     "Name glob of objects that receive no snow but still shelter (repeatable)", s.no_snow_on);
-  v("filters.ignore", "--ignore", "Name glob of objects that neither receive nor shelter (repeatable)",
-    s.ignore);
+  v("filters.ignore", "--ignore",
+    "Name glob of objects that neither receive nor shelter (repeatable)", s.ignore);
 }
 
 /// The settings as JSON, grouped by the part before the dot of each key.

@@ -15,18 +15,22 @@ void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
   if (receives.empty()) return;
   for (size_t k = 0; k < coverage.size(); ++k) {
     const int32_t object = maps.object[k];
-    if (object >= 0 && size_t(object) < receives.size() && !receives[size_t(object)]) coverage[k] = 0;
+    if (object >= 0 && size_t(object) < receives.size() && !receives[size_t(object)])
+      coverage[k] = 0;
   }
 }
 
 SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSettings& coverage,
                       const StabilizeSettings& stabilize, const AccumulateSettings& settings,
                       const std::vector<uint8_t>& receives) {
-  if (!std::isfinite(settings.fall_depth) || settings.fall_depth < 0 || settings.fall_depth > 1000) {
-    throw InputError("snow depth must be between 0 and 1000 m, got " + std::to_string(settings.fall_depth));
+  if (!std::isfinite(settings.fall_depth) || settings.fall_depth < 0 ||
+      settings.fall_depth > 1000) {
+    throw InputError("snow depth must be between 0 and 1000 m, got " +
+                     std::to_string(settings.fall_depth));
   }
   if (settings.steps < 1 || settings.steps > 100000) {
-    throw InputError("snow steps must be between 1 and 100000, got " + std::to_string(settings.steps));
+    throw InputError("snow steps must be between 1 and 100000, got " +
+                     std::to_string(settings.steps));
   }
   if (settings.snow_on_snow_every < 0) {
     throw InputError("snow-on-snow interval must be 0 (off) or a positive number of steps");
@@ -43,8 +47,8 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   const double texel_area = double(maps.grid.texel) * double(maps.grid.texel);
   Progress progress("snowfall", settings.steps);
   for (int step = 0; step < settings.steps; ++step) {
-    const bool update = settings.snow_on_snow_every > 0 && step > 0 &&
-                        step % settings.snow_on_snow_every == 0;
+    const bool update =
+        settings.snow_on_snow_every > 0 && step > 0 && step % settings.snow_on_snow_every == 0;
     if (update) {
       const std::vector<float> lying = stabilizer.depth();
       result.coverage = shadows.compute(maps, coverage, &lying);
