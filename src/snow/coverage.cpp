@@ -113,60 +113,105 @@ glm::vec3 gradient_normal(const SnowMaps& maps, const std::vector<float>& top, i
   return glm::normalize(glm::vec3(-slope(1, 0), 1.0f, -slope(0, 1)));
 }
 
-// Conservative bound of everything that can occlude, for culling receivers
-// that see the open sky along every direction before any GPU work: level 0
-// holds, per texel square, the highest point of every triangle (and snow
-// surface) whose xz bounding box overlaps it (clamped into the grid, which
-// only moves outside geometry closer); each further level takes the max of
-// 2 x 2 cells. A receiver at height y is open-sky when every cell satisfies
-// max <= y + eps + h * cot(theta_max), h = the cell's horizontal distance:
-// a line of fall rises at least that fast, so nothing above y + eps can be
-// in its way (eps is the pass-1 bias, below which a surface counts as the
-// receiver's own).
-class SkyBound {
- public:
-  SkyBound(const std::vector<glm::vec3>& corners, const SnowMaps& maps,
-           const std::vector<float>* top)
-      : g_(maps.grid) {
-    const int w = g_.width, h = g_.height;
-    levels_.emplace_back(size_t(w) * size_t(h), -kOpenSky);
-    sizes_.emplace_back(w, h);
-    std::vector<float>& base = levels_[0];
-    const auto cell = [&](float v, float origin, int n) {
-      return std::clamp(int(std::floor((v - origin) / g_.texel)), 0, n - 1);
-    };
-    for (size_t t = 0; t + 2 < corners.size(); t += 3) {
-      const glm::vec3 &a = corners[t], &b = corners[t + 1], &c = corners[t + 2];
-      const float top_y = std::max({a.y, b.y, c.y});
-      const int i0 = cell(std::min({a.x, b.x, c.x}), g_.origin.x, w);
-      const int i1 = cell(std::max({a.x, b.x, c.x}), g_.origin.x, w);
-      const int j0 = cell(std::min({a.z, b.z, c.z}), g_.origin.y, h);
-      const int j1 = cell(std::max({a.z, b.z, c.z}), g_.origin.y, h);
-      for (int j = j0; j <= j1; ++j) {
-        float* row = base.data() + size_t(j) * size_t(w);
-        for (int i = i0; i <= i1; ++i) row[i] = std::max(row[i], top_y);
+// Culling of receivers that see the open sky along every direction, before
+// any GPU work. A line of fall from a receiver p at height y rises at least
+// cot(theta_max) metres per metre it moves sideways, so a scene point q can
+// only be in its way if height(q) > y + eps + |q - p|_xz * cot(theta_max)
+// (eps is the pass-1 bias, below which a surface counts as the receiver's
+// own). The scene's BVH is walked with that test on each node's highest
+// point at its box's xz distance; in a leaf that fails, a triangle is
+// harmless when its highest point passes the test at its footprint's
+// distance, or when its slope is at most cot(theta_max) and its plane
+// extended to p lies at most y + eps (height minus the cone, over the whole
+// plane, is largest there).
+// So a receiver on a gentle slope or terrain is culled whatever its own
+// triangles do, and nothing that shades a receiver is ever overlooked. The
+// snow surface (snow on snow) is bounded by a max pyramid of the snowy tops.
+
+// Distance in xz from p to the triangle's footprint (0 inside).
+double distance_xz(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c,
+                   const glm::vec2& p) {
+  const glm::dvec2 q(p), v[3] = {{a.x, a.z}, {b.x, b.z}, {c.x, c.z}};
+  const auto cross2 = [](const glm::dvec2& u, const glm::dvec2& w) {
+    return u.x * w.y - u.y * w.x;
+  };
+  const double s0 = cross2(v[1] - v[0], q - v[0]), s1 = cross2(v[2] - v[1], q - v[1]),
+               s2 = cross2(v[0] - v[2], q - v[2]);
+  if ((s0 >= 0 && s1 >= 0 && s2 >= 0) || (s0 <= 0 && s1 <= 0 && s2 <= 0)) return 0.0;
+  double best = std::numeric_limits<double>::max();
+  for (int e = 0; e < 3; ++e) {
+    const glm::dvec2 u = v[e], w = v[(e + 1) % 3];
+    const glm::dvec2 d = w - u;
+    const double len2 = glm::dot(d, d);
+    const double s = len2 > 0 ? std::clamp(glm::dot(q - u, d) / len2, 0.0, 1.0) : 0.0;
+    best = std::min(best, glm::length(q - (u + s * d)));
+  }
+  return best;
+}
+
+bool triangle_harmless(const glm::vec3* corner, const glm::vec2& p, double limit, double cot) {
+  const glm::dvec3 a(corner[0]), b(corner[1]), c(corner[2]);
+  const glm::dvec3 n = glm::cross(b - a, c - a);
+  // Either test suffices: the highest point at the footprint's distance, or
+  // for a gentle plane, the plane extended to p.
+  if (std::max({a.y, b.y, c.y}) <= limit + distance_xz(a, b, c, p) * cot) return true;
+  if (!(std::abs(n.y) > 1e-9 * glm::length(n))) return false;
+  const double gx = -n.x / n.y, gz = -n.z / n.y;
+  return gx * gx + gz * gz <= cot * cot && a.y + gx * (p.x - a.x) + gz * (p.y - a.z) <= limit;
+}
+
+// True when no triangle of `bvh` can be in the way of a line of fall from
+// (p, y): the stackless walk of Bvh::occluded with the test above.
+bool scene_open(const Bvh& bvh, const glm::vec2& p, float y, float eps, float cot) {
+  const std::vector<Bvh::Node>& nodes = bvh.nodes();
+  const std::vector<glm::vec3>& corners = bvh.corners();
+  const double limit = double(y) + double(eps);
+  const uint32_t count = uint32_t(nodes.size());
+  for (uint32_t i = 0; i < count;) {
+    const Bvh::Node& node = nodes[i];
+    const double dx = std::max({double(node.min.x) - p.x, double(p.x) - node.max.x, 0.0});
+    const double dz = std::max({double(node.min.z) - p.y, double(p.y) - node.max.z, 0.0});
+    const bool harmless = double(node.max.y) <= limit + std::sqrt(dx * dx + dz * dz) * cot;
+    if (node.count == 0) {
+      i = harmless ? node.first : i + 1;
+      continue;
+    }
+    if (!harmless) {
+      for (uint32_t t = node.first; t < node.first + node.count; ++t) {
+        if (!triangle_harmless(&corners[3 * size_t(t)], p, limit, cot)) return false;
       }
     }
-    if (top) {
-      // The snow heightfield spans texel centres: spread each snowy top over
-      // its 3 x 3 cells.
-      const size_t texels = g_.texels();
-      for (int l = 0; l < maps.layers; ++l) {
-        for (int j = 0; j < h; ++j) {
-          for (int i = 0; i < w; ++i) {
-            const size_t k = size_t(l) * texels + size_t(j) * size_t(w) + size_t(i);
-            const float v = (*top)[k];
-            if (std::isnan(v) || !(v > maps.ground[k])) continue;
-            for (int dj = std::max(0, j - 1); dj <= std::min(h - 1, j + 1); ++dj) {
-              for (int di = std::max(0, i - 1); di <= std::min(w - 1, i + 1); ++di) {
-                float& m = base[size_t(dj) * size_t(w) + size_t(di)];
-                m = std::max(m, v);
-              }
+    ++i;
+  }
+  return true;
+}
+
+// Max pyramid over the snowy tops (each spread over its 3 x 3 texel squares,
+// since the heightfield spans texel centres): open(p, y) when every cell's
+// max passes the test at the cell's distance.
+class SnowBound {
+ public:
+  SnowBound(const SnowMaps& maps, const std::vector<float>& top) : g_(maps.grid) {
+    const int w = g_.width, h = g_.height;
+    std::vector<float> base(size_t(w) * size_t(h), -kOpenSky);
+    const size_t texels = g_.texels();
+    for (int l = 0; l < maps.layers; ++l) {
+      for (int j = 0; j < h; ++j) {
+        for (int i = 0; i < w; ++i) {
+          const size_t k = size_t(l) * texels + size_t(j) * size_t(w) + size_t(i);
+          const float v = top[k];
+          if (std::isnan(v) || !(v > maps.ground[k])) continue;
+          for (int dj = std::max(0, j - 1); dj <= std::min(h - 1, j + 1); ++dj) {
+            for (int di = std::max(0, i - 1); di <= std::min(w - 1, i + 1); ++di) {
+              float& m = base[size_t(dj) * size_t(w) + size_t(di)];
+              m = std::max(m, v);
             }
           }
         }
       }
     }
+    levels_.push_back(std::move(base));
+    sizes_.emplace_back(w, h);
     while (sizes_.back().x > 1 || sizes_.back().y > 1) {
       const glm::ivec2 from = sizes_.back();
       const glm::ivec2 to((from.x + 1) / 2, (from.y + 1) / 2);
@@ -183,11 +228,7 @@ class SkyBound {
     }
   }
 
-  bool open_sky(const glm::vec2& p, float y, float eps, float cot_max) const {
-    // Most receivers under or beside something fail on their own cell.
-    const glm::ivec2 own = glm::clamp(glm::ivec2(glm::floor((p - g_.origin) / g_.texel)),
-                                      glm::ivec2(0), sizes_[0] - 1);
-    if (levels_[0][size_t(own.y) * size_t(sizes_[0].x) + size_t(own.x)] > y + eps) return false;
+  bool open(const glm::vec2& p, float y, float eps, float cot) const {
     struct Node {
       int level, i, j;
     };
@@ -196,22 +237,16 @@ class SkyBound {
     stack[top++] = {int(levels_.size()) - 1, 0, 0};
     while (top > 0) {
       const Node n = stack[--top];
-      const float m =
-          levels_[size_t(n.level)][size_t(n.j) * size_t(sizes_[size_t(n.level)].x) + size_t(n.i)];
-      if (m <= y + eps) continue;  // nothing above the receiver at all
       const float span = g_.texel * float(1 << n.level);
       const glm::vec2 lo = g_.origin + glm::vec2(n.i, n.j) * span;
       const glm::vec2 d = glm::max(glm::max(lo - p, p - (lo + span)), glm::vec2(0.0f));
-      const float h = glm::length(d);
-      if (h > 0.0f && m <= y + eps + h * cot_max) continue;
+      const float m =
+          levels_[size_t(n.level)][size_t(n.j) * size_t(sizes_[size_t(n.level)].x) + size_t(n.i)];
+      if (m <= y + eps + glm::length(d) * cot) continue;
       if (n.level == 0) return false;
-      // Children nearest the receiver last, so they are visited first: a
-      // receiver under something fails on its own cells at once.
       const glm::ivec2 size = sizes_[size_t(n.level) - 1];
-      const glm::vec2 mid = lo + 0.5f * span;
-      const int near_i = p.x < mid.x ? 0 : 1, near_j = p.y < mid.y ? 0 : 1;
-      for (int c = 3; c >= 0; --c) {  // c = 0: the nearest child, 3: the farthest
-        const int ci = 2 * n.i + (near_i ^ (c & 1)), cj = 2 * n.j + (near_j ^ (c >> 1));
+      for (int c = 0; c < 4; ++c) {
+        const int ci = 2 * n.i + (c & 1), cj = 2 * n.j + (c >> 1);
         if (ci < size.x && cj < size.y && top < 4 * 40) stack[top++] = {n.level - 1, ci, cj};
       }
     }
@@ -297,9 +332,8 @@ struct CoverageRenderer::Impl {
     }
     // One buffer of triangles in BVH leaf order: drawn into the shadow maps
     // (vertex buffer) and ray cast by the exact pass (storage buffer).
-    const Bvh bvh(scene.positions);
+    bvh = Bvh(scene.positions);
     triangles = bvh.triangle_count();
-    corners = bvh.corners();
     if (triangles == 0) return;
     triangle_buffer = gl::create_buffer();
     glNamedBufferStorage(triangle_buffer.id(), GLsizeiptr(bvh.corners().size() * sizeof(glm::vec3)),
@@ -331,12 +365,12 @@ struct CoverageRenderer::Impl {
   }
 
   Bounds bounds;
-  std::vector<glm::vec3> corners;  // the scene's triangles (BVH leaf order), for sky culling
-  gl::Program shadow;              // scene depth into a shadow map
-  gl::Program shadow_snow;         // snow heightfield depth into a shadow map
-  gl::Program count;               // pass 1: certain cases counted, the others queued
-  gl::Program count_snow;          // the same with a snow surface in the shadow maps
-  gl::Program exact;               // pass 2: exact ray casts of the queued pairs
+  Bvh bvh;             // the scene's triangles in leaf order, for the exact pass and sky culling
+  gl::Program shadow;  // scene depth into a shadow map
+  gl::Program shadow_snow;  // snow heightfield depth into a shadow map
+  gl::Program count;        // pass 1: certain cases counted, the others queued
+  gl::Program count_snow;   // the same with a snow surface in the shadow maps
+  gl::Program exact;        // pass 2: exact ray casts of the queued pairs
   gl::Program exact_snow;
   gl::Program dispatch;  // queue length -> indirect dispatch size
   gl::VertexArray vao;
@@ -547,7 +581,8 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
       tan_max = std::max(tan_max, double(std::hypot(d.x, d.z)) / double(-d.y));
     }
     const float cot_max = tan_max > 0 ? float(1.0 / tan_max) : 1e30f;
-    const SkyBound bound(im.corners, maps, snow_depth ? &top : nullptr);
+    std::unique_ptr<SnowBound> snow_bound;
+    if (snow_depth) snow_bound = std::make_unique<SnowBound>(maps, top);
     std::vector<uint8_t> open(recv.size(), 0);
     const unsigned threads = std::clamp(std::thread::hardware_concurrency(), 1u, 8u);
     std::vector<std::thread> pool;
@@ -557,8 +592,9 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
           const glm::uvec4& rc = recv[r];
           float y;
           std::memcpy(&y, &rc.y, sizeof y);
-          open[r] =
-              bound.open_sky(grid.center(int(rc.x & 0xffffu), int(rc.x >> 16)), y, bias, cot_max);
+          const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
+          open[r] = scene_open(im.bvh, p, y, bias, cot_max) &&
+                    (!snow_bound || snow_bound->open(p, y, bias, cot_max));
         }
       });
     }
