@@ -167,7 +167,7 @@ struct Stabilizer::Impl {
   }
   void upload_depth(const std::vector<float>& depth);
   void add_snow(const std::vector<float>& add);
-  int route();
+  int route(bool falls_only);
   void relax_pass(int stride);
   GLuint count_fragments(const gl::Program& program);
   // Per-block reduction summed over blocks: max move, sum depth, sum lost,
@@ -359,7 +359,7 @@ GLuint Stabilizer::Impl::count_fragments(const gl::Program& program) {
   return samples;
 }
 
-int Stabilizer::Impl::route() {
+int Stabilizer::Impl::route(bool falls_only) {
   bind(SNOW_STABILIZE_CELLS, cells);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
   // Erosion until nothing changes; the kept height ends in stable_tex[e].
@@ -382,6 +382,7 @@ int Stabilizer::Impl::route() {
     }
   }
   bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
+  receiver.set("u_falls_only", falls_only ? 1 : 0);
   per_layer(receiver, fbo_pointer[0]);
   int p = 0;  // pointer[p] holds the pointers
   for (;;) {
@@ -464,7 +465,7 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
   lost_is_zero = false;
   if (route_pending) {
     if (settings.route_steep) {
-      result.route_passes = route();
+      result.route_passes = route(false);
       // Routed = scattered to terminals (out_a.r) + routed into the void.
       const glm::dvec4 after = reduce_blocks(false);
       result.routed_volume = (after.w + after.z) * area - lost_before;
@@ -486,6 +487,13 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
       if (result.residual < settings.tolerance) {
         result.converged = true;
         break;
+      }
+      if (settings.route_steep) {
+        // What became unable to stay since is routed again.
+        const double lost = sums.z * area;
+        result.route_passes += route(true);
+        const glm::dvec4 after = reduce_blocks(false);
+        result.routed_volume += (after.w + after.z) * area - lost;
       }
     }
   }

@@ -8,7 +8,9 @@
 // arrays and on the CPU in snow::reference with the same float math:
 //  - relaxation: an outflow pass (per layer texel: for each of the 8
 //    neighbour columns, the landing layer by snow::landing (column.h) at the
-//    snow surface height, and the amount moved there) and a gather pass
+//    snow surface height, and the amount moved there: half the largest
+//    excess over distance * tan(repose), split over the neighbours by their
+//    excess, so no pair overshoots) and a gather pass
 //    (depth minus what the texel sent plus what its neighbours sent to it,
 //    read from the same outflow textures, so every amount leaves one texel
 //    and arrives at another bit for bit). Snow that goes off the map or into
@@ -22,7 +24,10 @@
 //    steeper than the repose angle leaves at once, and the edges of a table
 //    or an eave round off at once. The relaxation then only shapes the
 //    piles. Routing runs at the start of each stabilize call and after snow
-//    is added.
+//    is added; at every convergence check that finds the snow still moving
+//    it runs again for snow on steep supports and at edges only (piles
+//    spilling over an edge, down a flight of stairs); a state at rest routes
+//    nothing.
 // Relaxation passes cycle through strides max_stride, ..., 2, 1 (multi-scale,
 // see stabilize_pass_stride), so piles spread in few passes.
 #include <cstdint>

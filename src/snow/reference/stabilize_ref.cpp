@@ -191,6 +191,9 @@ void Stabilizer::outflow_pass(int stride) {
             left -= share;
           }
         } else if (wmax > 0.0f) {
+          // Half the largest excess moves, split over the receivers by their
+          // excess: a receiver rises by at most half its excess, so the pair
+          // never overshoots and piles end at the repose slope.
           const float total = std::min(s, std::max(0.5f * wmax, over));
           for (int n = 0; n < 8; ++n) out[n] = total * (w[n] / wsum);
         } else if (over > 0.0f && stride == 1) {
@@ -267,7 +270,7 @@ float Stabilizer::residual() const {
   return largest;
 }
 
-int Stabilizer::route(double* routed_volume) {
+int Stabilizer::route(double* routed_volume, bool falls_only) {
   const size_t count = cells_.size();
   // Erosion passes (shaders/stabilize_erode.frag): the highest snow surface
   // each texel can keep, H = max(ground, min(H, min over neighbours of
@@ -334,7 +337,8 @@ int Stabilizer::route(double* routed_volume) {
             if (land_l < 0) continue;
             const size_t kt = index(land_l, ni, nj);
             const float via = stable_[kt] + distance_[n] * cell.z;
-            if (stable_[kt] < hs && (p == uint32_t(k) || via < best)) {
+            const bool fall = cell.x - cells_[kt].x > distance_[n] * cell.z;
+            if ((fall || !falls_only) && stable_[kt] < hs && (p == uint32_t(k) || via < best)) {
               best = via;
               p = uint32_t(kt);
             }
@@ -410,6 +414,9 @@ StabilizeResult Stabilizer::iterate(int passes) {
         result.converged = true;
         break;
       }
+      // What became unable to stay since (piles spilling over edges) is
+      // routed again; a state at rest routes nothing.
+      if (settings_.route_steep) result.route_passes += route(&result.routed_volume, true);
     }
   }
   result.lost_volume = lost_volume() - lost_before;
