@@ -14,7 +14,6 @@
 
 // --- Preview renderer (preview.vert/.frag) --------------------------------
 #define SNOW_PREVIEW_BASE_COLOR_TEXTURE 0  // sampler2D, sRGB baseColor
-#define SNOW_PREVIEW_UBO 0                 // uniform block PreviewFrame
 
 // --- Depth peeling (peel.vert/.frag, src/snow/peel.cpp) --------------------
 #define SNOW_PEEL_PREV_TEXTURE 0  // usampler2D RG32UI: previous layer (height bits, triangle)
