@@ -12,6 +12,11 @@
 #include <iterator>
 #include <string>
 
+#include <tiny_gltf.h>
+
+#include "mesh/gltf_writer.h"
+#include "scene/builder.h"
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -123,6 +128,7 @@ TEST(Cli, SnowWritesAllOutputsAndIsDeterministic) {
     EXPECT_TRUE(fs::exists(dir / f)) << f;
   }
   EXPECT_NE(a.output.find("summary:"), std::string::npos) << a.output;
+  EXPECT_EQ(a.output.find("almost nothing receives snow"), std::string::npos) << a.output;
   expect_valid_gltf(dir / "a.glb");
   // Same input, settings and seed: byte-identical output.
   const RunResult b = run(common + " -o " + q(dir / "b.glb"));
@@ -234,4 +240,30 @@ TEST(Cli, SharedScenesSnow) {
     expect_valid_gltf(dir / "out.glb");
     fs::remove(dir / "out.glb");
   }
+}
+
+// A sky box around the scene takes all the snow: the run warns and names it,
+// and --ignore of the sky box gives snow on the ground (and the bench, whose
+// snow joins the ground's patch) and no warning.
+TEST(Cli, WarnsWhenASkyBoxTakesTheSnow) {
+  const fs::path dir = temp_dir("skybox");
+  snow::SceneBuilder builder;
+  builder.add_plane("Ground", 0.0f, {-5.0f, -5.0f}, {5.0f, 5.0f});
+  builder.add_box("Bench", {-1.5f, 0.0f, -0.75f}, {1.5f, 0.5f, 0.75f});
+  builder.add_box("SkyBox", {-8.0f, -2.0f, -8.0f}, {8.0f, 20.0f, 8.0f});
+  tinygltf::Model model;
+  snow::append_meshes(model, builder.meshes(), builder.materials(), "Scene");
+  snow::save_gltf(model, dir / "sky.glb");
+
+  const std::string common = "snow " + q(dir / "sky.glb") + " --max-side 96 --directions 16";
+  const RunResult boxed = run(common + " -o " + q(dir / "boxed.glb"));
+  ASSERT_EQ(boxed.code, 0) << boxed.output;
+  EXPECT_NE(boxed.output.find("almost nothing receives snow"), std::string::npos) << boxed.output;
+  EXPECT_NE(boxed.output.find("'SkyBox' (encloses the scene"), std::string::npos) << boxed.output;
+
+  const RunResult open = run(common + " --ignore SkyBox -o " + q(dir / "open.obj"));
+  ASSERT_EQ(open.code, 0) << open.output;
+  EXPECT_EQ(open.output.find("almost nothing receives snow"), std::string::npos) << open.output;
+  const std::string obj = read_all(dir / "open.obj");
+  EXPECT_NE(obj.find("o snow/Ground"), std::string::npos);
 }

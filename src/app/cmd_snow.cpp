@@ -11,6 +11,8 @@
 #include <filesystem>
 #include <map>
 
+#include <glm/glm.hpp>
+
 #include "app/commands.h"
 #include "app/settings.h"
 #include "core/error.h"
@@ -19,6 +21,7 @@
 #include "mesh/export.h"
 #include "mesh/write_maps.h"
 #include "render/preview.h"
+#include "scene/builder.h"
 
 namespace snow::app {
 namespace {
@@ -86,11 +89,47 @@ void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, c
   }
 }
 
-/// Warns when almost no map column receives snow, naming the objects that
-/// top most of the map (a sky dome or a ground-plane helper is the usual
-/// cause: --ignore them).
+/// Objects that enclose the scene like a sky dome or a sky box: their bounds
+/// hold every other object and in most columns they top there is another
+/// surface below them (unlike a hilly terrain, which is also wide and tall).
+/// Snow that lands on them lands on nothing the user wants snowed.
+std::vector<int32_t> enclosing_objects(const Scene& scene, const SnowMaps& maps) {
+  std::vector<int32_t> result;
+  if (scene.objects.size() < 2) return result;
+  std::vector<Bounds> bounds;
+  for (size_t o = 0; o < scene.objects.size(); ++o) bounds.push_back(object_bounds(scene, int(o)));
+  const size_t texels = maps.grid.texels();
+  for (size_t o = 0; o < scene.objects.size(); ++o) {
+    const Bounds& b = bounds[o];
+    const float slack = 1e-4f * glm::length(b.max - b.min);
+    bool encloses = true;
+    for (size_t k = 0; k < scene.objects.size() && encloses; ++k) {
+      if (k == o || scene.objects[k].triangle_count == 0) continue;
+      encloses = glm::all(glm::lessThanEqual(b.min, bounds[k].min + slack)) &&
+                 glm::all(glm::greaterThanEqual(b.max, bounds[k].max - slack));
+    }
+    if (!encloses) continue;
+    size_t tops = 0, over_something = 0;
+    for (size_t t = 0; t < texels; ++t) {
+      if (maps.object[t] != int32_t(o)) continue;
+      ++tops;
+      if (maps.layers > 1 && !std::isnan(maps.ground[texels + t])) ++over_something;
+    }
+    if (tops > 0 && 2 * over_something >= tops) result.push_back(int32_t(o));
+  }
+  return result;
+}
+
+/// Warns when almost no map column receives snow on anything but an object
+/// that encloses the whole scene, naming the objects that shelter most of the
+/// map (a sky dome, a sky box or a lid-like helper is the usual cause: --ignore
+/// them).
 void warn_if_sheltered(const Scene& scene, const SnowMaps& maps,
                        const std::vector<float>& coverage) {
+  const std::vector<int32_t> enclosing = enclosing_objects(scene, maps);
+  const auto is_enclosing = [&](int32_t o) {
+    return std::find(enclosing.begin(), enclosing.end(), o) != enclosing.end();
+  };
   const size_t texels = maps.grid.texels();
   size_t with_surface = 0, receiving = 0;
   std::map<int32_t, size_t> top_objects;
@@ -98,21 +137,28 @@ void warn_if_sheltered(const Scene& scene, const SnowMaps& maps,
     if (std::isnan(maps.ground[t])) continue;
     ++with_surface;
     ++top_objects[maps.object[t]];
-    float best = 0;
-    for (int l = 0; l < maps.layers; ++l) best = std::max(best, coverage[size_t(l) * texels + t]);
-    if (best > 0.5f) ++receiving;
+    for (int l = 0; l < maps.layers; ++l) {
+      const size_t k = size_t(l) * texels + t;
+      if (coverage[k] > 0.5f && !is_enclosing(maps.object[k])) {
+        ++receiving;
+        break;
+      }
+    }
   }
   if (with_surface == 0 || double(receiving) > 0.05 * double(with_surface)) return;
   std::vector<std::pair<size_t, int32_t>> ranked;
-  for (const auto& [object, count] : top_objects) ranked.push_back({count, object});
+  for (const auto& [object, count] : top_objects) {
+    // Enclosing objects first: they are the likely cause.
+    ranked.push_back({count + (is_enclosing(object) ? texels : 0), object});
+  }
   std::sort(ranked.rbegin(), ranked.rend());
   std::string names;
   for (size_t i = 0; i < ranked.size() && i < 3; ++i) {
     const int32_t o = ranked[i].second;
     const std::string name =
         o >= 0 && size_t(o) < scene.objects.size() ? scene.objects[size_t(o)].name : "?";
-    names += (i ? ", '" : "'") + name + "' (" +
-             std::to_string(int(100.0 * double(ranked[i].first) / double(with_surface))) +
+    names += (i ? ", '" : "'") + name + "' (" + (is_enclosing(o) ? "encloses the scene, " : "") +
+             "tops " + std::to_string(int(100.0 * double(top_objects[o]) / double(with_surface))) +
              "% of the map)";
   }
   log_warn("almost nothing receives snow (" + std::to_string(receiving) + " of " +
