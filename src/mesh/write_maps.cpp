@@ -1,6 +1,6 @@
 // The --maps writer: OpenEXR float images (tinyexr), 16-bit PNG previews
 // (PNG 1.2 specification, W3C; zlib from stb_image_write) and a JSON
-// manifest. Format: tools/MAPS.md.
+// manifest. Format: README.md, "Snow maps".
 #include "mesh/write_maps.h"
 
 #include <tinyexr.h>

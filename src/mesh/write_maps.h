@@ -2,7 +2,7 @@
 // The --maps output: per layer, float images (OpenEXR) of surface height,
 // coverage and snow depth, 16-bit PNG previews of each, and a manifest.json
 // (origin, texel size, dimensions, layers, up axis, units, files) for
-// shader-based snow in engines. The format is documented in tools/MAPS.md.
+// shader-based snow in engines. The format is documented in README.md ("Snow maps").
 #include <cstdint>
 #include <filesystem>
 #include <string>
