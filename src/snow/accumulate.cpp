@@ -2,6 +2,7 @@
 // snow per step, stabilized after each step (DESIGN.md, "Stabilizer").
 #include "snow/accumulate.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -9,6 +10,46 @@
 #include "core/log.h"
 
 namespace snow {
+namespace {
+
+/// Relaxation passes per progress report: seconds of work on a software
+/// rasterizer at large maps, a negligible readback overhead on a GPU.
+constexpr int kPassesPerReport = 64;
+
+/// Stabilizer::run() in chunks of passes, reporting the share done, in
+/// [0, 1), after each.
+template <class Report>
+StabilizeResult stabilize_step(Stabilizer& stabilizer, const StabilizeSettings& settings,
+                               Report report) {
+  StabilizeResult total;
+  double first_residual = 0;
+  for (;;) {
+    const int passes = std::min(kPassesPerReport, settings.max_iterations - total.iterations);
+    const StabilizeResult r = stabilizer.iterate(passes);
+    total.iterations += r.iterations;
+    total.route_passes += r.route_passes;
+    total.routed_volume += r.routed_volume;
+    total.residual = r.residual;
+    total.converged = r.converged;
+    total.volume = r.volume;
+    total.lost_volume += r.lost_volume;
+    if (r.converged || passes <= 0 || total.iterations >= settings.max_iterations) break;
+    // The larger of the share of passes run and the share of the way down
+    // to the tolerance on a log scale (relaxation converges about
+    // geometrically; a tolerance of 0 runs every pass).
+    double done = double(total.iterations) / double(settings.max_iterations);
+    if (first_residual == 0) first_residual = r.residual;
+    const double span = std::log(first_residual / double(settings.tolerance));
+    if (settings.tolerance > 0 && span > 0) {
+      const double gone = std::log(first_residual / std::max(double(r.residual), 1e-30));
+      done = std::max(done, gone / span);
+    }
+    report(std::clamp(done, 0.0, 0.99));
+  }
+  return total;
+}
+
+}  // namespace
 
 void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
                    std::vector<float>& coverage) {
@@ -61,7 +102,8 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
       if (!std::isnan(maps.ground[k])) added += double(result.coverage[k] * per_step);
     }
     result.fallen_volume += added * texel_area;
-    result.last = stabilizer.run();
+    result.last = stabilize_step(stabilizer, stabilize,
+                                 [&](double done) { progress.update(double(step) + done); });
     result.iterations += result.last.iterations;
     progress.update(step + 1);
   }
