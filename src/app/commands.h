@@ -24,5 +24,6 @@ std::unique_ptr<gl::Context> make_headless_context(const GlobalOptions& global);
 void register_info(CLI::App& app, const GlobalOptions& global);
 void register_render(CLI::App& app, const GlobalOptions& global);
 void register_snow(CLI::App& app, const GlobalOptions& global);
+void register_preview(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace snow::app

@@ -39,6 +39,7 @@ int main(int argc, char** argv) {
   app::register_info(cli, global);
   app::register_render(cli, global);
   app::register_snow(cli, global);
+  app::register_preview(cli, global);
 
   try {
     cli.parse(argc, argv);

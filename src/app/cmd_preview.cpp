@@ -1,0 +1,135 @@
+// `snowmodel preview IN [options]`: the live accumulation preview window.
+// This file only turns flags into settings; the window, the per-frame
+// physics (the batch stages, stepped) and the drawing live in src/live.
+#include <fnmatch.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "app/commands.h"
+#include "app/settings.h"
+#include "core/error.h"
+#include "core/log.h"
+#include "live/viewer.h"
+#include "mesh/export.h"
+
+namespace snow::app {
+namespace {
+
+struct PreviewOptions {
+  std::string input;
+  std::string size = "1280x800";
+  std::string view = "orbit";
+  std::string overlay = "snow";
+  PipelineSettings settings;
+  live::ViewerOptions viewer;
+};
+
+bool matches_any(const std::vector<std::string>& globs, const SceneObject& object) {
+  for (const std::string& glob : globs) {
+    if (fnmatch(glob.c_str(), object.name.c_str(), 0) == 0 ||
+        fnmatch(glob.c_str(), object.node_path.c_str(), 0) == 0)
+      return true;
+  }
+  return false;
+}
+
+void run_preview(PreviewOptions o) {
+  live::ViewerOptions& v = o.viewer;
+  PipelineSettings& s = o.settings;
+  int w = 0, h = 0;
+  char tail = 0;
+  if (std::sscanf(o.size.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w < 1 || h < 1 || w > 16384 ||
+      h > 16384)
+    throw InputError("--size must be WIDTHxHEIGHT in pixels, e.g. 1280x800, got '" + o.size + "'");
+  v.width = w;
+  v.height = h;
+  v.top_view = o.view == "top";
+  v.view.overlay = o.overlay == "coverage" ? live::Overlay::Coverage
+                   : o.overlay == "depth"  ? live::Overlay::Depth
+                                           : live::Overlay::None;
+  if (!std::isfinite(s.memory_budget_gib) || s.memory_budget_gib <= 0)
+    throw InputError("--memory-budget must be a positive number of GiB");
+  s.peel.memory_budget = uint64_t(double(s.memory_budget_gib) * double(1ull << 30));
+  s.stabilize.seed = uint32_t(s.coverage.seed);
+  v.input = o.input;
+  v.sim.peel = s.peel;
+  v.sim.coverage = s.coverage;
+  v.sim.stabilize = s.stabilize;
+  v.sim.total_depth = s.accumulate.fall_depth;
+  v.sim.snow_on_snow_every = s.accumulate.snow_on_snow_every;
+  v.mesh = s.polygonize;
+  if (!v.export_path.empty()) format_from_path(v.export_path);  // fail before the window opens
+  if (!s.ignore.empty())
+    log_warn("preview: --ignore is not applied in the preview (use the snow command)");
+
+  const Scene scene = load_scene(o.input, s.load);
+  if (!s.no_snow_on.empty()) {
+    v.receives.assign(scene.objects.size(), 1);
+    for (size_t i = 0; i < scene.objects.size(); ++i)
+      v.receives[i] = !matches_any(s.no_snow_on, scene.objects[i]);
+  }
+  const live::ViewerReport r = live::run_viewer(scene, v);
+  char summary[400];
+  std::snprintf(summary, sizeof summary,
+                "preview: %lld frames in %.2f s, %.2f fps (after 5 frames); per frame: snowfall "
+                "and stabilizer %.1f ms, scene %.1f ms, snow %.1f ms; snow grid %zu triangles; "
+                "snow %.3f m^3 lying of %.3f fallen",
+                static_cast<long long>(r.frames), r.seconds, r.fps, r.stabilize_ms, r.scene_ms,
+                r.snow_ms, r.snow_triangles, r.volume, r.fallen);
+  log_info(summary);
+}
+
+}  // namespace
+
+void register_preview(CLI::App& app, const GlobalOptions& /*global*/) {
+  auto o = std::make_shared<PreviewOptions>();
+  o->settings.peel.max_side = 512;       // interactive default; --max-side overrides
+  o->settings.coverage.directions = 32;  // recomputed on every change of the fall settings
+  CLI::App* cmd = app.add_subcommand(
+      "preview",
+      "Open a window in which snow falls, piles up and slides while you orbit and tweak");
+  cmd->add_option_function<std::string>(
+         "--config", [o](const std::string& path) { load_settings_file(path, o->settings); },
+         "JSON settings file (as written beside outputs of the snow command); flags override it")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("input", o->input, "glTF 2.0 scene (.gltf or .glb)")->required();
+  live::ViewerOptions& v = o->viewer;
+  cmd->add_option("--frames", v.frames, "Quit after this many frames (0 = when closed)");
+  cmd->add_option("--screenshot", v.screenshot,
+                  "PNG of the last frame (scene and snow, no panel), written at exit");
+  cmd->add_option("--export", v.export_path,
+                  "Snow meshes at exit: .glb/.gltf (scene plus snow), .obj/.ply (snow only)");
+  cmd->add_flag("--export-snow-only", v.snow_only, "Export only the snow, also to .glb/.gltf");
+  cmd->add_option("--size", o->size, "Window size WIDTHxHEIGHT in pixels")->capture_default_str();
+  cmd->add_option("--view", o->view, "Start camera: orbit (perspective) or top (orthographic)")
+      ->check(CLI::IsMember({"orbit", "top"}))
+      ->capture_default_str();
+  cmd->add_option("--azimuth", v.azimuth, "Start camera: degrees from south (+Z) towards east (+X)")
+      ->capture_default_str();
+  cmd->add_option("--elevation", v.elevation, "Start camera: degrees above the horizon")
+      ->capture_default_str();
+  cmd->add_option("--fov", v.fov, "Vertical field of view in degrees")->capture_default_str();
+  cmd->add_option("--fall-rate", v.sim.fall_rate,
+                  "Fresh snow per simulated second on open flat ground, metres (--depth in all)")
+      ->capture_default_str();
+  cmd->add_option("--frame-time", v.sim.frame_time, "Simulated seconds per frame")
+      ->capture_default_str();
+  cmd->add_option("--passes-per-frame", v.sim.passes_per_frame,
+                  "Stabilizer relaxation passes per frame")
+      ->capture_default_str();
+  cmd->add_option("--snow-stride", v.snow_stride,
+                  "Texels between drawn snow grid vertices (0 = automatic, at most 768 per side)")
+      ->capture_default_str();
+  cmd->add_option("--flakes", v.view.flakes, "Falling flakes drawn (0 = none)")
+      ->capture_default_str();
+  cmd->add_option("--overlay", o->overlay, "Snow drawn as: snow, coverage or depth")
+      ->check(CLI::IsMember({"snow", "coverage", "depth"}))
+      ->capture_default_str();
+  cmd->add_flag("--paused", v.paused, "Start paused (space resumes)");
+  cmd->add_flag("!--no-panel", v.panel, "Hide the settings panel (H shows it)");
+  add_settings_options(*cmd, o->settings);
+  cmd->callback([o] { run_preview(*o); });
+}
+
+}  // namespace snow::app

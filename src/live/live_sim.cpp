@@ -1,0 +1,163 @@
+// The live snowfall: the batch job's stages (peel, coverage, stabilizer; Tokoi
+// 2006, Fearing 2000) stepped frame by frame with their GPU state kept.
+#include "live/live_sim.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "gl/gl.h"
+#include "snow/accumulate.h"
+
+namespace snow::live {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  glFinish();
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+bool same(const PeelSettings& a, const PeelSettings& b) {
+  return a.texel == b.texel && a.max_side == b.max_side && a.layers == b.layers &&
+         a.margin == b.margin && a.merge_distance == b.merge_distance;
+}
+
+bool same(const CoverageSettings& a, const CoverageSettings& b) {
+  return a.directions == b.directions && a.flutter_deg == b.flutter_deg && a.wind == b.wind &&
+         a.fall_speed == b.fall_speed && a.seed == b.seed && a.batch == b.batch && a.bias == b.bias;
+}
+
+bool same(const StabilizeSettings& a, const StabilizeSettings& b) {
+  return a.repose_deg == b.repose_deg && a.repose_jitter_deg == b.repose_jitter_deg &&
+         a.tolerance == b.tolerance && a.max_iterations == b.max_iterations &&
+         a.check_every == b.check_every && a.max_stride == b.max_stride &&
+         a.route_steep == b.route_steep && a.seed == b.seed;
+}
+
+void check(const LiveSettings& s) {
+  auto finite_non_negative = [](float v) { return std::isfinite(v) && v >= 0.0f; };
+  if (!finite_non_negative(s.total_depth) || s.total_depth > 1000.0f)
+    throw InputError("total snow depth must be between 0 and 1000 m");
+  if (!finite_non_negative(s.fall_rate) || s.fall_rate > 1000.0f)
+    throw InputError("fall rate must be between 0 and 1000 m/s");
+  if (!(s.frame_time > 0.0f) || s.frame_time > 3600.0f)
+    throw InputError("frame time must be between 0 and 3600 s");
+  if (s.passes_per_frame < 0 || s.passes_per_frame > 100000)
+    throw InputError("stabilizer passes per frame must be between 0 and 100000");
+  if (s.snow_on_snow_every < 0)
+    throw InputError("snow-on-snow interval must be 0 (off) or a positive number of frames");
+  fall_directions(s.coverage);             // throws InputError for bad coverage settings
+  texel_repose_deg(s.stabilize, 0, 0, 0);  // throws InputError for bad stabilizer settings
+}
+
+}  // namespace
+
+LiveSim::LiveSim(const Scene& scene, const LiveSettings& settings, std::vector<uint8_t> receives)
+    : scene_(scene), settings_(settings), receives_(std::move(receives)) {
+  check(settings_);
+  shadows_ = std::make_unique<CoverageRenderer>(scene_);
+  peel();
+}
+
+LiveSim::~LiveSim() = default;
+
+void LiveSim::peel() {
+  const auto start = Clock::now();
+  SnowMaps maps = peel_layers(scene_, settings_.peel);
+  auto stabilizer = std::make_unique<Stabilizer>(maps, settings_.stabilize);
+  maps_ = std::move(maps);
+  stabilizer_ = std::move(stabilizer);
+  timings_.peel = seconds_since(start);
+  ++maps_version_;
+  compute_coverage(nullptr);
+  fallen_depth_ = 0;
+  fallen_volume_ = 0;
+  frame_ = 0;
+  last_ = StabilizeResult();
+}
+
+void LiveSim::compute_coverage(const std::vector<float>* lying) {
+  const auto start = Clock::now();
+  std::vector<float> coverage = shadows_->compute(maps_, settings_.coverage, lying);
+  mask_coverage(maps_, receives_, coverage);
+  coverage_ = std::move(coverage);
+  double sum = 0;
+  for (size_t k = 0; k < coverage_.size(); ++k) {
+    if (!std::isnan(maps_.ground[k])) sum += double(coverage_[k]);
+  }
+  coverage_area_ = sum * double(maps_.grid.texel) * double(maps_.grid.texel);
+  timings_.last_coverage = seconds_since(start);
+  timings_.coverage = timings_.last_coverage;
+  ++coverage_version_;
+}
+
+void LiveSim::step() {
+  timings_.coverage = 0;
+  const int every = settings_.snow_on_snow_every;
+  if (every > 0 && frame_ > 0 && frame_ % every == 0 && fallen_depth_ < settings_.total_depth) {
+    const std::vector<float> lying = stabilizer_->depth();
+    compute_coverage(&lying);
+  }
+  auto start = Clock::now();
+  const float amount =
+      std::min(settings_.fall_rate * settings_.frame_time, settings_.total_depth - fallen_depth_);
+  if (amount > 0.0f) {
+    stabilizer_->add_snow(coverage_, amount);
+    fallen_depth_ += amount;
+    fallen_volume_ += double(amount) * coverage_area_;
+  }
+  timings_.add = seconds_since(start);
+  start = Clock::now();
+  last_ = stabilizer_->iterate(settings_.passes_per_frame);
+  timings_.stabilize = seconds_since(start);
+  log_debug("live frame " + std::to_string(frame_) + ": add " + std::to_string(timings_.add) +
+            " s, stabilize " + std::to_string(timings_.stabilize) + " s (" +
+            std::to_string(last_.route_passes) + " routing, " + std::to_string(last_.iterations) +
+            " relaxation passes)");
+  ++frame_;
+}
+
+void LiveSim::reset() {
+  stabilizer_->set_depth(std::vector<float>(maps_.ground.size(), 0.0f));
+  fallen_depth_ = 0;
+  fallen_volume_ = 0;
+  frame_ = 0;
+  last_ = StabilizeResult();
+  if (settings_.snow_on_snow_every > 0) compute_coverage(nullptr);
+}
+
+void LiveSim::apply(const LiveSettings& settings) {
+  check(settings);
+  const LiveSettings old = settings_;
+  settings_ = settings;
+  try {
+    if (!same(old.peel, settings.peel)) {
+      peel();  // new maps, stabilizer and coverage; the snow restarts
+      return;
+    }
+    if (!same(old.stabilize, settings.stabilize)) {
+      const std::vector<float> lying = stabilizer_->depth();
+      auto stabilizer = std::make_unique<Stabilizer>(maps_, settings_.stabilize);
+      stabilizer->set_depth(lying);
+      stabilizer_ = std::move(stabilizer);
+    }
+    if (!same(old.coverage, settings.coverage)) {
+      if (settings_.snow_on_snow_every > 0) {
+        const std::vector<float> lying = stabilizer_->depth();
+        compute_coverage(&lying);
+      } else {
+        compute_coverage(nullptr);
+      }
+    }
+  } catch (...) {
+    settings_ = old;
+    throw;
+  }
+}
+
+}  // namespace snow::live

@@ -1,0 +1,107 @@
+#pragma once
+// The live snowfall of the preview window: the batch stages (peel_layers,
+// CoverageRenderer, Stabilizer) with their state kept between frames. Each
+// frame adds fresh snow in proportion to the coverage and runs a few
+// stabilizer passes, so snow piles up, slides off roofs and drops to the
+// ground while the viewer draws it (DESIGN.md, "live accumulation
+// preview"; the physics is the batch job's, Tokoi 2006 and Fearing 2000).
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "scene/scene.h"
+#include "snow/coverage.h"
+#include "snow/maps.h"
+#include "snow/peel.h"
+#include "snow/stabilize.h"
+
+namespace snow::live {
+
+struct LiveSettings {
+  PeelSettings peel;            // maps (texel size, layers); a change re-peels and resets the snow
+  CoverageSettings coverage;    // fall directions; a change recomputes the coverage
+  StabilizeSettings stabilize;  // repose; a change rebuilds the stabilizer, keeping the snow
+  float total_depth = 0.3f;     // metres of fresh snow on open flat ground; snowfall stops there
+  float fall_rate = 0.05f;      // metres of fresh snow per simulated second on open flat ground
+  float frame_time = 1.0f / 30.0f;  // simulated seconds per frame (fixed: same frames, same snow)
+  int passes_per_frame = 16;        // stabilizer relaxation passes per frame (>= 0)
+  int snow_on_snow_every = 0;       // frames between coverage updates that include the lying snow
+                                    // (drifts shade what lies behind them); 0 = off
+};
+
+/// Wall seconds of the work of the last frame, by stage (with glFinish at
+/// each boundary, so they are the GPU's time too).
+struct LiveTimings {
+  double add = 0;            // adding fresh snow
+  double stabilize = 0;      // routing and relaxation passes
+  double coverage = 0;       // coverage recomputed this frame (0 when not)
+  double peel = 0;           // last re-peel (kept)
+  double last_coverage = 0;  // last coverage computation (kept)
+};
+
+/// The simulation state. Needs the GL context that was current at
+/// construction to be current in every call, including destruction.
+class LiveSim {
+ public:
+  /// Peels the maps, computes the coverage and starts with no snow.
+  /// `receives[object]` == 0 keeps fresh snow off that object (may be empty).
+  /// Throws InputError for bad settings, GLError for GL trouble.
+  LiveSim(const Scene& scene, const LiveSettings& settings, std::vector<uint8_t> receives = {});
+  ~LiveSim();
+  LiveSim(const LiveSim&) = delete;
+  LiveSim& operator=(const LiveSim&) = delete;
+
+  /// One frame: adds min(fall_rate * frame_time, what is left of
+  /// total_depth) metres times the coverage, recomputes the coverage with
+  /// the lying snow when snow_on_snow_every says so, and runs
+  /// passes_per_frame stabilizer passes.
+  void step();
+  /// Removes all snow; the fallen depth and frame count restart at 0.
+  void reset();
+  /// Applies new settings: re-peels (and resets the snow) when the maps'
+  /// settings changed, recomputes the coverage when the coverage settings
+  /// changed, rebuilds the stabilizer with the current snow when its
+  /// settings changed. Throws like the constructor; the old state is kept
+  /// when it throws.
+  void apply(const LiveSettings& settings);
+
+  const LiveSettings& settings() const { return settings_; }
+  const SnowMaps& maps() const { return maps_; }
+  const std::vector<float>& coverage() const { return coverage_; }
+  const Stabilizer& stabilizer() const { return *stabilizer_; }
+  /// Depth texture of the stabilizer (see Stabilizer::depth_texture).
+  unsigned depth_texture() const { return stabilizer_->depth_texture(); }
+  /// Current snow depth (metres per layer texel; a full readback).
+  std::vector<float> depth() const { return stabilizer_->depth(); }
+  const StabilizeResult& last_result() const { return last_; }
+  const LiveTimings& timings() const { return timings_; }
+
+  float fallen_depth() const { return fallen_depth_; }     // metres fallen on open flat ground
+  double fallen_volume() const { return fallen_volume_; }  // m^3 of fresh snow added
+  int64_t frame() const { return frame_; }                 // frames stepped since reset
+  /// Incremented whenever the maps change (re-peel) or the coverage does.
+  uint64_t maps_version() const { return maps_version_; }
+  uint64_t coverage_version() const { return coverage_version_; }
+
+ private:
+  void peel();
+  void compute_coverage(const std::vector<float>* lying);
+
+  const Scene& scene_;
+  LiveSettings settings_;
+  std::vector<uint8_t> receives_;
+  SnowMaps maps_;
+  std::unique_ptr<CoverageRenderer> shadows_;
+  std::unique_ptr<Stabilizer> stabilizer_;
+  std::vector<float> coverage_;
+  double coverage_area_ = 0;  // sum of coverage * texel area (m^2): volume per metre of fall
+  StabilizeResult last_;
+  LiveTimings timings_;
+  float fallen_depth_ = 0;
+  double fallen_volume_ = 0;
+  int64_t frame_ = 0;
+  uint64_t maps_version_ = 0;
+  uint64_t coverage_version_ = 0;
+};
+
+}  // namespace snow::live

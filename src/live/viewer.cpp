@@ -1,0 +1,497 @@
+// The live preview window: GLFW input, the frame loop (simulate, draw scene
+// and snow, panel), screenshots and exports. The physics is LiveSim's (the
+// batch stages); the drawing is PreviewRenderer's and SnowView's.
+#include "live/viewer.h"
+
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "gl/context.h"
+#include "gl/gl.h"
+#include "live/orbit.h"
+#include "mesh/export.h"
+#include "mesh/write_maps.h"
+#include "render/image.h"
+#include "render/preview.h"
+
+namespace snow::live {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+/// Input gathered by the GLFW callbacks between frames.
+struct Input {
+  double scroll = 0;
+  std::vector<int> keys;  // keys pressed (GLFW_KEY_*)
+};
+
+void on_scroll(GLFWwindow* window, double /*x*/, double y) {
+  static_cast<Input*>(glfwGetWindowUserPointer(window))->scroll += y;
+}
+
+void on_key(GLFWwindow* window, int key, int /*scancode*/, int action, int /*mods*/) {
+  if (action == GLFW_PRESS)
+    static_cast<Input*>(glfwGetWindowUserPointer(window))->keys.push_back(key);
+}
+
+/// The bound back buffer as an image (rows top to bottom).
+render::ImageRGBA8 read_back_buffer(int width, int height) {
+  render::ImageRGBA8 image;
+  image.width = width;
+  image.height = height;
+  image.pixels.resize(size_t(width) * size_t(height) * 4);
+  std::vector<uint8_t> rows(image.pixels.size());
+  glReadBuffer(GL_BACK);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, rows.data());
+  gl::check_error("preview: reading the screenshot");
+  const size_t stride = size_t(width) * 4;
+  for (int y = 0; y < height; ++y) {
+    std::copy_n(rows.data() + size_t(height - 1 - y) * stride, stride,
+                image.pixels.data() + size_t(y) * stride);
+  }
+  for (size_t k = 3; k < image.pixels.size(); k += 4) image.pixels[k] = 255;
+  return image;
+}
+
+/// Polygonizes the current snow and writes it like the batch job does.
+std::string export_snow(const Scene& scene, const LiveSim& sim, const ViewerOptions& options,
+                        const std::string& path, bool snow_only) {
+  const MeshFormat format = format_from_path(path);
+  const std::vector<SnowPatch> patches = polygonize(sim.maps(), sim.depth(), scene, options.mesh);
+  const bool combined = !snow_only && (format == MeshFormat::Glb || format == MeshFormat::Gltf);
+  if (combined && !options.input.empty()) {
+    write_combined_gltf(options.input, patches, path);
+  } else {
+    write_snow_meshes(patches, path, format);
+  }
+  size_t triangles = 0;
+  for (const SnowPatch& p : patches) triangles += p.mesh.indices.size() / 3;
+  return "wrote " + path + " (" + std::to_string(patches.size()) + " patches, " +
+         std::to_string(triangles) + " triangles)";
+}
+
+/// Scene bounds grown upwards by the snow that can pile up.
+Bounds with_snow(const Bounds& scene_bounds, float total_depth) {
+  Bounds b = scene_bounds;
+  if (!b.empty())
+    b.extend(b.max + glm::vec3(0.0f, std::max(total_depth, 0.0f) * 3.0f + 0.01f, 0.0f));
+  return b;
+}
+
+class Viewer {
+ public:
+  Viewer(const Scene& scene, const ViewerOptions& options)
+      : scene_(scene), options_(options), pending_(options.sim), view_settings_(options.view) {
+    paused_ = options.paused;
+    panel_ = options.panel;
+    std::snprintf(export_path_, sizeof export_path_, "%s",
+                  options.export_path.empty() ? "snow_preview.glb" : options.export_path.c_str());
+    std::snprintf(screenshot_path_, sizeof screenshot_path_, "%s",
+                  options.screenshot.empty() ? "snow_preview.png" : options.screenshot.c_str());
+    std::snprintf(maps_path_, sizeof maps_path_, "%s", "snow_maps");
+  }
+
+  ViewerReport run();
+
+ private:
+  void sync_view();
+  void handle_input(GLFWwindow* window, int fb_height);
+  void draw_panel(double frame_ms);
+  void apply_pending();
+  void set_status(const std::string& message) {
+    status_ = message;
+    log_info(message);
+  }
+
+  const Scene& scene_;
+  const ViewerOptions& options_;
+  std::unique_ptr<LiveSim> sim_;
+  std::unique_ptr<SnowView> snow_;
+  std::unique_ptr<render::PreviewRenderer> scene_renderer_;
+  render::PreviewSettings shading_;
+  OrbitView orbit_;
+  Input input_;
+  LiveSettings pending_;  // edited by the panel, applied on release
+  SnowViewSettings view_settings_;
+  int stride_ = 1;
+  uint64_t maps_version_ = 0, coverage_version_ = 0;
+  bool paused_ = false, step_once_ = false, panel_ = true;
+  bool want_screenshot_ = false, want_frame_ = false;
+  double last_x_ = 0, last_y_ = 0;
+  double scene_ms_ = 0, snow_ms_ = 0;
+  float aspect_ = 1.6f;
+  char export_path_[512] = {};
+  char screenshot_path_[512] = {};
+  char maps_path_[512] = {};
+  bool export_snow_only_ = false;
+  std::string status_;
+};
+
+void Viewer::sync_view() {
+  if (sim_->maps_version() != maps_version_) {
+    stride_ = options_.snow_stride > 0
+                  ? options_.snow_stride
+                  : auto_stride(sim_->maps().grid.width, sim_->maps().grid.height);
+    snow_->set_maps(sim_->maps(), stride_);
+    maps_version_ = sim_->maps_version();
+    coverage_version_ = 0;
+  }
+  if (sim_->coverage_version() != coverage_version_) {
+    snow_->set_coverage(sim_->coverage());
+    coverage_version_ = sim_->coverage_version();
+  }
+}
+
+void Viewer::apply_pending() {
+  try {
+    sim_->apply(pending_);
+    sync_view();
+  } catch (const Error& e) {
+    pending_ = sim_->settings();
+    set_status(std::string("not applied: ") + e.what());
+  }
+}
+
+void Viewer::handle_input(GLFWwindow* window, int fb_height) {
+  const ImGuiIO& io = ImGui::GetIO();
+  double x = 0, y = 0;
+  glfwGetCursorPos(window, &x, &y);
+  const float dx = float(x - last_x_), dy = float(y - last_y_);
+  last_x_ = x;
+  last_y_ = y;
+  if (!io.WantCaptureMouse) {
+    const bool left = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+    const bool right = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ||
+                       glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS;
+    const bool shift = glfwGetKey(window, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS;
+    if ((dx != 0 || dy != 0) && (left || right)) {
+      if (right || shift) {
+        orbit_.pan(dx, dy, float(fb_height));
+      } else {
+        orbit_.orbit(dx, dy);
+      }
+    }
+    if (input_.scroll != 0) orbit_.zoom(float(input_.scroll));
+  }
+  input_.scroll = 0;
+  if (!io.WantCaptureKeyboard) {
+    for (int key : input_.keys) {
+      switch (key) {
+        case GLFW_KEY_F:
+          want_frame_ = true;
+          break;
+        case GLFW_KEY_SPACE:
+          paused_ = !paused_;
+          break;
+        case GLFW_KEY_S:
+          step_once_ = true;
+          break;
+        case GLFW_KEY_R:
+          sim_->reset();
+          break;
+        case GLFW_KEY_P:
+          want_screenshot_ = true;
+          break;
+        case GLFW_KEY_H:
+          panel_ = !panel_;
+          break;
+        case GLFW_KEY_T:
+          orbit_.top = !orbit_.top;
+          break;
+        case GLFW_KEY_ESCAPE:
+          glfwSetWindowShouldClose(window, GLFW_TRUE);
+          break;
+        default:
+          break;
+      }
+    }
+  }
+  input_.keys.clear();
+}
+
+void Viewer::draw_panel(double frame_ms) {
+  ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSize(ImVec2(340, 0), ImGuiCond_FirstUseEver);
+  ImGui::Begin("snowmodel preview");
+  const LiveSim& sim = *sim_;
+  const SnowMaps& maps = sim.maps();
+  ImGui::Text("%.1f fps (%.1f ms per frame)", frame_ms > 0 ? 1000.0 / frame_ms : 0.0, frame_ms);
+  ImGui::Text("stabilize %.1f ms  add %.1f ms", sim.timings().stabilize * 1e3,
+              sim.timings().add * 1e3);
+  ImGui::Text("scene %.1f ms  snow %.1f ms", scene_ms_, snow_ms_);
+  ImGui::Text("peel %.2f s  coverage %.2f s (last)", sim.timings().peel,
+              sim.timings().last_coverage);
+  ImGui::Text("maps %d x %d x %d, texel %.3f m, grid stride %d", maps.grid.width, maps.grid.height,
+              maps.layers, maps.grid.texel, stride_);
+  ImGui::Text("snow %.3f m^3 lying, %.3f fallen, %.3f lost", sim.last_result().volume,
+              sim.fallen_volume(), sim.last_result().lost_volume);
+  ImGui::Text("fallen %.3f of %.3f m, frame %lld, residual %.2g m", sim.fallen_depth(),
+              sim.settings().total_depth, static_cast<long long>(sim.frame()),
+              sim.last_result().residual);
+
+  ImGui::Separator();
+  if (ImGui::Button(paused_ ? "Resume" : "Pause")) paused_ = !paused_;
+  ImGui::SameLine();
+  if (ImGui::Button("Step")) step_once_ = true;
+  ImGui::SameLine();
+  if (ImGui::Button("Reset")) sim_->reset();
+  ImGui::SameLine();
+  if (ImGui::Button("Frame (F)")) want_frame_ = true;
+
+  // Cheap settings apply at once; the others when the widget is released.
+  bool cheap = false;
+  cheap |= ImGui::SliderFloat("fall rate m/s", &pending_.fall_rate, 0.0f, 0.5f, "%.3f");
+  cheap |= ImGui::SliderFloat("total depth m", &pending_.total_depth, 0.0f, 2.0f, "%.2f");
+  cheap |= ImGui::SliderInt("passes/frame", &pending_.passes_per_frame, 0, 256);
+  cheap |= ImGui::SliderInt("snow on snow every", &pending_.snow_on_snow_every, 0, 300);
+  if (cheap) apply_pending();
+
+  ImGui::Separator();
+  bool release = false;
+  ImGui::SliderFloat("flutter deg", &pending_.coverage.flutter_deg, 0.0f, 60.0f, "%.1f");
+  release |= ImGui::IsItemDeactivatedAfterEdit();
+  ImGui::SliderFloat2("wind x,z m/s", &pending_.coverage.wind.x, -5.0f, 5.0f, "%.2f");
+  release |= ImGui::IsItemDeactivatedAfterEdit();
+  ImGui::SliderInt("directions", &pending_.coverage.directions, 1, 256);
+  release |= ImGui::IsItemDeactivatedAfterEdit();
+  ImGui::SliderFloat("repose deg", &pending_.stabilize.repose_deg, 5.0f, 85.0f, "%.1f");
+  release |= ImGui::IsItemDeactivatedAfterEdit();
+  ImGui::InputFloat("texel m (0 auto)", &pending_.peel.texel, 0.0f, 0.0f, "%.4f");
+  release |= ImGui::IsItemDeactivatedAfterEdit();
+  ImGui::InputInt("max side", &pending_.peel.max_side);
+  release |= ImGui::IsItemDeactivatedAfterEdit();
+  ImGui::SliderInt("layers", &pending_.peel.layers, 1, 16);
+  release |= ImGui::IsItemDeactivatedAfterEdit();
+  if (release) apply_pending();
+  ImGui::TextDisabled("texel, max side, layers: re-peel and restart the snow");
+
+  ImGui::Separator();
+  int overlay = int(view_settings_.overlay);
+  ImGui::RadioButton("snow", &overlay, 0);
+  ImGui::SameLine();
+  ImGui::RadioButton("coverage", &overlay, 1);
+  ImGui::SameLine();
+  ImGui::RadioButton("depth", &overlay, 2);
+  view_settings_.overlay = Overlay(overlay);
+  if (view_settings_.overlay == Overlay::Depth)
+    ImGui::SliderFloat("depth ramp max m", &view_settings_.depth_ramp_max, 0.01f, 3.0f, "%.2f");
+  ImGui::SliderInt("flakes", &view_settings_.flakes, 0, 50000);
+
+  ImGui::Separator();
+  ImGui::InputText("##export", export_path_, sizeof export_path_);
+  ImGui::SameLine();
+  if (ImGui::Button("Export")) {
+    try {
+      set_status(export_snow(scene_, sim, options_, export_path_, export_snow_only_));
+    } catch (const Error& e) {
+      set_status(std::string("export failed: ") + e.what());
+    }
+  }
+  ImGui::Checkbox("snow only", &export_snow_only_);
+  ImGui::InputText("##maps", maps_path_, sizeof maps_path_);
+  ImGui::SameLine();
+  if (ImGui::Button("Export maps")) {
+    try {
+      const std::vector<float> depth = sim.depth();
+      write_maps(maps_path_, maps, &sim.coverage(), &depth);
+      set_status(std::string("wrote maps to ") + maps_path_);
+    } catch (const Error& e) {
+      set_status(std::string("maps export failed: ") + e.what());
+    }
+  }
+  ImGui::InputText("##shot", screenshot_path_, sizeof screenshot_path_);
+  ImGui::SameLine();
+  if (ImGui::Button("Screenshot (P)")) want_screenshot_ = true;
+  if (!status_.empty()) ImGui::TextWrapped("%s", status_.c_str());
+  ImGui::TextDisabled(
+      "drag: orbit, right/shift-drag: pan, wheel: zoom, F frame, T top,"
+      " space pause, S step, R reset, H panel");
+  ImGui::End();
+}
+
+ViewerReport Viewer::run() {
+  gl::ContextOptions context_options;
+  context_options.backend = gl::Backend::Glfw;
+  context_options.window_width = options_.width;
+  context_options.window_height = options_.height;
+  context_options.title =
+      "snowmodel preview - " + std::filesystem::path(options_.input).filename().string();
+  auto context = gl::create_context(context_options);
+  log_info("OpenGL: " + context->description());
+  GLFWwindow* window = static_cast<GLFWwindow*>(context->native_window());
+  glfwSetWindowUserPointer(window, &input_);
+  glfwSetScrollCallback(window, on_scroll);
+  glfwSetKeyCallback(window, on_key);
+  glfwSwapInterval(options_.frames > 0 ? 0 : 1);
+
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGui::GetIO().IniFilename = nullptr;
+  ImGui::StyleColorsDark();
+  ImGui_ImplGlfw_InitForOpenGL(window, true);  // chains the callbacks above
+  ImGui_ImplOpenGL3_Init("#version 430 core");
+  struct ImGuiGuard {
+    ~ImGuiGuard() {
+      ImGui_ImplOpenGL3_Shutdown();
+      ImGui_ImplGlfw_Shutdown();
+      ImGui::DestroyContext();
+    }
+  } imgui_guard;
+
+  // GL objects go before the context, also when a frame throws.
+  struct GlGuard {
+    Viewer& v;
+    ~GlGuard() {
+      v.scene_renderer_.reset();
+      v.snow_.reset();
+      v.sim_.reset();
+    }
+  } gl_guard{*this};
+
+  ViewerReport report;
+  {
+    sim_ = std::make_unique<LiveSim>(scene_, options_.sim, options_.receives);
+    snow_ = std::make_unique<SnowView>();
+    scene_renderer_ = std::make_unique<render::PreviewRenderer>(scene_);
+    sync_view();
+    report.snow_triangles = snow_->triangle_count();
+    log_info("live snow grid: " + std::to_string(snow_->triangle_count()) + " triangles (stride " +
+             std::to_string(stride_) + ")");
+
+    int fb_w = 0, fb_h = 0;
+    glfwGetFramebufferSize(window, &fb_w, &fb_h);
+    aspect_ = float(std::max(fb_w, 1)) / float(std::max(fb_h, 1));
+    orbit_.azimuth = options_.azimuth;
+    orbit_.elevation = options_.elevation;
+    orbit_.fov = options_.fov;
+    orbit_.top = options_.top_view;
+    orbit_.frame(scene_.bounds, aspect_);
+    glfwGetCursorPos(window, &last_x_, &last_y_);
+
+    const auto start = Clock::now();
+    Clock::time_point steady_start = start;
+    double sum_stabilize = 0, sum_scene = 0, sum_snow = 0;
+    double frame_ms = 0;
+    int64_t frames = 0;
+    while (!glfwWindowShouldClose(window)) {
+      const auto frame_start = Clock::now();
+      glfwPollEvents();
+      glfwGetFramebufferSize(window, &fb_w, &fb_h);
+      if (fb_w < 1 || fb_h < 1) {  // minimised
+        glfwWaitEvents();
+        continue;
+      }
+      aspect_ = float(fb_w) / float(fb_h);
+      ImGui_ImplOpenGL3_NewFrame();
+      ImGui_ImplGlfw_NewFrame();
+      ImGui::NewFrame();
+      handle_input(window, fb_h);
+      if (want_frame_) {
+        orbit_.frame(scene_.bounds, aspect_);
+        want_frame_ = false;
+      }
+
+      // Simulate.
+      if (!paused_ || step_once_) {
+        sim_->step();
+        step_once_ = false;
+      }
+      sync_view();
+
+      // Draw scene and snow.
+      const Bounds view_bounds = with_snow(scene_.bounds, sim_->settings().total_depth);
+      const render::PreviewCamera camera = orbit_.camera(view_bounds, aspect_);
+      glBindFramebuffer(GL_FRAMEBUFFER, 0);
+      glViewport(0, 0, fb_w, fb_h);
+      glClearColor(shading_.background.x, shading_.background.y, shading_.background.z, 1.0f);
+      glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+      auto t = Clock::now();
+      scene_renderer_->draw(camera, shading_);
+      glFinish();
+      scene_ms_ = ms_since(t);
+      t = Clock::now();
+      snow_->draw(camera, shading_, sim_->depth_texture(), view_settings_);
+      const float time = float(sim_->frame()) * sim_->settings().frame_time;
+      snow_->draw_flakes(camera, view_bounds, time, sim_->settings().coverage.fall_speed,
+                         sim_->settings().coverage.wind, view_settings_);
+      glFinish();
+      snow_ms_ = ms_since(t);
+
+      const bool last = options_.frames > 0 && frames + 1 >= options_.frames;
+      if (want_screenshot_ || (last && !options_.screenshot.empty())) {
+        want_screenshot_ = false;
+        try {
+          render::write_png(read_back_buffer(fb_w, fb_h), screenshot_path_);
+          set_status(std::string("wrote ") + screenshot_path_);
+        } catch (const Error& e) {
+          if (last) throw;
+          set_status(std::string("screenshot failed: ") + e.what());
+        }
+      }
+
+      if (panel_) draw_panel(frame_ms);
+      ImGui::Render();
+      if (panel_) ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+      glfwSwapBuffers(window);
+
+      ++frames;
+      frame_ms = ms_since(frame_start);
+      if (frames == 5) steady_start = Clock::now();
+      if (frames > 5) {
+        sum_stabilize += (sim_->timings().add + sim_->timings().stabilize) * 1e3;
+        sum_scene += scene_ms_;
+        sum_snow += snow_ms_;
+      }
+      if (last) break;
+    }
+    report.frames = frames;
+    report.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    const int64_t steady = frames - 5;
+    if (steady > 0) {
+      report.fps =
+          double(steady) / std::chrono::duration<double>(Clock::now() - steady_start).count();
+      report.stabilize_ms = sum_stabilize / double(steady);
+      report.scene_ms = sum_scene / double(steady);
+      report.snow_ms = sum_snow / double(steady);
+    } else if (report.seconds > 0) {
+      report.fps = double(frames) / report.seconds;
+    }
+    report.volume = snow_volume(sim_->maps(), sim_->depth());
+    report.fallen = sim_->fallen_volume();
+
+    if (!options_.export_path.empty()) {
+      log_info(export_snow(scene_, *sim_, options_, options_.export_path, options_.snow_only));
+    }
+  }
+  return report;
+}
+
+}  // namespace
+
+ViewerReport run_viewer(const Scene& scene, const ViewerOptions& options) {
+  if (options.width < 1 || options.height < 1)
+    throw InputError("window size " + std::to_string(options.width) + "x" +
+                     std::to_string(options.height) + " is empty");
+  if (options.frames < 0) throw InputError("--frames must be 0 (until closed) or more");
+  Viewer viewer(scene, options);
+  return viewer.run();
+}
+
+}  // namespace snow::live

@@ -1,0 +1,58 @@
+#pragma once
+// The live accumulation preview window (`snowmodel preview`): a GLFW window
+// in which snow falls, piles up, slides off roofs and drops to the ground
+// while the user orbits and tweaks the settings in a Dear ImGui panel, and
+// exports what they see with the batch job's exporters.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "live/live_sim.h"
+#include "live/snow_view.h"
+#include "mesh/polygonize.h"
+#include "scene/scene.h"
+
+namespace snow::live {
+
+struct ViewerOptions {
+  std::string input;              // the glTF file shown (export of the scene plus snow reads it)
+  LiveSettings sim;               // the snowfall
+  PolygonizeSettings mesh;        // export
+  SnowViewSettings view;          // drawing the snow
+  int snow_stride = 0;            // texels between drawn snow grid vertices; 0 = automatic
+  int width = 1280;               // window width, pixels
+  int height = 800;               // window height, pixels
+  bool top_view = false;          // start in the orthographic top view
+  float azimuth = 45.0f;          // degrees from south (+Z) towards east (+X), start camera
+  float elevation = 30.0f;        // degrees above the horizon, start camera
+  float fov = 35.0f;              // vertical field of view, degrees
+  bool panel = true;              // show the ImGui panel (H toggles)
+  bool paused = false;            // start paused
+  int frames = 0;                 // > 0: quit after this many frames (scripts, tests)
+  std::string screenshot;         // PNG of the last frame (scene and snow, no panel) at exit
+  std::string export_path;        // snow meshes (.glb/.gltf with the scene, .obj/.ply) at exit
+  bool snow_only = false;         // export the snow only, also to .glb/.gltf
+  std::vector<uint8_t> receives;  // per scene object: 0 = no fresh snow (may be empty)
+};
+
+/// What a run measured.
+struct ViewerReport {
+  int64_t frames = 0;         // frames drawn
+  double seconds = 0;         // wall seconds of those frames (first frame included)
+  double fps = 0;             // frames per second after the first 5 frames
+  double stabilize_ms = 0;    // mean per frame: adding snow plus stabilizer passes
+  double scene_ms = 0;        // mean per frame: drawing the scene
+  double snow_ms = 0;         // mean per frame: drawing the snow (and flakes)
+  double volume = 0;          // m^3 of snow lying at the end
+  double fallen = 0;          // m^3 of snow fallen
+  size_t snow_triangles = 0;  // triangles of the snow grid
+};
+
+/// Opens the window (GLFW backend; needs a display) and runs until it is
+/// closed, Escape is pressed or options.frames frames have been drawn; then
+/// writes options.screenshot and options.export_path if given. Throws
+/// GLError when no window can be opened, InputError for bad settings,
+/// IOError when an output cannot be written.
+ViewerReport run_viewer(const Scene& scene, const ViewerOptions& options);
+
+}  // namespace snow::live
