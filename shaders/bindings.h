@@ -42,5 +42,8 @@
 #define SNOW_STABILIZE_ADD 6      // sampler2DArray RGBA32F: snow to add (m) in r
 #define SNOW_STABILIZE_STABLE 7   // sampler2DArray: highest snow surface a texel keeps (m) in r
 #define SNOW_STABILIZE_STABLE_OLD 8  // sampler2DArray: the same from the previous erosion pass
+// Active tiles (stabilize_tiles.comp, stabilize_tile.vert): image unit and SSBO slots.
+#define SNOW_STABILIZE_TILE_CHANGED 0  // iimage2D R32I per tile: last pass that changed it
+#define SNOW_STABILIZE_TILE_LIST 0     // SSBO: draw-indirect command (uint[4]), then tiles
 
 #endif  // SNOW_SHADERS_BINDINGS_H

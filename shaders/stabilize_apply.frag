@@ -9,6 +9,10 @@ layout(binding = SNOW_STABILIZE_OUT_A) uniform sampler2DArray u_arrive;  // r: s
 layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
 
 layout(location = 0) out vec2 o_depth;
+// Active tiles: the tile of a texel that changed is stamped with u_pass.
+layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform writeonly iimage2D u_changed;
+uniform int u_pass;  // index stamped on changed tiles
+uniform int u_tile;  // texels per tile side
 
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
@@ -22,5 +26,9 @@ void main() {
     if (p == kPointerVoid) lost = lost + e;
     s = s - e;
   }
-  o_depth = vec2(s + texelFetch(u_arrive, t, 0).r, lost);
+  vec2 o = vec2(s + texelFetch(u_arrive, t, 0).r, lost);
+  if (any(notEqual(floatBitsToUint(o), floatBitsToUint(d)))) {
+    imageStore(u_changed, c / u_tile, ivec4(u_pass));
+  }
+  o_depth = o;
 }

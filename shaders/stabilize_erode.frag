@@ -11,6 +11,10 @@ layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
 uniform int u_init;
 
 layout(location = 0) out float o_stable;
+// Active tiles: the tile of a texel that changed is stamped with u_pass.
+layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform writeonly iimage2D u_changed;
+uniform int u_pass;  // index stamped on changed tiles
+uniform int u_tile;  // texels per tile side
 
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
@@ -33,6 +37,9 @@ void main() {
       }
     }
     hs = max(hs, cell.x);
+  }
+  if (hs != texelFetch(u_stable, t, 0).r) {  // as stabilize_erode_check.frag compares
+    imageStore(u_changed, c / u_tile, ivec4(u_pass));
   }
   o_stable = hs;
 }

@@ -2,7 +2,8 @@
 // Stabilizer gather pass: depth minus what this texel sent, plus what its
 // neighbours sent here, read from the outflow pass's own textures (the same
 // float values leave and arrive). Lost snow is added up at its source.
-// Mirrors reference::Stabilizer::gather_pass.
+// Mirrors reference::Stabilizer::gather_pass. Stamps the tiles that changed
+// (active tiles, src/snow/stabilize.cpp).
 #include "bindings.h"
 #include "column.glsl"
 
@@ -11,6 +12,10 @@ layout(binding = SNOW_STABILIZE_OUT_B) uniform sampler2DArray u_out_b;
 layout(binding = SNOW_STABILIZE_CODE) uniform usampler2DArray u_code;
 
 layout(location = 0) out vec2 o_depth;  // depth (m), lost (m)
+// Active tiles: the tile of a texel that changed is stamped with u_pass.
+layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform writeonly iimage2D u_changed;
+uniform int u_pass;  // index stamped on changed tiles
+uniform int u_tile;  // texels per tile side
 
 uint code_of(uvec2 packed_codes, int n) { return (packed_codes[n >> 2] >> (8 * (n & 3))) & 0xffu; }
 
@@ -57,5 +62,10 @@ void main() {
   s = inflow(c, 5, s);
   s = inflow(c, 6, s);
   s = inflow(c, 7, s);
+  // Changed: it sent snow, or its depth or loss differs (bits) from before.
+  if (any(notEqual(a, vec4(0.0))) || any(notEqual(b, vec4(0.0))) ||
+      floatBitsToUint(s) != floatBitsToUint(d.r) || floatBitsToUint(lost) != floatBitsToUint(d.g)) {
+    imageStore(u_changed, c / u_tile, ivec4(u_pass));
+  }
   o_depth = vec2(s, lost);
 }

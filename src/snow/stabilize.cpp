@@ -6,6 +6,7 @@
 #include "snow/stabilize.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -21,6 +22,7 @@ namespace snow {
 namespace {
 
 constexpr int kReduceBlock = 16;  // columns per side of a residual block
+constexpr int kTile = 16;         // columns per side of an active tile (all layers)
 
 void check_settings(const StabilizeSettings& s) {
   auto bad = [](const std::string& what) { throw InputError("stabilize: " + what); };
@@ -56,6 +58,10 @@ void check_maps(const SnowMaps& maps) {
   if (double(n) >= double(0xffffffffu)) {
     throw InputError("stabilize: maps of " + std::to_string(n) + " layer texels are too large");
   }
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // 32-bit integer hash (lowbias32 by C. Wellons).
@@ -147,6 +153,17 @@ struct Stabilizer::Impl {
   gl::Query query;
   gl::Program outflow, gather, erode, erode_check, receiver, jump, jump_check, scatter, apply, add,
       residual;
+  // Active tiles (see "Active tiles" below).
+  bool tiled = false;
+  int tiles_x = 0, tiles_y = 0;
+  gl::Texture tile_relax, tile_erode;  // R32I per tile: stamp of the last pass that changed it
+  gl::Buffer tile_list;                // draw-indirect command, then the active tiles
+  gl::Program tile_select, outflow_tiled, gather_tiled, erode_tiled;
+  double tiles_drawn = 0.0;      // tiles computed by relaxation passes (count_tiles)
+  int pass_counter = 0;          // relaxation passes run since construction (their stamps)
+  int erode_counter = 0;         // erosion passes run since construction (their stamps)
+  std::vector<int> stride_last;  // per stride level: stamp of its last pass since the last
+                                 // reset, -1 for none
 
   Impl(const SnowMaps& maps, const StabilizeSettings& s);
   ~Impl() { release_bindings(); }
@@ -169,6 +186,14 @@ struct Stabilizer::Impl {
   void add_snow(const std::vector<float>& add);
   int route(bool falls_only);
   void relax_pass(int stride);
+  void reset_tiles() { stride_last.assign(stride_last.size(), -1); }
+  void bind_changed(const gl::Texture& stamps) const {
+    glBindImageTexture(SNOW_STABILIZE_TILE_CHANGED, stamps.id(), 0, GL_FALSE, 0, GL_READ_WRITE,
+                       GL_R32I);
+  }
+  void select_tiles(const gl::Texture& stamps, int reach, int since, bool all);
+  GLuint selected_tiles();
+  void tiled_layers(const gl::Program& program, const std::vector<gl::Framebuffer>& fbos);
   GLuint count_fragments(const gl::Program& program);
   // Per-block reduction summed over blocks: max move, sum depth, sum lost,
   // sum of out_a.r (the scattered snow after routing); metres.
@@ -221,6 +246,22 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   code = gl::create_texture_2d_array(GL_RG32UI, width, height, layers, "stabilize codes");
   stable = gl::create_texture_2d_array(GL_R32F, width, height, layers, "stabilize kept height");
   reduce = gl::create_texture_2d(GL_RGBA32F, reduce_width, reduce_height, "stabilize residual");
+  tiled = s.active_tiles;
+  tiles_x = (width + kTile - 1) / kTile;
+  tiles_y = (height + kTile - 1) / kTile;
+  tile_relax = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
+  tile_erode = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
+  const GLint never = -1;
+  glClearTexImage(tile_relax.id(), 0, GL_RED_INTEGER, GL_INT, &never);
+  glClearTexImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT, &never);
+  tile_list = gl::create_buffer();
+  glNamedBufferStorage(tile_list.id(), GLsizeiptr(sizeof(GLuint) * (4 + size_t(tiles_x) * tiles_y)),
+                       nullptr, GL_DYNAMIC_STORAGE_BIT);
+  {
+    int levels = 1;
+    while ((1 << levels) <= s.max_stride) ++levels;
+    stride_last.assign(size_t(levels), -1);
+  }
   const float zero[4] = {0, 0, 0, 0};
   const GLuint no_codes[2] = {0xfefefefeu, 0xfefefefeu};  // kCodeNone in every direction
   glClearTexImage(code.id(), 0, GL_RG_INTEGER, GL_UNSIGNED_INT, no_codes);
@@ -280,11 +321,18 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   apply = gl::Program({"stabilize.vert", "stabilize_apply.frag"});
   add = gl::Program({"stabilize.vert", "stabilize_add.frag"});
   residual = gl::Program({"stabilize.vert", "stabilize_residual.frag"});
-  for (const gl::Program* p : {&outflow, &gather, &erode, &erode_check, &receiver, &jump,
-                               &jump_check, &scatter, &apply, &add, &residual}) {
+  tile_select = gl::Program({"stabilize_tiles.comp"});
+  outflow_tiled = gl::Program({"stabilize_tile.vert", "stabilize_outflow.frag"});
+  gather_tiled = gl::Program({"stabilize_tile.vert", "stabilize_gather.frag"});
+  erode_tiled = gl::Program({"stabilize_tile.vert", "stabilize_erode.frag"});
+  for (const gl::Program* p :
+       {&outflow, &gather, &erode, &erode_check, &receiver, &jump, &jump_check, &scatter, &apply,
+        &add, &residual, &outflow_tiled, &gather_tiled, &erode_tiled}) {
     set_common(*p);
     p->set("u_stride", 1);
+    p->set("u_tile", kTile);
   }
+  tile_select.set("u_tiles", glm::ivec2(tiles_x, tiles_y));
   residual.set("u_block", kReduceBlock);
   release_bindings();
   gl::check_error("stabilize: set-up");
@@ -313,6 +361,70 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
     glDrawArrays(GL_TRIANGLES, 0, 3);
   }
   glDisable(GL_SCISSOR_TEST);
+}
+
+// Active tiles. Late in a relaxation only the pile edges still move, so the
+// outflow and gather passes (and the routing's erosion passes) draw only the
+// tiles (kTile x kTile columns, all layers) that may change, as instanced
+// quads from a list built on the GPU (stabilize_tiles.comp, an indirect draw,
+// no readback). The gather, apply and erosion passes stamp the tiles where a
+// texel sent snow or changed with the pass index. A relaxation pass of
+// stride s computes a tile when a tile within ceil(2 s / kTile) tiles (what
+// its outflow reads, and what its inflow's outflow reads) was stamped at or
+// after the last pass of stride s. A skipped tile is exact: its inputs are
+// those of that last pass of the same stride, which moved no snow there, so
+// its outflow is zero again (the outflow textures still hold the zeros of
+// the last pass that computed it: a tile that moved snow is computed in the
+// next pass) and its depth stays; both ping-pong depth textures hold the
+// same depth there (it was computed and unchanged, or skipped, in the pass
+// before). The residual reads those zeros and that depth, so it is exact too.
+// After set_depth, add_snow and the first routing every stride's first pass
+// computes all tiles; routing between passes stamps what it changed and
+// clears the outflow textures (the routing uses them as scratch). Erosion
+// passes compute the tiles within one tile of a tile the previous erosion
+// pass changed; no such tile ends the erosion (the same pass count as the
+// occlusion-query check of the full passes).
+void Stabilizer::Impl::select_tiles(const gl::Texture& stamps, int reach, int since, bool all) {
+  const GLuint command[4] = {6, 0, 0, 0};  // 6 vertices per tile quad, no instances yet
+  glNamedBufferSubData(tile_list.id(), 0, sizeof(command), command);
+  glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);  // the stamps of the passes before
+  bind_changed(stamps);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_TILE_LIST, tile_list.id());
+  tile_select.use();
+  tile_select.set("u_reach", reach);
+  tile_select.set("u_since", since);
+  tile_select.set("u_all", all ? 1 : 0);
+  glDispatchCompute(GLuint((tiles_x + 7) / 8), GLuint((tiles_y + 7) / 8), 1);
+  glMemoryBarrier(GL_COMMAND_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT |
+                  GL_BUFFER_UPDATE_BARRIER_BIT);
+}
+
+// The number of tiles the last select_tiles listed (a readback).
+GLuint Stabilizer::Impl::selected_tiles() {
+  GLuint n = 0;
+  glGetNamedBufferSubData(tile_list.id(), sizeof(GLuint), sizeof(GLuint), &n);
+  return n;
+}
+
+// As per_layer, drawing the listed tiles of each layer.
+void Stabilizer::Impl::tiled_layers(const gl::Program& program,
+                                    const std::vector<gl::Framebuffer>& fbos) {
+  program.use();
+  glBindVertexArray(vao.id());
+  glBindBuffer(GL_DRAW_INDIRECT_BUFFER, tile_list.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_TILE_LIST, tile_list.id());
+  glViewport(0, 0, width, height);
+  glEnable(GL_SCISSOR_TEST);
+  for (int l = 0; l < layers; ++l) {
+    const glm::ivec4 r = rect[size_t(l)];
+    if (r.z == 0) continue;
+    program.set("u_layer", l);
+    glScissor(r.x, r.y, r.z, r.w);
+    glBindFramebuffer(GL_FRAMEBUFFER, fbos[size_t(l)].id());
+    glDrawArraysIndirect(GL_TRIANGLES, nullptr);
+  }
+  glDisable(GL_SCISSOR_TEST);
+  glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
 }
 
 void Stabilizer::Impl::upload_depth(const std::vector<float>& d) {
@@ -369,14 +481,27 @@ int Stabilizer::Impl::route(bool falls_only) {
   erode.set("u_init", 0);
   int e = 0;
   int passes = 0;
+  bind_changed(tile_erode);
   for (;;) {
     bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
-    per_layer(erode, fbo_stable[1 - e]);
+    if (tiled) {
+      // All tiles first, then those next to a tile the previous pass changed.
+      select_tiles(tile_erode, 1, erode_counter - 1, passes == 0);
+      if (passes > 0 && selected_tiles() == 0) break;
+      erode_tiled.set("u_pass", erode_counter);
+      tiled_layers(erode_tiled, fbo_stable[1 - e]);
+    } else {
+      erode.set("u_pass", erode_counter);
+      per_layer(erode, fbo_stable[1 - e]);
+    }
+    ++erode_counter;
     ++passes;
-    bind(SNOW_STABILIZE_STABLE, *stable_tex[1 - e]);
-    bind(SNOW_STABILIZE_STABLE_OLD, *stable_tex[e]);
     e = 1 - e;
-    if (count_fragments(erode_check) == 0) break;
+    if (!tiled) {
+      bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
+      bind(SNOW_STABILIZE_STABLE_OLD, *stable_tex[1 - e]);
+      if (count_fragments(erode_check) == 0) break;
+    }
     if (passes > 4 * (width + height) * layers + 16) {
       throw GLError("stabilize: routing erosion did not settle");
     }
@@ -406,6 +531,8 @@ int Stabilizer::Impl::route(bool falls_only) {
   glDrawArrays(GL_POINTS, 0, GLsizei(count()));
   glDisable(GL_BLEND);
   bind(SNOW_STABILIZE_OUT_A, out_a);
+  bind_changed(tile_relax);
+  apply.set("u_pass", pass_counter - 1);  // as a change of the last relaxation pass
   per_layer(apply, fbo_depth[1 - cur]);
   cur = 1 - cur;
   gl::check_error("stabilize: routing");
@@ -413,15 +540,33 @@ int Stabilizer::Impl::route(bool falls_only) {
 }
 
 void Stabilizer::Impl::relax_pass(int stride) {
+  int level = 0;
+  while ((settings.max_stride >> level) > stride) ++level;
   bind(SNOW_STABILIZE_CELLS, cells);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
-  outflow.set("u_stride", stride);
-  gather.set("u_stride", stride);
-  per_layer(outflow, fbo_outflow);
+  const gl::Program& out_program = tiled ? outflow_tiled : outflow;
+  const gl::Program& gather_program = tiled ? gather_tiled : gather;
+  out_program.set("u_stride", stride);
+  gather_program.set("u_stride", stride);
+  gather_program.set("u_pass", pass_counter);
+  if (tiled) {
+    const int since = stride_last[size_t(level)];
+    select_tiles(tile_relax, (2 * stride + kTile - 1) / kTile, since, since < 0);
+    if (settings.count_tiles) tiles_drawn += double(selected_tiles());
+    tiled_layers(out_program, fbo_outflow);
+  } else {
+    per_layer(out_program, fbo_outflow);
+  }
   bind(SNOW_STABILIZE_OUT_A, out_a);
   bind(SNOW_STABILIZE_OUT_B, out_b);
   bind(SNOW_STABILIZE_CODE, code);
-  per_layer(gather, fbo_depth[1 - cur]);
+  bind_changed(tile_relax);
+  if (tiled) {
+    tiled_layers(gather_program, fbo_depth[1 - cur]);
+  } else {
+    per_layer(gather_program, fbo_depth[1 - cur]);
+  }
+  stride_last[size_t(level)] = pass_counter++;
   cur = 1 - cur;
 }
 
@@ -465,13 +610,17 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
   lost_is_zero = false;
   if (route_pending) {
     if (settings.route_steep) {
+      const auto t0 = std::chrono::steady_clock::now();
       result.route_passes = route(false);
       // Routed = scattered to terminals (out_a.r) + routed into the void.
       const glm::dvec4 after = reduce_blocks(false);
       result.routed_volume = (after.w + after.z) * area - lost_before;
+      result.route_seconds += seconds_since(t0);
     }
     route_pending = false;
+    reset_tiles();
   }
+  tiles_drawn = 0.0;
   glm::dvec4 sums(0.0);
   bool measured = false;
   int last_check = 0;
@@ -491,9 +640,17 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
       if (settings.route_steep) {
         // What became unable to stay since is routed again.
         const double lost = sums.z * area;
+        const auto t0 = std::chrono::steady_clock::now();
         result.route_passes += route(true);
         const glm::dvec4 after = reduce_blocks(false);
         result.routed_volume += (after.w + after.z) * area - lost;
+        if (tiled) {  // skipped tiles must read zero outflow (routing used the textures)
+          const float zero[4] = {0, 0, 0, 0};
+          glClearTexImage(out_a.id(), 0, GL_RGBA, GL_FLOAT, zero);
+          glClearTexImage(out_b.id(), 0, GL_RGBA, GL_FLOAT, zero);
+        }
+        glFinish();
+        result.route_seconds += seconds_since(t0);
       }
     }
   }
@@ -501,6 +658,10 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
   release_bindings();
   result.volume = sums.y * area;
   result.lost_volume = sums.z * area - lost_before;
+  result.tile_share = !tiled ? 1.0
+                      : settings.count_tiles && result.iterations > 0
+                          ? tiles_drawn / (double(result.iterations) * tiles_x * tiles_y)
+                          : 0.0;
   return result;
 }
 
@@ -521,6 +682,7 @@ void Stabilizer::set_depth(const std::vector<float>& depth) {
   }
   impl_->upload_depth(clean);  // lost (g) = 0
   impl_->route_pending = true;
+  impl_->reset_tiles();
   impl_->lost_is_zero = true;
 }
 
@@ -536,6 +698,7 @@ void Stabilizer::add_snow(const std::vector<float>& amount, float scale) {
   }
   impl_->add_snow(add);
   impl_->route_pending = true;
+  impl_->reset_tiles();
 }
 
 StabilizeResult Stabilizer::iterate(int passes) { return impl_->iterate(std::max(0, passes)); }

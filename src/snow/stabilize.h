@@ -29,7 +29,11 @@
 //    spilling over an edge, down a flight of stairs); a state at rest routes
 //    nothing.
 // Relaxation passes cycle through strides max_stride, ..., 2, 1 (multi-scale,
-// see stabilize_pass_stride), so piles spread in few passes.
+// see stabilize_pass_stride), so piles spread in few passes. On the GPU the
+// relaxation and erosion passes draw only the active tiles (16 x 16 columns,
+// all layers) whose inputs changed since the last pass of the same kind and
+// stride (settings.active_tiles); a skipped tile would repeat a pass that
+// moved nothing there, so the result is bit for bit that of full passes.
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -55,6 +59,11 @@ struct StabilizeSettings {
                                    // before relaxing (off:
                                    // relaxation only, for comparisons)
   uint32_t seed = 1;               // seed of the repose jitter; same seed, same result
+  bool active_tiles = true;        // GPU: relaxation and erosion passes compute only the
+                                   // 16 x 16-column tiles that can still change (bit-identical
+                                   // results; off: every texel every pass, for comparisons)
+  bool count_tiles = false;        // GPU: count the active tiles (a small readback per pass)
+                                   // into StabilizeResult::tile_share, for benchmarks
 };
 
 struct StabilizeResult {
@@ -66,6 +75,9 @@ struct StabilizeResult {
   double lost_volume = 0.0;    // m^3 that left the scene during the call (off the map or into
                                // the void below the lowest surface)
   double volume = 0.0;         // m^3 of snow lying on the maps after the call
+  double route_seconds = 0.0;  // s, wall time of the routing (GPU only; 0 in the reference)
+  double tile_share = 0.0;     // share (0..1) of the tiles the relaxation passes computed:
+                               // 1 with active_tiles off, 0 unless count_tiles (GPU only)
 };
 
 /// Per layer texel inputs of the passes, shared by the GPU upload and the CPU
