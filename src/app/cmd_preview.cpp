@@ -109,6 +109,8 @@ void register_preview(CLI::App& app, const GlobalOptions& /*global*/) {
       ->capture_default_str();
   cmd->add_option("--elevation", v.elevation, "Start camera: degrees above the horizon")
       ->capture_default_str();
+  cmd->add_option("--zoom", v.zoom, "Start camera: the framed distance divided by this")
+      ->capture_default_str();
   cmd->add_option("--fov", v.fov, "Vertical field of view in degrees")->capture_default_str();
   cmd->add_option("--fall-rate", v.sim.fall_rate,
                   "Fresh snow per simulated second on open flat ground, metres (--depth in all)")

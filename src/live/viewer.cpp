@@ -383,6 +383,7 @@ ViewerReport Viewer::run() {
     orbit_.fov = options_.fov;
     orbit_.top = options_.top_view;
     orbit_.frame(scene_.bounds, aspect_);
+    orbit_.distance /= options_.zoom;
     glfwGetCursorPos(window, &last_x_, &last_y_);
 
     const auto start = Clock::now();
@@ -489,6 +490,8 @@ ViewerReport run_viewer(const Scene& scene, const ViewerOptions& options) {
   if (options.width < 1 || options.height < 1)
     throw InputError("window size " + std::to_string(options.width) + "x" +
                      std::to_string(options.height) + " is empty");
+  if (!(options.zoom > 0.0f) || !std::isfinite(options.zoom))
+    throw InputError("--zoom must be a positive number");
   if (options.frames < 0) throw InputError("--frames must be 0 (until closed) or more");
   Viewer viewer(scene, options);
   return viewer.run();

@@ -26,6 +26,7 @@ struct ViewerOptions {
   float azimuth = 45.0f;          // degrees from south (+Z) towards east (+X), start camera
   float elevation = 30.0f;        // degrees above the horizon, start camera
   float fov = 35.0f;              // vertical field of view, degrees
+  float zoom = 1.0f;              // start camera: the framed eye distance divided by this (> 0)
   bool panel = true;              // show the ImGui panel (H toggles)
   bool paused = false;            // start paused
   int frames = 0;                 // > 0: quit after this many frames (scripts, tests)

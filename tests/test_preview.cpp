@@ -1,0 +1,183 @@
+// The live preview window (`snowmodel preview`, src/live) run as a script:
+// N frames on the bundled courtyard under a virtual X server (the ctest
+// entry test_preview_xvfb runs this binary under xvfb-run), then its
+// screenshot is checked at world points projected with the same camera:
+// snow-white on the roof and on open ground, none under the table.
+#include <gtest/gtest.h>
+#include <stb_image.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include <glm/glm.hpp>
+
+#include "live/orbit.h"
+#include "render/camera.h"
+#include "scene/load_gltf.h"
+
+namespace snow {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kCourtyard = fs::path(SNOW_SOURCE_DIR) / "assets/scenes/courtyard.glb";
+
+bool has_display() {
+  const char* display = std::getenv("DISPLAY");
+  return display && *display;
+}
+
+struct CommandRun {
+  int exit_code = -1;
+  std::string output;
+};
+
+CommandRun run_snowmodel(const std::string& args) {
+  CommandRun run;
+  const std::string command = std::string(SNOWMODEL_EXE) + " " + args + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return run;
+  char buffer[4096];
+  size_t n = 0;
+  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) run.output.append(buffer, n);
+  const int status = pclose(pipe);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return run;
+}
+
+struct Picture {
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgb;
+  glm::ivec3 at(int x, int y) const {
+    const uint8_t* p = rgb.data() + (size_t(y) * size_t(width) + size_t(x)) * 3;
+    return glm::ivec3(p[0], p[1], p[2]);
+  }
+};
+
+Picture load_png(const fs::path& path) {
+  Picture picture;
+  int channels = 0;
+  unsigned char* data = stbi_load(path.c_str(), &picture.width, &picture.height, &channels, 3);
+  if (!data) return picture;
+  picture.rgb.assign(data, data + size_t(picture.width) * size_t(picture.height) * 3);
+  stbi_image_free(data);
+  return picture;
+}
+
+/// Lit snow: bright and neutral or bluish (the courtyard's plaster, the
+/// brightest other material, is yellowish).
+bool snow_white(const glm::ivec3& c) {
+  return c.r >= 175 && c.g >= 175 && c.b >= 175 && c.b >= c.r - 6;
+}
+
+/// Share of snow-white pixels in the (2r+1)^2 square around pixel p.
+double white_share(const Picture& picture, const glm::ivec2& p, int r) {
+  int white = 0, total = 0;
+  for (int y = p.y - r; y <= p.y + r; ++y) {
+    for (int x = p.x - r; x <= p.x + r; ++x) {
+      if (x < 0 || y < 0 || x >= picture.width || y >= picture.height) continue;
+      ++total;
+      white += snow_white(picture.at(x, y));
+    }
+  }
+  return total ? double(white) / double(total) : 0.0;
+}
+
+/// Pixel (x right, y down) of world point `p` for `camera` in a w x h image.
+glm::ivec2 project(const render::PreviewCamera& camera, const glm::vec3& p, int w, int h) {
+  const glm::vec4 clip = camera.view_projection() * glm::vec4(p, 1.0f);
+  const glm::vec2 ndc = glm::vec2(clip) / clip.w;
+  return glm::ivec2(int((ndc.x * 0.5f + 0.5f) * float(w)), int((0.5f - ndc.y * 0.5f) * float(h)));
+}
+
+TEST(Preview, RejectsBadSizeBeforeOpeningAWindow) {
+  const CommandRun run =
+      run_snowmodel("preview " + kCourtyard.string() + " --size 0x10 --frames 1");
+  EXPECT_NE(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("--size"), std::string::npos) << run.output;
+}
+
+TEST(Preview, CourtyardScreenshotHasSnowOnRoofAndGroundNoneUnderTheTable) {
+  if (!has_display()) GTEST_SKIP() << "no DISPLAY (the xvfb-run ctest entry runs this)";
+  const fs::path dir =
+      fs::temp_directory_path() / ("snow_test_preview_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const fs::path shot = dir / "shot.png";
+  const fs::path exported = dir / "snow.ply";
+  const int w = 640, h = 400;
+  const float azimuth = 0.0f, elevation = 38.0f, fov = 35.0f, zoom = 2.0f;
+  // 250 frames: 0.3 m of snow falls in the first 90 (0.1 m per simulated
+  // second, 1/30 s per frame), the stabilizer keeps working after that.
+  const CommandRun run = run_snowmodel(
+      "preview " + kCourtyard.string() + " --frames 250 --size " + std::to_string(w) + "x" +
+      std::to_string(h) + " --max-side 128 --layers 4 --passes-per-frame 2 --fall-rate 0.1 " +
+      "--depth 0.3 --flakes 0 --azimuth 0 --elevation 38 --fov 35 --zoom 2 --no-snow-on 'Table*' " +
+      "--screenshot " + shot.string() + " --export " + exported.string());
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("preview: 250 frames"), std::string::npos) << run.output;
+  ASSERT_TRUE(fs::exists(exported)) << run.output;
+  EXPECT_GT(fs::file_size(exported), 1000u);
+
+  const Picture picture = load_png(shot);
+  ASSERT_EQ(picture.width, w);
+  ASSERT_EQ(picture.height, h);
+
+  // The viewer starts with OrbitView::frame on the scene's bounds, whose
+  // view matrix is render::orbit_camera's; x and y on screen do not depend
+  // on near and far.
+  const Scene scene = load_scene(kCourtyard);
+  live::OrbitView view;
+  view.azimuth = azimuth;
+  view.elevation = elevation;
+  view.fov = fov;
+  const float aspect = float(w) / float(h);
+  view.frame(scene.bounds, aspect);
+  const render::PreviewCamera framed = view.camera(scene.bounds, aspect);
+  view.distance /= zoom;
+  const render::PreviewCamera camera = view.camera(scene.bounds, aspect);
+  const render::PreviewCamera reference =
+      render::orbit_camera(scene.bounds, azimuth, elevation, aspect, fov, view.margin);
+  for (const glm::vec3& p : {glm::vec3(0, 0, 0), glm::vec3(5, 2, -3)}) {
+    const glm::ivec2 a = project(framed, p, w, h), b = project(reference, p, w, h);
+    EXPECT_LE(std::abs(a.x - b.x) + std::abs(a.y - b.y), 1);
+  }
+
+  // Courtyard (src/scene/builder.cpp, make_courtyard): house x -10..-3,
+  // z -10..-5, walls 3 m, 42-degree roof with the ridge along x at z = -7.5;
+  // ground top at y = 0; table top 1.5 x 1 m at y = 0.75 centred on (2, 3).
+  const float roof_y = 3.0f + 1.25f * std::tan(glm::radians(42.0f)) + 0.25f;  // + roof, snow
+  const glm::ivec2 roof = project(camera, glm::vec3(-4.5f, roof_y, -6.25f), w, h);
+  const glm::ivec2 ground = project(camera, glm::vec3(-2.0f, 0.3f, 3.0f), w, h);
+  const glm::ivec2 ground2 = project(camera, glm::vec3(4.0f, 0.3f, 0.0f), w, h);
+  const glm::ivec2 under_table = project(camera, glm::vec3(2.0f, 0.0f, 3.0f), w, h);
+  for (const glm::ivec2& p : {roof, ground, ground2, under_table}) {
+    ASSERT_TRUE(p.x >= 2 && p.y >= 2 && p.x < w - 2 && p.y < h - 2) << p.x << "," << p.y;
+  }
+  const double roof_share = white_share(picture, roof, 2);
+  const double ground_share = white_share(picture, ground, 2);
+  const double ground2_share = white_share(picture, ground2, 2);
+  const double under_share = white_share(picture, under_table, 1);
+  std::printf(
+      "snow-white share: roof %.2f at (%d,%d), ground %.2f at (%d,%d), %.2f at (%d,%d), "
+      "under the table %.2f at (%d,%d)\n",
+      roof_share, roof.x, roof.y, ground_share, ground.x, ground.y, ground2_share, ground2.x,
+      ground2.y, under_share, under_table.x, under_table.y);
+  EXPECT_GE(roof_share, 0.8);
+  EXPECT_GE(ground_share, 0.8);
+  EXPECT_GE(ground2_share, 0.8);
+  EXPECT_EQ(under_share, 0.0);
+  // The picture as a whole: mostly snow where the scene is.
+  int white = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) white += snow_white(picture.at(x, y));
+  EXPECT_GT(white, w * h / 10);
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace snow
