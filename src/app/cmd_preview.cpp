@@ -98,6 +98,8 @@ void register_preview(CLI::App& app, const GlobalOptions& /*global*/) {
   cmd->add_option("--frames", v.frames, "Quit after this many frames (0 = when closed)");
   cmd->add_option("--screenshot", v.screenshot,
                   "PNG of the last frame (scene and snow, no panel), written at exit");
+  cmd->add_flag("--screenshot-panel", v.screenshot_panel,
+                "The --screenshot shows the settings panel too");
   cmd->add_option("--export", v.export_path,
                   "Snow meshes at exit: .glb/.gltf (scene plus snow), .obj/.ply (snow only)");
   cmd->add_flag("--export-snow-only", v.snow_only, "Export only the snow, also to .glb/.gltf");

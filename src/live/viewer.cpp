@@ -228,8 +228,9 @@ void Viewer::handle_input(GLFWwindow* window, int fb_height) {
 
 void Viewer::draw_panel(double frame_ms) {
   ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
-  ImGui::SetNextWindowSize(ImVec2(340, 0), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSize(ImVec2(440, 0), ImGuiCond_FirstUseEver);
   ImGui::Begin("snowmodel preview");
+  ImGui::PushItemWidth(-170.0f);
   const LiveSim& sim = *sim_;
   const SnowMaps& maps = sim.maps();
   ImGui::Text("%.1f fps (%.1f ms per frame)", frame_ms > 0 ? 1000.0 / frame_ms : 0.0, frame_ms);
@@ -323,6 +324,7 @@ void Viewer::draw_panel(double frame_ms) {
   ImGui::TextDisabled(
       "drag: orbit, right/shift-drag: pan, wheel: zoom, F frame, T top,"
       " space pause, S step, R reset, H panel");
+  ImGui::PopItemWidth();
   ImGui::End();
 }
 
@@ -436,7 +438,8 @@ ViewerReport Viewer::run() {
       snow_ms_ = ms_since(t);
 
       const bool last = options_.frames > 0 && frames + 1 >= options_.frames;
-      if (want_screenshot_ || (last && !options_.screenshot.empty())) {
+      const bool shot_at_exit = last && !options_.screenshot.empty();
+      if (want_screenshot_ || (shot_at_exit && !options_.screenshot_panel)) {
         want_screenshot_ = false;
         try {
           render::write_png(read_back_buffer(fb_w, fb_h), screenshot_path_);
@@ -450,6 +453,9 @@ ViewerReport Viewer::run() {
       if (panel_) draw_panel(frame_ms);
       ImGui::Render();
       if (panel_) ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+      if (shot_at_exit && options_.screenshot_panel) {
+        render::write_png(read_back_buffer(fb_w, fb_h), screenshot_path_);
+      }
       glfwSwapBuffers(window);
 
       ++frames;

@@ -31,6 +31,7 @@ struct ViewerOptions {
   bool paused = false;            // start paused
   int frames = 0;                 // > 0: quit after this many frames (scripts, tests)
   std::string screenshot;         // PNG of the last frame (scene and snow, no panel) at exit
+  bool screenshot_panel = false;  // the screenshot at exit shows the panel too
   std::string export_path;        // snow meshes (.glb/.gltf with the scene, .obj/.ply) at exit
   bool snow_only = false;         // export the snow only, also to .glb/.gltf
   std::vector<uint8_t> receives;  // per scene object: 0 = no fresh snow (may be empty)
