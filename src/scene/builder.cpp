@@ -765,4 +765,38 @@ SceneBuilder make_courtyard() {
   return b;
 }
 
+SceneBuilder make_terrain(int triangles) {
+  SceneBuilder builder;
+  const int quads_side = std::max(2, int(std::sqrt(double(std::max(triangles, 300) - 200) / 2.0)));
+  const float size = 100.0f;
+  std::vector<glm::vec3> positions;
+  std::vector<uint32_t> indices;
+  positions.reserve(size_t(quads_side + 1) * size_t(quads_side + 1));
+  for (int j = 0; j <= quads_side; ++j) {
+    for (int i = 0; i <= quads_side; ++i) {
+      const float x = -size / 2 + size * float(i) / float(quads_side);
+      const float z = -size / 2 + size * float(j) / float(quads_side);
+      const float y =
+          1.5f * std::sin(x * 0.11f) * std::cos(z * 0.07f) + 0.3f * std::sin(x * 0.9f + z * 0.6f);
+      positions.push_back({x, y, z});
+    }
+  }
+  const uint32_t row = uint32_t(quads_side + 1);
+  for (int j = 0; j < quads_side; ++j) {
+    for (int i = 0; i < quads_side; ++i) {
+      const uint32_t a = uint32_t(j) * row + uint32_t(i);
+      indices.insert(indices.end(), {a, a + row, a + row + 1, a, a + row + 1, a + 1});
+    }
+  }
+  builder.add_mesh("Terrain", positions, indices);
+  for (int k = 0; k < 8; ++k) {
+    const float x = -40.0f + 11.0f * float(k), z = 10.0f * std::sin(float(k));
+    builder.add_box("Table" + std::to_string(k), {x - 1.5f, 2.5f, z - 1.0f},
+                    {x + 1.5f, 2.6f, z + 1.0f});
+    builder.add_box("Wall" + std::to_string(k), {x - 3.0f, -2.0f, z + 4.0f},
+                    {x + 3.0f, 4.0f, z + 4.3f});
+  }
+  return builder;
+}
+
 }  // namespace snow

@@ -281,4 +281,11 @@ Scene make_bowl_scene(const BowlDims& dims = {});
 ///   Lamp: "LampPole" (at (4, -4), 3 m), "LampHead" (y [3, 3.35]).
 SceneBuilder make_courtyard();
 
+/// A benchmark scene of about `triangles` triangles (>= 300): a rolling
+/// terrain "Terrain" over 100 x 100 m (heights within +-1.8 m) as a regular
+/// grid, with 8 table tops "Table<k>" (3 x 2 m at y 2.5..2.6) and 8 walls
+/// "Wall<k>" (6 m long, 6 m high) standing on it: many small triangles, a
+/// few occluders.
+SceneBuilder make_terrain(int triangles);
+
 }  // namespace snow
