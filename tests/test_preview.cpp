@@ -16,8 +16,13 @@
 
 #include <glm/glm.hpp>
 
+#include "core/error.h"
+#include "gl/context.h"
+#include "live/live_sim.h"
 #include "live/orbit.h"
+#include "live/snow_view.h"
 #include "render/camera.h"
+#include "scene/builder.h"
 #include "scene/load_gltf.h"
 
 namespace snow {
@@ -93,6 +98,103 @@ glm::ivec2 project(const render::PreviewCamera& camera, const glm::vec3& p, int 
   const glm::vec4 clip = camera.view_projection() * glm::vec4(p, 1.0f);
   const glm::vec2 ndc = glm::vec2(clip) / clip.w;
   return glm::ivec2(int((ndc.x * 0.5f + 0.5f) * float(w)), int((0.5f - ndc.y * 0.5f) * float(h)));
+}
+
+TEST(OrbitView, StartsAsTheRenderOrbitCameraAndMoves) {
+  Bounds bounds;
+  bounds.extend(glm::vec3(-3, 0, -2));
+  bounds.extend(glm::vec3(5, 4, 6));
+  live::OrbitView view;
+  view.azimuth = 30;
+  view.elevation = 25;
+  view.frame(bounds, 1.5f);
+  const render::PreviewCamera a = view.camera(bounds, 1.5f);
+  const render::PreviewCamera b = render::orbit_camera(bounds, 30, 25, 1.5f, 35.0f, view.margin);
+  EXPECT_LT(glm::length(a.eye - b.eye), 1e-4f);
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) EXPECT_NEAR(a.view[c][r], b.view[c][r], 1e-4f);
+  const float d = view.distance;
+  view.zoom(1);
+  EXPECT_NEAR(view.distance, 0.9f * d, 1e-4f);
+  view.orbit(100, 1000);  // clamps the elevation
+  EXPECT_LE(view.elevation, 89.0f);
+  const glm::vec3 target = view.target;
+  view.pan(10, 0, 800);
+  EXPECT_GT(glm::length(view.target - target), 0.0f);
+  EXPECT_NEAR(view.target.y, target.y, 1e-4f);  // looking down steeply, a sideways pan stays level
+  view.top = true;
+  EXPECT_TRUE(view.camera(bounds, 1.5f).orthographic);
+}
+
+TEST(SnowView, AutoStrideKeepsTheDrawnGridSmall) {
+  EXPECT_EQ(live::auto_stride(512, 300), 1);
+  EXPECT_EQ(live::auto_stride(768, 768), 1);
+  EXPECT_EQ(live::auto_stride(1024, 1024), 2);
+  EXPECT_EQ(live::auto_stride(4096, 100), 6);
+}
+
+// The live snowfall on a table (headless context): snow accumulates frame
+// by frame, mass is conserved (lying + lost = fallen), none lies under the
+// table, and the panel's changes (repose, coverage, re-peel) keep a
+// consistent state.
+TEST(LiveSim, TableSnowfallConservesMassAndShelters) {
+  auto context = gl::create_context();
+  const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
+  live::LiveSettings settings;
+  settings.peel.max_side = 64;
+  settings.peel.layers = 4;
+  settings.coverage.directions = 16;
+  settings.total_depth = 0.2f;
+  settings.fall_rate = 1.5f;  // 0.05 m per frame: all of it in 4 frames
+  settings.passes_per_frame = 32;
+  live::LiveSim sim(scene, settings);
+  const SnowMaps& maps = sim.maps();
+  for (int f = 0; f < 12; ++f) sim.step();
+  EXPECT_EQ(sim.frame(), 12);
+  EXPECT_FLOAT_EQ(sim.fallen_depth(), 0.2f);
+  const std::vector<float> depth = sim.depth();
+  const double lying = snow_volume(maps, depth), lost = sim.stabilizer().lost_volume();
+  EXPECT_GT(sim.fallen_volume(), 0.5 * 16 * 0.2);
+  EXPECT_NEAR(lying + lost, sim.fallen_volume(), 1e-3 * sim.fallen_volume());
+  // Under the table's middle: the floor (lowest layer with a surface) is bare;
+  // open floor far from the table carries about the fallen depth.
+  const int ci = int((0.0f - maps.grid.origin.x) / maps.grid.texel);
+  const int cj = int((0.0f - maps.grid.origin.y) / maps.grid.texel);
+  int floor_layer = -1;
+  for (int l = 0; l < maps.layers; ++l)
+    if (maps.has_surface(l, ci, cj)) floor_layer = l;
+  ASSERT_GE(floor_layer, 1);
+  EXPECT_LT(depth[maps.index(floor_layer, ci, cj)], 1e-3f);
+  const int oi = int((1.7f - maps.grid.origin.x) / maps.grid.texel);
+  EXPECT_NEAR(depth[maps.index(0, oi, cj)], 0.2f, 0.03f);
+
+  // Repose change: the snow is kept. Coverage change: recomputed.
+  live::LiveSettings changed = settings;
+  changed.stabilize.repose_deg = 35.0f;
+  const uint64_t coverage_version = sim.coverage_version();
+  sim.apply(changed);
+  EXPECT_NEAR(snow_volume(maps, sim.depth()), lying, 1e-3 * lying);
+  changed.coverage.flutter_deg = 25.0f;
+  sim.apply(changed);
+  EXPECT_GT(sim.coverage_version(), coverage_version);
+  // A bad setting is refused and the state kept.
+  live::LiveSettings bad = changed;
+  bad.fall_rate = -1.0f;
+  EXPECT_THROW(sim.apply(bad), InputError);
+  EXPECT_FLOAT_EQ(sim.settings().fall_rate, changed.fall_rate);
+  // Re-peel at another texel size restarts the snow.
+  const uint64_t maps_version = sim.maps_version();
+  changed.peel.max_side = 48;
+  sim.apply(changed);
+  EXPECT_GT(sim.maps_version(), maps_version);
+  EXPECT_EQ(sim.maps().grid.width, 48);
+  EXPECT_EQ(sim.fallen_depth(), 0.0f);
+  EXPECT_EQ(snow_volume(sim.maps(), sim.depth()), 0.0);
+  sim.step();
+  EXPECT_GT(snow_volume(sim.maps(), sim.depth()), 0.0);
+  sim.reset();
+  EXPECT_EQ(snow_volume(sim.maps(), sim.depth()), 0.0);
+  EXPECT_EQ(sim.frame(), 0);
 }
 
 TEST(Preview, RejectsBadSizeBeforeOpeningAWindow) {
