@@ -1,6 +1,10 @@
 #version 450 core
-// The stabilizer's tiled passes: one quad (6 vertices) per instance over
-// active tile tiles[gl_InstanceID] (stabilize_tiles.comp), clipped to the map.
+// The stabilizer's tiled passes: one point of u_tile pixels per instance,
+// covering active tile tiles[gl_InstanceID] (stabilize_tiles.comp). A square
+// point, not two triangles: a rasterizer that shades 4x4 blocks would shade
+// the blocks on a quad's diagonal twice. The viewport spans whole tiles
+// (u_viewport), so the points of the tiles at the map's far edges keep their
+// centres inside it; the scissor keeps the fragments on the map.
 #include "bindings.h"
 
 layout(std430, binding = SNOW_STABILIZE_TILE_LIST) readonly buffer TileList {
@@ -8,15 +12,13 @@ layout(std430, binding = SNOW_STABILIZE_TILE_LIST) readonly buffer TileList {
   uint tiles[];  // x | y << 16
 };
 
-uniform ivec2 u_size;  // map width, height (texels)
-uniform int u_tile;    // texels per tile side
-
-const ivec2 kCorner[6] =
-    ivec2[6](ivec2(0, 0), ivec2(1, 0), ivec2(0, 1), ivec2(0, 1), ivec2(1, 0), ivec2(1, 1));
+uniform ivec2 u_viewport;  // texels, tiles per row and column times u_tile
+uniform int u_tile;        // texels per tile side
 
 void main() {
   uint packed_tile = tiles[gl_InstanceID];
   ivec2 t = ivec2(int(packed_tile & 0xffffu), int(packed_tile >> 16));
-  vec2 p = vec2(min((t + kCorner[gl_VertexID]) * u_tile, u_size)) / vec2(u_size);
-  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+  vec2 centre = (vec2(t) + 0.5) * float(u_tile);
+  gl_Position = vec4(centre / vec2(u_viewport) * 2.0 - 1.0, 0.0, 1.0);
+  gl_PointSize = float(u_tile);
 }

@@ -5,12 +5,14 @@
 //   snowmodel_bench_stabilize [--scene courtyard|house60|house30] [--side N]
 //                             [--layers L] [--max-stride S] [--passes P]
 //                             [--tiles on|off] [--count-tiles on|off]
-//                             [--max-iterations N]
+//                             [--max-iterations N] [--route on|off]
 // With --passes P, runs exactly P passes (tolerance 0) to time them;
 // otherwise runs to convergence (default settings). --tiles off computes
 // every texel in every pass (StabilizeSettings::active_tiles = false).
 // Relaxation time is reported without the routing that runs at the
-// convergence checks (reported apart).
+// convergence checks (reported apart). --route off skips the routing
+// (StabilizeSettings::route_steep = false), to time passes on maps too large
+// to route with full passes.
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -55,6 +57,8 @@ int main(int argc, char** argv) {
       settings.max_iterations = std::atoi(value);
     else if (key == "--tiles")
       settings.active_tiles = std::strcmp(value, "off") != 0;
+    else if (key == "--route")
+      settings.route_steep = std::strcmp(value, "off") != 0;
     else if (key == "--count-tiles")
       settings.count_tiles = std::strcmp(value, "off") != 0;
     else {

@@ -333,6 +333,9 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     p->set("u_tile", kTile);
   }
   tile_select.set("u_tiles", glm::ivec2(tiles_x, tiles_y));
+  for (const gl::Program* p : {&outflow_tiled, &gather_tiled, &erode_tiled}) {
+    p->set("u_viewport", glm::ivec2(tiles_x * kTile, tiles_y * kTile));
+  }
   residual.set("u_block", kReduceBlock);
   release_bindings();
   gl::check_error("stabilize: set-up");
@@ -366,26 +369,26 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
 // Active tiles. Late in a relaxation only the pile edges still move, so the
 // outflow and gather passes (and the routing's erosion passes) draw only the
 // tiles (kTile x kTile columns, all layers) that may change, as instanced
-// quads from a list built on the GPU (stabilize_tiles.comp, an indirect draw,
-// no readback). The gather, apply and erosion passes stamp the tiles where a
-// texel sent snow or changed with the pass index. A relaxation pass of
-// stride s computes a tile when a tile within ceil(2 s / kTile) tiles (what
-// its outflow reads, and what its inflow's outflow reads) was stamped at or
-// after the last pass of stride s. A skipped tile is exact: its inputs are
-// those of that last pass of the same stride, which moved no snow there, so
-// its outflow is zero again (the outflow textures still hold the zeros of
-// the last pass that computed it: a tile that moved snow is computed in the
-// next pass) and its depth stays; both ping-pong depth textures hold the
-// same depth there (it was computed and unchanged, or skipped, in the pass
-// before). The residual reads those zeros and that depth, so it is exact too.
-// After set_depth, add_snow and the first routing every stride's first pass
-// computes all tiles; routing between passes stamps what it changed and
-// clears the outflow textures (the routing uses them as scratch). Erosion
-// passes compute the tiles within one tile of a tile the previous erosion
-// pass changed; no such tile ends the erosion (the same pass count as the
-// occlusion-query check of the full passes).
+// points of kTile pixels (one square per tile) from a list built on the GPU
+// (stabilize_tiles.comp, an indirect draw, no readback). The gather, apply and
+// erosion passes stamp the tiles where a texel sent snow or changed with the
+// pass index. A relaxation pass of stride s computes a tile when a tile within
+// ceil(2 s / kTile) tiles (what its outflow reads, and what its inflow's
+// outflow reads) was stamped at or after the last pass of stride s. A skipped
+// tile is exact: its inputs are those of that last pass of the same stride,
+// which moved no snow there, so its outflow is zero again (the outflow textures
+// still hold the zeros of the last pass that computed it: a tile that moved
+// snow is computed in the next pass) and its depth stays; both ping-pong depth
+// textures hold the same depth there (it was computed and unchanged, or
+// skipped, in the pass before). The residual reads those zeros and that depth,
+// so it is exact too. After set_depth, add_snow and the first routing every
+// stride's first pass computes all tiles; routing between passes stamps what it
+// changed and clears the outflow textures (the routing uses them as scratch).
+// Erosion passes compute the tiles within one tile of a tile the previous
+// erosion pass changed; no such tile ends the erosion (the same pass count as
+// the occlusion-query check of the full passes).
 void Stabilizer::Impl::select_tiles(const gl::Texture& stamps, int reach, int since, bool all) {
-  const GLuint command[4] = {6, 0, 0, 0};  // 6 vertices per tile quad, no instances yet
+  const GLuint command[4] = {1, 0, 0, 0};  // one point per tile, no instances yet
   glNamedBufferSubData(tile_list.id(), 0, sizeof(command), command);
   glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);  // the stamps of the passes before
   bind_changed(stamps);
@@ -413,7 +416,8 @@ void Stabilizer::Impl::tiled_layers(const gl::Program& program,
   glBindVertexArray(vao.id());
   glBindBuffer(GL_DRAW_INDIRECT_BUFFER, tile_list.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_TILE_LIST, tile_list.id());
-  glViewport(0, 0, width, height);
+  glViewport(0, 0, tiles_x * kTile, tiles_y * kTile);
+  glEnable(GL_PROGRAM_POINT_SIZE);
   glEnable(GL_SCISSOR_TEST);
   for (int l = 0; l < layers; ++l) {
     const glm::ivec4 r = rect[size_t(l)];
@@ -421,9 +425,10 @@ void Stabilizer::Impl::tiled_layers(const gl::Program& program,
     program.set("u_layer", l);
     glScissor(r.x, r.y, r.z, r.w);
     glBindFramebuffer(GL_FRAMEBUFFER, fbos[size_t(l)].id());
-    glDrawArraysIndirect(GL_TRIANGLES, nullptr);
+    glDrawArraysIndirect(GL_POINTS, nullptr);
   }
   glDisable(GL_SCISSOR_TEST);
+  glDisable(GL_PROGRAM_POINT_SIZE);
   glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
 }
 
