@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -14,24 +15,92 @@ namespace snow {
 namespace fs = std::filesystem;
 
 namespace {
+
+// Temporary files being written, so that SIGINT/SIGTERM/SIGHUP can remove them
+// before the process dies (SIGKILL cannot be caught: a killed run may leave
+// a ".<name>.tmp<pid>_<n>" file, never a partial file under the target name).
+// The handler only reads these slots and calls unlink(2) (async-signal-safe).
+constexpr int kTempSlots = 16;
+constexpr size_t kTempPathMax = 4096;
+char g_temp_paths[kTempSlots][kTempPathMax];
+std::atomic<bool> g_temp_used[kTempSlots];
+std::atomic<bool> g_temp_claimed[kTempSlots];
+
+extern "C" void remove_temporaries_and_reraise(int signal_number) {
+  for (int i = 0; i < kTempSlots; ++i) {
+    if (g_temp_used[i].load()) unlink(g_temp_paths[i]);
+  }
+  std::signal(signal_number, SIG_DFL);
+  std::raise(signal_number);
+}
+
+/// Installs the cleanup handler for the signals still at their default
+/// action (a program's own handlers are left alone). Once per process.
+void install_signal_cleanup() {
+  static const bool installed = [] {
+    for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
+      struct sigaction old {};
+      if (sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_DFL) {
+        struct sigaction action {};
+        action.sa_handler = remove_temporaries_and_reraise;
+        sigemptyset(&action.sa_mask);
+        sigaction(sig, &action, nullptr);
+      }
+    }
+    return true;
+  }();
+  (void)installed;
+}
+
+/// Registers `tmp` for removal on a signal while alive.
+class TempRegistration {
+ public:
+  explicit TempRegistration(const fs::path& tmp) {
+    install_signal_cleanup();
+    const std::string& text = tmp.native();
+    if (text.size() >= kTempPathMax) return;
+    for (int i = 0; i < kTempSlots; ++i) {
+      bool expected = false;
+      if (g_temp_claimed[i].compare_exchange_strong(expected, true)) {
+        std::memcpy(g_temp_paths[i], text.c_str(), text.size() + 1);
+        g_temp_used[i].store(true);
+        slot_ = i;
+        return;
+      }
+    }
+  }
+  ~TempRegistration() {
+    if (slot_ < 0) return;
+    g_temp_used[slot_].store(false);
+    g_temp_claimed[slot_].store(false);
+  }
+  TempRegistration(const TempRegistration&) = delete;
+  TempRegistration& operator=(const TempRegistration&) = delete;
+
+ private:
+  int slot_ = -1;
+};
+
 fs::path temporary_name(const fs::path& path) {
   static std::atomic<unsigned> counter{0};
-  return path.parent_path() /
-         ("." + path.filename().string() + ".tmp" + std::to_string(getpid()) + "_" +
-          std::to_string(counter++));
+  return path.parent_path() / ("." + path.filename().string() + ".tmp" + std::to_string(getpid()) +
+                               "_" + std::to_string(counter++));
 }
 }  // namespace
 
-void write_file_atomically(const fs::path& path, const std::function<void(const fs::path&)>& write) {
+void write_file_atomically(const fs::path& path,
+                           const std::function<void(const fs::path&)>& write) {
   const fs::path folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
   std::error_code ec;
   if (!fs::is_directory(folder, ec)) {
-    throw IOError("cannot write " + path.string() + ": folder " + folder.string() + " does not exist");
+    throw IOError("cannot write " + path.string() + ": folder " + folder.string() +
+                  " does not exist");
   }
   if (fs::is_directory(path, ec)) {
     throw IOError("cannot write " + path.string() + ": it is a folder");
   }
   const fs::path tmp = temporary_name(path.parent_path().empty() ? fs::path(".") / path : path);
+  const TempRegistration registration(tmp);
   try {
     write(tmp);
   } catch (...) {

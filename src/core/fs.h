@@ -12,7 +12,10 @@ namespace snow {
 /// target's folder, then renames it onto `path` (atomic on POSIX). If write
 /// throws, or the rename fails, the temporary file is removed and the target
 /// is left untouched. Throws IOError naming `path` when the folder is not
-/// writable.
+/// writable. While write runs, SIGINT, SIGTERM and SIGHUP (when still at
+/// their default action) remove the temporary file before the process dies;
+/// a SIGKILL can leave the temporary ".<name>.tmp<pid>_<n>" behind, never a
+/// partial file under `path`.
 void write_file_atomically(const std::filesystem::path& path,
                            const std::function<void(const std::filesystem::path& tmp_path)>& write);
 

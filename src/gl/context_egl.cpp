@@ -136,20 +136,30 @@ class EglContext final : public Context {
     }
 
     std::string last_error;
+    // Ask for reset notification first (EGL 1.5 / EGL_EXT_create_context_robustness),
+    // so that a GPU reset shows as glGetGraphicsResetStatus != GL_NO_ERROR
+    // (gl::check_error turns it into a GLError); fall back to a plain context.
     for (EGLint minor : {5, 4, 3}) {
-      std::vector<EGLint> attribs = {
-          EGL_CONTEXT_MAJOR_VERSION,       4,
-          EGL_CONTEXT_MINOR_VERSION,       minor,
-          EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT};
-      if (want_debug(options)) {
-        attribs.push_back(EGL_CONTEXT_OPENGL_DEBUG);
-        attribs.push_back(EGL_TRUE);
+      for (bool robust : {true, false}) {
+        std::vector<EGLint> attribs = {
+            EGL_CONTEXT_MAJOR_VERSION,       4,
+            EGL_CONTEXT_MINOR_VERSION,       minor,
+            EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT};
+        if (want_debug(options)) {
+          attribs.push_back(EGL_CONTEXT_OPENGL_DEBUG);
+          attribs.push_back(EGL_TRUE);
+        }
+        if (robust) {
+          attribs.push_back(EGL_CONTEXT_OPENGL_RESET_NOTIFICATION_STRATEGY);
+          attribs.push_back(EGL_LOSE_CONTEXT_ON_RESET);
+        }
+        attribs.push_back(EGL_NONE);
+        context_ = eglCreateContext(display_, config ? config : EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT,
+                                    attribs.data());
+        if (context_ != EGL_NO_CONTEXT) break;
+        last_error = egl_error();
       }
-      attribs.push_back(EGL_NONE);
-      context_ = eglCreateContext(display_, config ? config : EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT,
-                                  attribs.data());
       if (context_ != EGL_NO_CONTEXT) break;
-      last_error = egl_error();
     }
     if (context_ == EGL_NO_CONTEXT) {
       throw GLError("eglCreateContext for OpenGL 4.3+ core failed (" + last_error + ")");

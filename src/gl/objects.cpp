@@ -1,6 +1,9 @@
 // RAII GL object creators and GL error checks.
 #include "gl/objects.h"
 
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
 #include <string>
 
 #include "core/error.h"
@@ -76,15 +79,97 @@ void set_nearest_clamp(GLuint texture) {
   glTextureParameteri(texture, GL_TEXTURE_WRAP_R, GL_CLAMP_TO_EDGE);
 }
 
+// Test-only fault injection (tests/test_hostile.cpp): SNOWMODEL_FAULT=
+// "gl-alloc[:WHERE]" makes one GL error check report GL_OUT_OF_MEMORY;
+// "context-loss[:WHERE]" makes it and every later check report a lost
+// context. WHERE is a number N (the N-th check of the process; default 1) or
+// a word (the first check whose label contains it: "coverage", "stabilize",
+// "preview"). Read once per process.
+struct Fault {
+  enum Kind { None, Alloc, ContextLoss } kind = None;
+  long at = 1;        // N-th check, when where is empty
+  std::string where;  // label substring
+};
+
+const Fault& injected_fault() {
+  static const Fault fault = [] {
+    Fault f;
+    const char* env = std::getenv("SNOWMODEL_FAULT");
+    if (!env || !*env) return f;
+    const std::string text = env;
+    const size_t colon = text.find(':');
+    const std::string name = text.substr(0, colon);
+    if (name == "gl-alloc") f.kind = Fault::Alloc;
+    if (name == "context-loss") f.kind = Fault::ContextLoss;
+    if (colon != std::string::npos) {
+      const std::string arg = text.substr(colon + 1);
+      if (!arg.empty() && arg.find_first_not_of("0123456789") == std::string::npos) {
+        f.at = std::max(1L, std::atol(arg.c_str()));
+      } else {
+        f.where = arg;
+      }
+    }
+    return f;
+  }();
+  return fault;
+}
+
+/// True when the injected fault fires at this check (`what` is its label).
+bool fault_fires(const Fault& fault, const char* what) {
+  static long checks = 0;
+  static bool fired = false;
+  ++checks;
+  if (fired) return fault.kind == Fault::ContextLoss;  // a lost context stays lost
+  fired =
+      fault.where.empty() ? checks >= fault.at : std::strstr(what, fault.where.c_str()) != nullptr;
+  return fired;
+}
+
+const char* reset_status_name(GLenum status) {
+  switch (status) {
+    case GL_GUILTY_CONTEXT_RESET:
+      return "GL_GUILTY_CONTEXT_RESET";
+    case GL_INNOCENT_CONTEXT_RESET:
+      return "GL_INNOCENT_CONTEXT_RESET";
+    case GL_UNKNOWN_CONTEXT_RESET:
+      return "GL_UNKNOWN_CONTEXT_RESET";
+    default:
+      return "unknown reset";
+  }
+}
+
+[[noreturn]] void throw_context_lost(const char* what, const char* why) {
+  throw GLError(std::string("OpenGL context lost during ") + what + " (" + why +
+                "): the GPU or its driver was reset; run again");
+}
+
 }  // namespace
 
 void check_error(const char* what) {
+  const Fault& fault = injected_fault();
+  if (fault.kind != Fault::None && fault_fires(fault, what)) {
+    if (fault.kind == Fault::ContextLoss) throw_context_lost(what, "injected by SNOWMODEL_FAULT");
+    throw GLError(std::string(what) +
+                  ": out of GPU memory (GL_OUT_OF_MEMORY, injected by SNOWMODEL_FAULT); use a "
+                  "coarser --texel, fewer --layers or --directions");
+  }
   GLenum error = glGetError();
+  // With a robust context (context_egl.cpp asks for one) a reset shows here.
+  const GLenum reset = glGetGraphicsResetStatus ? glGetGraphicsResetStatus() : GL_NO_ERROR;
+  if (reset != GL_NO_ERROR) throw_context_lost(what, reset_status_name(reset));
   if (error == GL_NO_ERROR) return;
   std::string names;
+  bool out_of_memory = false, lost = false;
   for (int i = 0; error != GL_NO_ERROR && i < 16; ++i, error = glGetError()) {
     if (!names.empty()) names += ", ";
     names += error_name(error);
+    out_of_memory |= error == GL_OUT_OF_MEMORY;
+    lost |= error == GL_CONTEXT_LOST;
+  }
+  if (lost) throw_context_lost(what, names.c_str());
+  if (out_of_memory) {
+    throw GLError(std::string(what) + ": out of GPU memory (" + names +
+                  "); use a coarser --texel, fewer --layers or --directions");
   }
   throw GLError(std::string(what) + ": " + names);
 }
