@@ -119,11 +119,15 @@ void register_preview(CLI::App& app, const GlobalOptions& /*global*/) {
       ->capture_default_str();
   cmd->add_option("--frame-time", v.sim.frame_time, "Simulated seconds per frame")
       ->capture_default_str();
+  cmd->add_option("--add-every", v.sim.add_every,
+                  "Add snow every N frames, N frames' worth at once (cheaper on slow GPUs)")
+      ->capture_default_str();
   cmd->add_option("--passes-per-frame", v.sim.passes_per_frame,
                   "Stabilizer relaxation passes per frame")
       ->capture_default_str();
   cmd->add_option("--snow-stride", v.snow_stride,
-                  "Texels between drawn snow grid vertices (0 = automatic, at most 768 per side)")
+                  "Texels between drawn snow grid vertices (0 = automatic: at most 768 per side, "
+                  "256 on a software renderer)")
       ->capture_default_str();
   cmd->add_option("--flakes", v.view.flakes, "Falling flakes drawn (0 = none)")
       ->capture_default_str();

@@ -49,6 +49,8 @@ void check(const LiveSettings& s) {
     throw InputError("frame time must be between 0 and 3600 s");
   if (s.passes_per_frame < 0 || s.passes_per_frame > 100000)
     throw InputError("stabilizer passes per frame must be between 0 and 100000");
+  if (s.add_every < 1 || s.add_every > 100000)
+    throw InputError("snow addition interval must be between 1 and 100000 frames");
   if (s.snow_on_snow_every < 0)
     throw InputError("snow-on-snow interval must be 0 (off) or a positive number of frames");
   fall_directions(s.coverage);             // throws InputError for bad coverage settings
@@ -104,8 +106,11 @@ void LiveSim::step() {
     compute_coverage(&lying);
   }
   auto start = Clock::now();
+  const bool adds = frame_ % settings_.add_every == 0;
   const float amount =
-      std::min(settings_.fall_rate * settings_.frame_time, settings_.total_depth - fallen_depth_);
+      adds ? std::min(float(settings_.add_every) * settings_.fall_rate * settings_.frame_time,
+                      settings_.total_depth - fallen_depth_)
+           : 0.0f;
   if (amount > 0.0f) {
     stabilizer_->add_snow(coverage_, amount);
     fallen_depth_ += amount;
@@ -113,7 +118,9 @@ void LiveSim::step() {
   }
   timings_.add = seconds_since(start);
   start = Clock::now();
-  last_ = stabilizer_->iterate(settings_.passes_per_frame);
+  if (amount > 0.0f || !last_.converged) {
+    last_ = stabilizer_->iterate(settings_.passes_per_frame);
+  }  // else: nothing fell and the snow is at rest; passes would move nothing
   timings_.stabilize = seconds_since(start);
   log_debug("live frame " + std::to_string(frame_) + ": add " + std::to_string(timings_.add) +
             " s, stabilize " + std::to_string(timings_.stabilize) + " s (" +
@@ -145,6 +152,7 @@ void LiveSim::apply(const LiveSettings& settings) {
       auto stabilizer = std::make_unique<Stabilizer>(maps_, settings_.stabilize);
       stabilizer->set_depth(lying);
       stabilizer_ = std::move(stabilizer);
+      last_.converged = false;
     }
     if (!same(old.coverage, settings.coverage)) {
       if (settings_.snow_on_snow_every > 0) {

@@ -24,9 +24,11 @@ struct LiveSettings {
   float total_depth = 0.3f;     // metres of fresh snow on open flat ground; snowfall stops there
   float fall_rate = 0.05f;      // metres of fresh snow per simulated second on open flat ground
   float frame_time = 1.0f / 30.0f;  // simulated seconds per frame (fixed: same frames, same snow)
-  int passes_per_frame = 16;        // stabilizer relaxation passes per frame (>= 0)
-  int snow_on_snow_every = 0;       // frames between coverage updates that include the lying snow
-                                    // (drifts shade what lies behind them); 0 = off
+  int add_every = 1;  // frames between snow additions, each adding that many frames' worth
+                      // (routing runs after each addition: fewer, larger additions cost less)
+  int passes_per_frame = 4;    // stabilizer relaxation passes per frame (>= 0)
+  int snow_on_snow_every = 0;  // frames between coverage updates that include the lying snow
+                               // (drifts shade what lies behind them); 0 = off
 };
 
 /// Wall seconds of the work of the last frame, by stage (with glFinish at
@@ -43,7 +45,8 @@ struct LiveTimings {
 /// construction to be current in every call, including destruction.
 class LiveSim {
  public:
-  /// Peels the maps, computes the coverage and starts with no snow.
+  /// Peels the maps, computes the coverage and starts with no snow. Keeps a
+  /// reference to `scene`, which must outlive the LiveSim.
   /// `receives[object]` == 0 keeps fresh snow off that object (may be empty).
   /// Throws InputError for bad settings, GLError for GL trouble.
   LiveSim(const Scene& scene, const LiveSettings& settings, std::vector<uint8_t> receives = {});
@@ -51,10 +54,10 @@ class LiveSim {
   LiveSim(const LiveSim&) = delete;
   LiveSim& operator=(const LiveSim&) = delete;
 
-  /// One frame: adds min(fall_rate * frame_time, what is left of
-  /// total_depth) metres times the coverage, recomputes the coverage with
-  /// the lying snow when snow_on_snow_every says so, and runs
-  /// passes_per_frame stabilizer passes.
+  /// One frame: every add_every frames adds min(add_every * fall_rate *
+  /// frame_time, what is left of total_depth) metres times the coverage, recomputes the coverage
+  /// with the lying snow when snow_on_snow_every says so, and runs passes_per_frame stabilizer
+  /// passes (none once nothing falls and the last passes converged: the snow is at rest).
   void step();
   /// Removes all snow; the fallen depth and frame count restart at 0.
   void reset();

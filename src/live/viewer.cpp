@@ -100,6 +100,7 @@ class Viewer {
   Viewer(const Scene& scene, const ViewerOptions& options)
       : scene_(scene), options_(options), pending_(options.sim), view_settings_(options.view) {
     paused_ = options.paused;
+    stride_setting_ = options.snow_stride;
     panel_ = options.panel;
     std::snprintf(export_path_, sizeof export_path_, "%s",
                   options.export_path.empty() ? "snow_preview.glb" : options.export_path.c_str());
@@ -130,7 +131,9 @@ class Viewer {
   Input input_;
   LiveSettings pending_;  // edited by the panel, applied on release
   SnowViewSettings view_settings_;
-  int stride_ = 1;
+  int stride_ = 1;          // texels between drawn snow grid vertices, in use
+  int stride_setting_ = 0;  // the panel's (0 = automatic)
+  bool software_ = false;   // a software renderer (llvmpipe): automatic stride draws less
   uint64_t maps_version_ = 0, coverage_version_ = 0;
   bool paused_ = false, step_once_ = false, panel_ = true;
   bool want_screenshot_ = false, want_frame_ = false;
@@ -146,9 +149,9 @@ class Viewer {
 
 void Viewer::sync_view() {
   if (sim_->maps_version() != maps_version_) {
-    stride_ = options_.snow_stride > 0
-                  ? options_.snow_stride
-                  : auto_stride(sim_->maps().grid.width, sim_->maps().grid.height);
+    stride_ = stride_setting_ > 0 ? stride_setting_
+                                  : auto_stride(sim_->maps().grid.width, sim_->maps().grid.height,
+                                                software_ ? 256 : 768);
     snow_->set_maps(sim_->maps(), stride_);
     maps_version_ = sim_->maps_version();
     coverage_version_ = 0;
@@ -261,6 +264,7 @@ void Viewer::draw_panel(double frame_ms) {
   cheap |= ImGui::SliderFloat("fall rate m/s", &pending_.fall_rate, 0.0f, 0.5f, "%.3f");
   cheap |= ImGui::SliderFloat("total depth m", &pending_.total_depth, 0.0f, 2.0f, "%.2f");
   cheap |= ImGui::SliderInt("passes/frame", &pending_.passes_per_frame, 0, 256);
+  cheap |= ImGui::SliderInt("add snow every", &pending_.add_every, 1, 60);
   cheap |= ImGui::SliderInt("snow on snow every", &pending_.snow_on_snow_every, 0, 300);
   if (cheap) apply_pending();
 
@@ -294,6 +298,11 @@ void Viewer::draw_panel(double frame_ms) {
   if (view_settings_.overlay == Overlay::Depth)
     ImGui::SliderFloat("depth ramp max m", &view_settings_.depth_ramp_max, 0.01f, 3.0f, "%.2f");
   ImGui::SliderInt("flakes", &view_settings_.flakes, 0, 50000);
+  ImGui::SliderInt("snow grid stride (0 auto)", &stride_setting_, 0, 8);
+  if (ImGui::IsItemDeactivatedAfterEdit()) {
+    maps_version_ = 0;  // rebuild the grid
+    sync_view();
+  }
 
   ImGui::Separator();
   ImGui::InputText("##export", export_path_, sizeof export_path_);
@@ -336,7 +345,10 @@ ViewerReport Viewer::run() {
   context_options.title =
       "snowmodel preview - " + std::filesystem::path(options_.input).filename().string();
   auto context = gl::create_context(context_options);
-  log_info("OpenGL: " + context->description());
+  const std::string description = context->description();
+  log_info("OpenGL: " + description);
+  for (const char* name : {"llvmpipe", "softpipe", "swrast", "SwiftShader"})
+    software_ = software_ || description.find(name) != std::string::npos;
   GLFWwindow* window = static_cast<GLFWwindow*>(context->native_window());
   glfwSetWindowUserPointer(window, &input_);
   glfwSetScrollCallback(window, on_scroll);
