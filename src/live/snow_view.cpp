@@ -106,7 +106,7 @@ void SnowView::draw(const render::PreviewCamera& camera, const render::PreviewSe
   p.set("u_size", glm::ivec2(g.grid.width, g.grid.height));
   p.set("u_origin", g.grid.origin);
   p.set("u_texel", g.grid.texel);
-  p.set("u_min_depth", settings.min_depth);
+  p.set("u_min_depth", std::min(settings.min_depth, 0.05f * g.grid.texel));
   p.set("u_lift", g.lift);
   const int overlay = int(settings.overlay);
   p.set("u_overlay", overlay);

@@ -22,7 +22,7 @@ enum class Overlay { None, Coverage, Depth };
 struct SnowViewSettings {
   Overlay overlay = Overlay::None;
   float depth_ramp_max = 0.5f;  // metres of depth at the top of the depth overlay's colour ramp
-  float min_depth = 0.002f;     // metres: thinner snow is drawn as bare
+  float min_depth = 0.002f;     // metres: thinner snow is drawn as bare (at most 5 % of a texel)
   glm::vec3 snow_color{0.92f, 0.94f, 0.97f};  // linear albedo of snow
   int flakes = 3000;                          // falling flakes drawn (0 = none)
   float flake_size = 2.0f;                    // pixels
