@@ -221,7 +221,9 @@ TEST(Preview, CourtyardScreenshotHasSnowOnRoofAndGroundNoneUnderTheTable) {
       "--depth 0.3 --flakes 0 --azimuth 0 --elevation 38 --fov 35 --zoom 2 --no-snow-on 'Table*' " +
       "--screenshot " + shot.string() + " --export " + exported.string());
   ASSERT_EQ(run.exit_code, 0) << run.output;
-  EXPECT_NE(run.output.find("preview: 250 frames"), std::string::npos) << run.output;
+  const size_t summary = run.output.find("preview: 250 frames");
+  ASSERT_NE(summary, std::string::npos) << run.output;
+  std::printf("%s\n", run.output.substr(summary, run.output.find('\n', summary) - summary).c_str());
   ASSERT_TRUE(fs::exists(exported)) << run.output;
   EXPECT_GT(fs::file_size(exported), 1000u);
 
