@@ -246,7 +246,9 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   code = gl::create_texture_2d_array(GL_RG32UI, width, height, layers, "stabilize codes");
   stable = gl::create_texture_2d_array(GL_R32F, width, height, layers, "stabilize kept height");
   reduce = gl::create_texture_2d(GL_RGBA32F, reduce_width, reduce_height, "stabilize residual");
-  tiled = s.active_tiles;
+  GLfloat point_sizes[2] = {1.0f, 1.0f};
+  glGetFloatv(GL_POINT_SIZE_RANGE, point_sizes);
+  tiled = s.active_tiles && point_sizes[1] >= float(kTile);  // tiles are drawn as points
   tiles_x = (width + kTile - 1) / kTile;
   tiles_y = (height + kTile - 1) / kTile;
   tile_relax = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
