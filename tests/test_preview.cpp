@@ -204,6 +204,13 @@ TEST(Preview, RejectsBadSizeBeforeOpeningAWindow) {
   EXPECT_NE(run.output.find("--size"), std::string::npos) << run.output;
 }
 
+TEST(Preview, AppliesIgnoreBeforeOpeningAWindow) {
+  const CommandRun run =
+      run_snowmodel("preview " + kCourtyard.string() + " --ignore '*' --frames 1");
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find("--ignore removed every object"), std::string::npos) << run.output;
+}
+
 TEST(Preview, CourtyardScreenshotHasSnowOnRoofAndGroundNoneUnderTheTable) {
   if (!has_display()) GTEST_SKIP() << "no DISPLAY (the xvfb-run ctest entry runs this)";
   const fs::path dir =

@@ -1,12 +1,11 @@
 // `snowmodel preview IN [options]`: the live accumulation preview window.
 // This file only turns flags into settings; the window, the per-frame
 // physics (the batch stages, stepped) and the drawing live in src/live.
-#include <fnmatch.h>
-
 #include <cmath>
 #include <cstdio>
 
 #include "app/commands.h"
+#include "app/filters.h"
 #include "app/settings.h"
 #include "core/error.h"
 #include "core/log.h"
@@ -24,15 +23,6 @@ struct PreviewOptions {
   PipelineSettings settings;
   live::ViewerOptions viewer;
 };
-
-bool matches_any(const std::vector<std::string>& globs, const SceneObject& object) {
-  for (const std::string& glob : globs) {
-    if (fnmatch(glob.c_str(), object.name.c_str(), 0) == 0 ||
-        fnmatch(glob.c_str(), object.node_path.c_str(), 0) == 0)
-      return true;
-  }
-  return false;
-}
 
 void run_preview(PreviewOptions o) {
   live::ViewerOptions& v = o.viewer;
@@ -60,15 +50,14 @@ void run_preview(PreviewOptions o) {
   v.sim.snow_on_snow_every = s.accumulate.snow_on_snow_every;
   v.mesh = s.polygonize;
   if (!v.export_path.empty()) format_from_path(v.export_path);  // fail before the window opens
-  if (!s.ignore.empty())
-    log_warn("preview: --ignore is not applied in the preview (use the snow command)");
 
-  const Scene scene = load_scene(o.input, s.load);
-  if (!s.no_snow_on.empty()) {
-    v.receives.assign(scene.objects.size(), 1);
-    for (size_t i = 0; i < scene.objects.size(); ++i)
-      v.receives[i] = !matches_any(s.no_snow_on, scene.objects[i]);
-  }
+  // Ignored objects are neither simulated nor drawn (a sky dome would hide
+  // the scene from the orbit camera).
+  const Scene loaded = load_scene(o.input, s.load);
+  warn_unmatched(loaded, s.ignore, "--ignore");
+  warn_unmatched(loaded, s.no_snow_on, "--no-snow-on");
+  const Scene scene = without_ignored(loaded, s.ignore);
+  if (!s.no_snow_on.empty()) v.receives = receiving_objects(scene, s.no_snow_on);
   const live::ViewerReport r = live::run_viewer(scene, v);
   char summary[400];
   std::snprintf(summary, sizeof summary,

@@ -2,7 +2,6 @@
 // coverage, snowfall with stabilizing, polygonize, export (DESIGN.md,
 // "Pipeline and data"). This file only turns flags into stage settings and
 // calls the stages in order.
-#include <fnmatch.h>
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -14,6 +13,7 @@
 #include <glm/glm.hpp>
 
 #include "app/commands.h"
+#include "app/filters.h"
 #include "app/settings.h"
 #include "core/error.h"
 #include "core/fs.h"
@@ -38,56 +38,6 @@ struct SnowOptions {
   bool snow_only = false;
   PipelineSettings settings;
 };
-
-bool matches(const std::vector<std::string>& globs, const SceneObject& object) {
-  for (const std::string& glob : globs) {
-    if (fnmatch(glob.c_str(), object.name.c_str(), 0) == 0 ||
-        fnmatch(glob.c_str(), object.node_path.c_str(), 0) == 0) {
-      return true;
-    }
-  }
-  return false;
-}
-
-/// The scene without the objects that match `globs` (they neither receive
-/// nor shelter); warns for globs that match nothing.
-Scene without_ignored(const Scene& scene, const std::vector<std::string>& globs) {
-  if (globs.empty()) return scene;
-  Scene out;
-  out.materials = scene.materials;
-  out.images = scene.images;
-  out.stats = scene.stats;
-  out.warnings = scene.warnings;
-  for (const SceneObject& object : scene.objects) {
-    if (matches(globs, object)) {
-      log_info("ignoring object '" + object.name + "' (--ignore)");
-      continue;
-    }
-    SceneObject copy = object;
-    copy.first_triangle = uint32_t(out.triangle_count());
-    const size_t begin = size_t(object.first_triangle) * 3,
-                 end = begin + size_t(object.triangle_count) * 3;
-    out.positions.insert(out.positions.end(), scene.positions.begin() + begin,
-                         scene.positions.begin() + end);
-    out.normals.insert(out.normals.end(), scene.normals.begin() + begin,
-                       scene.normals.begin() + end);
-    if (!scene.uvs.empty())
-      out.uvs.insert(out.uvs.end(), scene.uvs.begin() + begin, scene.uvs.begin() + end);
-    out.objects.push_back(copy);
-  }
-  for (const glm::vec3& p : out.positions) out.bounds.extend(p);
-  if (out.positions.empty())
-    throw InputError("--ignore removed every object of " + std::string("the scene"));
-  return out;
-}
-
-void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, const char* flag) {
-  for (const std::string& glob : globs) {
-    const bool any = std::any_of(scene.objects.begin(), scene.objects.end(),
-                                 [&](const SceneObject& o) { return matches({glob}, o); });
-    if (!any) log_warn(std::string(flag) + " '" + glob + "' matches no object");
-  }
-}
 
 /// Objects that enclose the scene like a sky dome or a sky box: their bounds
 /// hold every other object and in most columns they top there is another
@@ -245,9 +195,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_unmatched(scene, s.ignore, "--ignore");
   warn_unmatched(scene, s.no_snow_on, "--no-snow-on");
   const Scene snow_scene = without_ignored(scene, s.ignore);
-  std::vector<uint8_t> receives(snow_scene.objects.size(), 1);
-  for (size_t i = 0; i < snow_scene.objects.size(); ++i)
-    receives[i] = !matches(s.no_snow_on, snow_scene.objects[i]);
+  const std::vector<uint8_t> receives = receiving_objects(snow_scene, s.no_snow_on);
 
   auto context = make_headless_context(global);
   log_info("OpenGL: " + context->description());

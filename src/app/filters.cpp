@@ -1,0 +1,67 @@
+#include "app/filters.h"
+
+#include <fnmatch.h>
+
+#include <algorithm>
+
+#include "core/error.h"
+#include "core/log.h"
+
+namespace snow::app {
+
+bool matches(const std::vector<std::string>& globs, const SceneObject& object) {
+  for (const std::string& glob : globs) {
+    if (fnmatch(glob.c_str(), object.name.c_str(), 0) == 0 ||
+        fnmatch(glob.c_str(), object.node_path.c_str(), 0) == 0) {
+      return true;
+    }
+  }
+  return false;
+}
+
+void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, const char* flag) {
+  for (const std::string& glob : globs) {
+    const bool any = std::any_of(scene.objects.begin(), scene.objects.end(),
+                                 [&](const SceneObject& o) { return matches({glob}, o); });
+    if (!any) log_warn(std::string(flag) + " '" + glob + "' matches no object");
+  }
+}
+
+Scene without_ignored(const Scene& scene, const std::vector<std::string>& ignore) {
+  if (ignore.empty()) return scene;
+  Scene out;
+  out.materials = scene.materials;
+  out.images = scene.images;
+  out.stats = scene.stats;
+  out.warnings = scene.warnings;
+  for (const SceneObject& object : scene.objects) {
+    if (matches(ignore, object)) {
+      log_info("ignoring object '" + object.name + "' (--ignore)");
+      continue;
+    }
+    SceneObject copy = object;
+    copy.first_triangle = uint32_t(out.triangle_count());
+    const size_t begin = size_t(object.first_triangle) * 3,
+                 end = begin + size_t(object.triangle_count) * 3;
+    out.positions.insert(out.positions.end(), scene.positions.begin() + begin,
+                         scene.positions.begin() + end);
+    out.normals.insert(out.normals.end(), scene.normals.begin() + begin,
+                       scene.normals.begin() + end);
+    if (!scene.uvs.empty())
+      out.uvs.insert(out.uvs.end(), scene.uvs.begin() + begin, scene.uvs.begin() + end);
+    out.objects.push_back(copy);
+  }
+  for (const glm::vec3& p : out.positions) out.bounds.extend(p);
+  if (out.positions.empty()) throw InputError("--ignore removed every object of the scene");
+  return out;
+}
+
+std::vector<uint8_t> receiving_objects(const Scene& scene,
+                                       const std::vector<std::string>& no_snow_on) {
+  std::vector<uint8_t> receives(scene.objects.size(), 1);
+  for (size_t i = 0; i < scene.objects.size(); ++i)
+    receives[i] = !matches(no_snow_on, scene.objects[i]);
+  return receives;
+}
+
+}  // namespace snow::app

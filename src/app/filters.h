@@ -1,0 +1,28 @@
+#pragma once
+// Object filters by name glob (--ignore, --no-snow-on), shared by the snow
+// and preview commands. A glob matches an object's name or its node path
+// (fnmatch(3) syntax: *, ?, [...]).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace snow::app {
+
+/// True when any of `globs` matches the object's name or node path.
+bool matches(const std::vector<std::string>& globs, const SceneObject& object);
+
+/// Warns, naming `flag`, for each glob that matches no object of `scene`.
+void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, const char* flag);
+
+/// The scene without the objects that match `ignore` (they neither receive
+/// nor shelter; each is logged). Throws InputError when nothing is left.
+Scene without_ignored(const Scene& scene, const std::vector<std::string>& ignore);
+
+/// Per object of `scene`: 0 where a `no_snow_on` glob matches (it gets no
+/// fresh snow but still shelters), else 1.
+std::vector<uint8_t> receiving_objects(const Scene& scene,
+                                       const std::vector<std::string>& no_snow_on);
+
+}  // namespace snow::app
