@@ -242,6 +242,28 @@ TEST(Cli, SharedScenesSnow) {
   }
 }
 
+// 0.3 m of snow on a table 1 m wide (a model in other units than metres)
+// is out of scale: the run warns; 2 cm is not.
+TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
+  const fs::path dir = temp_dir("scale");
+  snow::SceneBuilder builder;
+  builder.add_plane("Floor", 0.0f, {-0.5f, -0.5f}, {0.5f, 0.5f});
+  builder.add_box("Top", {-0.2f, 0.3f, -0.2f}, {0.2f, 0.33f, 0.2f});
+  tinygltf::Model model;
+  snow::append_meshes(model, builder.meshes(), builder.materials(), "Scene");
+  snow::save_gltf(model, dir / "small.glb");
+
+  const std::string common = "snow " + q(dir / "small.glb") + " --max-side 32 --directions 8";
+  const RunResult deep = run(common + " -o " + q(dir / "deep.obj"));
+  ASSERT_EQ(deep.code, 0) << deep.output;
+  EXPECT_NE(deep.output.find("snow depth 0.3 m is 30 % of the scene's width (1 m)"),
+            std::string::npos)
+      << deep.output;
+  const RunResult shallow = run(common + " --depth 0.02 -o " + q(dir / "shallow.obj"));
+  ASSERT_EQ(shallow.code, 0) << shallow.output;
+  EXPECT_EQ(shallow.output.find("of the scene's width"), std::string::npos) << shallow.output;
+}
+
 // A sky box around the scene takes all the snow: the run warns and names it,
 // and --ignore of the sky box gives snow on the ground (and the bench, whose
 // snow joins the ground's patch) and no warning.

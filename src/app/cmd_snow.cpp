@@ -39,6 +39,22 @@ struct SnowOptions {
   PipelineSettings settings;
 };
 
+/// Warns when the fresh snow is deep against the scene's size. glTF units
+/// are metres; a model made in other units (a building tile 1 unit wide)
+/// gets snow out of scale, and stabilizing takes passes growing with the
+/// square of the snow's depth in texels.
+void warn_if_out_of_scale(const Scene& scene, float fall_depth) {
+  const glm::vec3 size = scene.bounds.max - scene.bounds.min;
+  const float width = std::max(size.x, size.z);
+  if (!(width > 0) || fall_depth <= 0.1f * width) return;
+  char line[300];
+  std::snprintf(line, sizeof line,
+                "snow depth %.3g m is %.0f %% of the scene's width (%.3g m); glTF units are "
+                "metres: if the scene is not to scale, lower --depth",
+                double(fall_depth), 100.0 * double(fall_depth / width), double(width));
+  log_warn(line);
+}
+
 /// Objects that enclose the scene like a sky dome or a sky box: their bounds
 /// hold every other object and in most columns they top there is another
 /// surface below them (unlike a hilly terrain, which is also wide and tall).
@@ -196,6 +212,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_unmatched(scene, s.no_snow_on, "--no-snow-on");
   const Scene snow_scene = without_ignored(scene, s.ignore);
   const std::vector<uint8_t> receives = receiving_objects(snow_scene, s.no_snow_on);
+  warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
 
   auto context = make_headless_context(global);
   log_info("OpenGL: " + context->description());
