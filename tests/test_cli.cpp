@@ -243,7 +243,8 @@ TEST(Cli, SharedScenesSnow) {
 }
 
 // 0.3 m of snow on a table 1 m wide (a model in other units than metres)
-// is out of scale: the run warns; 2 cm is not.
+// is out of scale: the run warns; 2 cm is not. Snow many texels deep warns
+// that stabilizing will be slow.
 TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
   const fs::path dir = temp_dir("scale");
   snow::SceneBuilder builder;
@@ -262,6 +263,16 @@ TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
   const RunResult shallow = run(common + " --depth 0.02 -o " + q(dir / "shallow.obj"));
   ASSERT_EQ(shallow.code, 0) << shallow.output;
   EXPECT_EQ(shallow.output.find("of the scene's width"), std::string::npos) << shallow.output;
+  EXPECT_EQ(shallow.output.find("texels deep"), std::string::npos) << shallow.output;
+
+  // 0.3 m on 1.04 m / 256 texels is 74 texels deep: the run warns and names
+  // the map side that makes it 32 (16 passes keep the run short).
+  const RunResult fine =
+      run("snow " + q(dir / "small.glb") +
+          " --max-side 256 --directions 8 --max-iterations 16 -o " + q(dir / "fine.obj"));
+  ASSERT_EQ(fine.code, 0) << fine.output;
+  EXPECT_NE(fine.output.find("texels deep"), std::string::npos) << fine.output;
+  EXPECT_NE(fine.output.find("--max-side 110"), std::string::npos) << fine.output;
 }
 
 // A sky box around the scene takes all the snow: the run warns and names it,

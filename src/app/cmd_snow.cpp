@@ -55,6 +55,24 @@ void warn_if_out_of_scale(const Scene& scene, float fall_depth) {
   log_warn(line);
 }
 
+/// Warns when the fresh snow is many texels deep: piles about as wide as
+/// the snow is deep settle in passes growing with the square of that width,
+/// so such runs take very long; suggests the map side that makes the snow
+/// 32 texels deep.
+void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth) {
+  const float texels = fall_depth / maps.grid.texel;
+  if (!(texels > 64.0f)) return;
+  const int side = std::max(maps.grid.width, maps.grid.height);
+  const int suggested = std::max(16, int(float(side) * 32.0f / texels));
+  char line[300];
+  std::snprintf(line, sizeof line,
+                "the snow is %.0f texels deep (%.3g m on %.3g m texels): stabilizing may take very "
+                "long; --max-side %d (or --texel %.3g) makes it 32 texels deep",
+                double(texels), double(fall_depth), double(maps.grid.texel), suggested,
+                double(fall_depth / 32.0f));
+  log_warn(line);
+}
+
 /// Objects that enclose the scene like a sky dome or a sky box: their bounds
 /// hold every other object and in most columns they top there is another
 /// surface below them (unlike a hilly terrain, which is also wide and tall).
@@ -222,6 +240,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   log_info("maps: " + std::to_string(maps.grid.width) + " x " + std::to_string(maps.grid.height) +
            " texels of " + std::to_string(maps.grid.texel) + " m, " + std::to_string(maps.layers) +
            " layers");
+  warn_if_deep_in_texels(maps, s.accumulate.fall_depth);
   SnowResult snow;
   stage("snowfall", [&] {
     snow = accumulate(snow_scene, maps, s.coverage, s.stabilize, s.accumulate, receives);
