@@ -242,6 +242,15 @@ TEST(Cli, SharedScenesSnow) {
   }
 }
 
+namespace {
+// Writes the scene of `builder` as a .glb file.
+void save_built_scene(const snow::SceneBuilder& builder, const fs::path& path) {
+  tinygltf::Model model;
+  snow::append_meshes(model, builder.meshes(), builder.materials(), "Scene");
+  snow::save_gltf(model, path);
+}
+}  // namespace
+
 // 0.3 m of snow on a table 1 m wide (a model in other units than metres)
 // is out of scale: the run warns; 2 cm is not. Snow many texels deep warns
 // that stabilizing will be slow.
@@ -250,9 +259,7 @@ TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
   snow::SceneBuilder builder;
   builder.add_plane("Floor", 0.0f, {-0.5f, -0.5f}, {0.5f, 0.5f});
   builder.add_box("Top", {-0.2f, 0.3f, -0.2f}, {0.2f, 0.33f, 0.2f});
-  tinygltf::Model model;
-  snow::append_meshes(model, builder.meshes(), builder.materials(), "Scene");
-  snow::save_gltf(model, dir / "small.glb");
+  save_built_scene(builder, dir / "small.glb");
 
   const std::string common = "snow " + q(dir / "small.glb") + " --max-side 32 --directions 8";
   const RunResult deep = run(common + " -o " + q(dir / "deep.obj"));
@@ -284,9 +291,7 @@ TEST(Cli, WarnsWhenASkyBoxTakesTheSnow) {
   builder.add_plane("Ground", 0.0f, {-5.0f, -5.0f}, {5.0f, 5.0f});
   builder.add_box("Bench", {-1.5f, 0.0f, -0.75f}, {1.5f, 0.5f, 0.75f});
   builder.add_box("SkyBox", {-8.0f, -2.0f, -8.0f}, {8.0f, 20.0f, 8.0f});
-  tinygltf::Model model;
-  snow::append_meshes(model, builder.meshes(), builder.materials(), "Scene");
-  snow::save_gltf(model, dir / "sky.glb");
+  save_built_scene(builder, dir / "sky.glb");
 
   const std::string common = "snow " + q(dir / "sky.glb") + " --max-side 96 --directions 16";
   const RunResult boxed = run(common + " -o " + q(dir / "boxed.glb"));
