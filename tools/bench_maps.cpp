@@ -168,7 +168,16 @@ int main(int argc, char** argv) {
       o.big_only = true;
     else if (a == "--repeat")
       o.repeat = std::max(1, next());
-    else
+    else if (a == "-h" || a == "--help") {
+      std::printf(
+          "usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]\n"
+          "  [--big-side N] [--big-triangles T] [--no-big | --big-only] [--repeat R]\n"
+          "  [scene.glb|scene.gltf ...]\n");
+      return 0;
+    } else if (a.rfind("--", 0) == 0) {
+      std::fprintf(stderr, "unknown option %s (--help lists them)\n", a.c_str());
+      return 2;
+    } else
       o.scenes.push_back(a);
   }
   try {

@@ -40,8 +40,15 @@ int main(int argc, char** argv) {
   std::string scene_name = "courtyard";
   int side = 1024, layers = 4, passes = -1;
   StabilizeSettings settings;
-  for (int a = 1; a + 1 < argc; a += 2) {
+  for (int a = 1; a < argc; a += 2) {
     const std::string key = argv[a];
+    if (key == "-h" || key == "--help" || a + 1 == argc) {
+      std::fprintf(key == "-h" || key == "--help" ? stdout : stderr,
+                   "usage: snowmodel_bench_stabilize [--scene courtyard|house60|house30] "
+                   "[--side N] [--layers L]\n  [--max-stride S] [--passes P] [--tiles on|off] "
+                   "[--count-tiles on|off] [--max-iterations N]\n  [--route on|off]\n");
+      return key == "-h" || key == "--help" ? 0 : 2;
+    }
     const char* value = argv[a + 1];
     if (key == "--scene")
       scene_name = value;
