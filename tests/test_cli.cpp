@@ -2,7 +2,6 @@
 // determinism, filters, settings files, and the bad-input table.
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
 
 #include <array>
 #include <cmath>
@@ -16,6 +15,7 @@
 
 #include "mesh/gltf_writer.h"
 #include "scene/builder.h"
+#include "support/command.h"
 
 namespace fs = std::filesystem;
 
@@ -25,23 +25,10 @@ const fs::path kCourtyard = fs::path(SNOW_SOURCE_DIR) / "assets/scenes/courtyard
 // Small maps and few directions keep each run to seconds on llvmpipe.
 const std::string kFast = " --max-side 96 --directions 16 --layers 6";
 
-struct RunResult {
-  int code = -1;
-  std::string output;  // stdout and stderr together
-};
+using RunResult = snow::test::CommandResult;
 
 RunResult run(const std::string& args) {
-  const std::string command = std::string(SNOWMODEL_EXE) + " " + args + " 2>&1";
-  RunResult result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return result;
-  std::array<char, 4096> buffer{};
-  size_t n = 0;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
-    result.output.append(buffer.data(), n);
-  const int status = pclose(pipe);
-  result.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return result;
+  return snow::test::run_command(std::string(SNOWMODEL_EXE) + " " + args);
 }
 
 fs::path temp_dir(const std::string& name) {

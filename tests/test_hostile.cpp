@@ -30,6 +30,7 @@
 #include "core/log.h"
 #include "mesh/gltf_writer.h"
 #include "scene/load_gltf.h"
+#include "support/command.h"
 
 extern char** environ;
 
@@ -42,26 +43,13 @@ const fs::path kCourtyard = fs::path(SNOW_SOURCE_DIR) / "assets/scenes/courtyard
 // Tiny maps: every run is a second or two on llvmpipe (also under ASan).
 const std::string kTiny = " --max-side 24 --directions 4 --layers 2";
 
-struct RunResult {
-  int code = -1;
-  std::string output;  // stdout and stderr together
-};
+using RunResult = snow::test::CommandResult;
 
 std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
 
 /// Runs snowmodel with `args`; `env` is prepended to the shell command ("A=b").
 RunResult run(const std::string& args, const std::string& env = "") {
-  const std::string command = env + " " + std::string(SNOWMODEL_EXE) + " " + args + " 2>&1";
-  RunResult result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return result;
-  std::array<char, 4096> buffer{};
-  size_t n = 0;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
-    result.output.append(buffer.data(), n);
-  const int status = pclose(pipe);
-  result.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return result;
+  return snow::test::run_command(env + " " + std::string(SNOWMODEL_EXE) + " " + args);
 }
 
 fs::path temp_dir(const std::string& name) {

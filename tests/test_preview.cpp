@@ -5,7 +5,6 @@
 // snow-white on the roof and on open ground, none under the table.
 #include <gtest/gtest.h>
 #include <stb_image.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -24,6 +23,7 @@
 #include "render/camera.h"
 #include "scene/builder.h"
 #include "scene/load_gltf.h"
+#include "support/command.h"
 
 namespace snow {
 namespace {
@@ -37,22 +37,8 @@ bool has_display() {
   return display && *display;
 }
 
-struct CommandRun {
-  int exit_code = -1;
-  std::string output;
-};
-
-CommandRun run_snowmodel(const std::string& args) {
-  CommandRun run;
-  const std::string command = std::string(SNOWMODEL_EXE) + " " + args + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return run;
-  char buffer[4096];
-  size_t n = 0;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) run.output.append(buffer, n);
-  const int status = pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
+snow::test::CommandResult run_snowmodel(const std::string& args) {
+  return snow::test::run_command(std::string(SNOWMODEL_EXE) + " " + args);
 }
 
 struct Picture {
@@ -198,16 +184,16 @@ TEST(LiveSim, TableSnowfallConservesMassAndShelters) {
 }
 
 TEST(Preview, RejectsBadSizeBeforeOpeningAWindow) {
-  const CommandRun run =
+  const snow::test::CommandResult run =
       run_snowmodel("preview " + kCourtyard.string() + " --size 0x10 --frames 1");
-  EXPECT_NE(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.code, 0) << run.output;
   EXPECT_NE(run.output.find("--size"), std::string::npos) << run.output;
 }
 
 TEST(Preview, AppliesIgnoreBeforeOpeningAWindow) {
-  const CommandRun run =
+  const snow::test::CommandResult run =
       run_snowmodel("preview " + kCourtyard.string() + " --ignore '*' --frames 1");
-  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_EQ(run.code, 2) << run.output;
   EXPECT_NE(run.output.find("--ignore removed every object"), std::string::npos) << run.output;
 }
 
@@ -222,12 +208,12 @@ TEST(Preview, CourtyardScreenshotHasSnowOnRoofAndGroundNoneUnderTheTable) {
   const float azimuth = 0.0f, elevation = 38.0f, fov = 35.0f, zoom = 2.0f;
   // 250 frames: 0.3 m of snow falls in the first 90 (0.1 m per simulated
   // second, 1/30 s per frame), the stabilizer keeps working after that.
-  const CommandRun run = run_snowmodel(
+  const snow::test::CommandResult run = run_snowmodel(
       "preview " + kCourtyard.string() + " --frames 250 --size " + std::to_string(w) + "x" +
       std::to_string(h) + " --max-side 128 --layers 4 --passes-per-frame 2 --fall-rate 0.1 " +
       "--depth 0.3 --flakes 0 --azimuth 0 --elevation 38 --fov 35 --zoom 2 --no-snow-on 'Table*' " +
       "--screenshot " + shot.string() + " --export " + exported.string());
-  ASSERT_EQ(run.exit_code, 0) << run.output;
+  ASSERT_EQ(run.code, 0) << run.output;
   const size_t summary = run.output.find("preview: 250 frames");
   ASSERT_NE(summary, std::string::npos) << run.output;
   std::printf("%s\n", run.output.substr(summary, run.output.find('\n', summary) - summary).c_str());

@@ -1,0 +1,31 @@
+#pragma once
+// Runs a shell command for the end-to-end tests (the snowmodel executable)
+// and collects its output.
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <string>
+
+namespace snow::test {
+
+struct CommandResult {
+  int code = -1;       // exit status; 128 + signal number when killed; -1 if it did not start
+  std::string output;  // stdout and stderr together
+};
+
+/// Runs `command` through /bin/sh with stderr joined to stdout and waits.
+inline CommandResult run_command(const std::string& command) {
+  CommandResult result;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return result;
+  std::array<char, 4096> buffer{};
+  size_t n = 0;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
+    result.output.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  result.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return result;
+}
+
+}  // namespace snow::test
