@@ -23,6 +23,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "scene/load_gltf.h"
+#include "support/base64.h"
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
@@ -42,20 +43,7 @@ fs::path temp_dir(const std::string& name) {
   return dir;
 }
 
-std::string base64(const std::vector<uint8_t>& data) {
-  static const char* alphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  for (size_t i = 0; i < data.size(); i += 3) {
-    uint32_t v = uint32_t(data[i]) << 16;
-    if (i + 1 < data.size()) v |= uint32_t(data[i + 1]) << 8;
-    if (i + 2 < data.size()) v |= data[i + 2];
-    out += alphabet[(v >> 18) & 63];
-    out += alphabet[(v >> 12) & 63];
-    out += i + 1 < data.size() ? alphabet[(v >> 6) & 63] : '=';
-    out += i + 2 < data.size() ? alphabet[v & 63] : '=';
-  }
-  return out;
-}
+using snow::test::base64;
 
 void write_bytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
   std::ofstream out(path, std::ios::binary);
