@@ -33,14 +33,14 @@
 
 // --- Stabilizer (stabilize_*.vert/.geom/.frag, src/snow/stabilize.cpp) ------
 // Texture arrays with one layer per map layer, texel (i, j) at (x, y).
-#define SNOW_STABILIZE_CELLS 0    // sampler2DArray RGBA32F: ground, ceiling, tan(repose), flags
-#define SNOW_STABILIZE_DEPTH 1    // sampler2DArray RG32F: snow depth (m), lost (m)
-#define SNOW_STABILIZE_OUT_A 2    // sampler2DArray RGBA32F: outflow (m) to directions 0..3
-#define SNOW_STABILIZE_OUT_B 3    // sampler2DArray RGBA32F: outflow (m) to directions 4..7
-#define SNOW_STABILIZE_CODE 4     // usampler2DArray RG32UI: landing codes, 8 bits per direction
-#define SNOW_STABILIZE_POINTER 5  // usampler2DArray R32UI: routing receiver (texel index)
-#define SNOW_STABILIZE_ADD 6      // sampler2DArray RGBA32F: snow to add (m) in r
-#define SNOW_STABILIZE_STABLE 7   // sampler2DArray: highest snow surface a texel keeps (m) in r
+#define SNOW_STABILIZE_CELLS 0       // sampler2DArray RGBA32F: ground, ceiling, tan(repose), flags
+#define SNOW_STABILIZE_DEPTH 1       // sampler2DArray RG32F: snow depth (m), lost (m)
+#define SNOW_STABILIZE_OUT_A 2       // sampler2DArray RGBA32F: outflow (m) to directions 0..3
+#define SNOW_STABILIZE_OUT_B 3       // sampler2DArray RGBA32F: outflow (m) to directions 4..7
+#define SNOW_STABILIZE_CODE 4        // usampler2DArray RG32UI: landing codes, 8 bits per direction
+#define SNOW_STABILIZE_POINTER 5     // usampler2DArray R32UI: routing receiver (texel index)
+#define SNOW_STABILIZE_ADD 6         // sampler2DArray RGBA32F: snow to add (m) in r
+#define SNOW_STABILIZE_STABLE 7      // sampler2DArray: highest snow surface a texel keeps (m) in r
 #define SNOW_STABILIZE_STABLE_OLD 8  // sampler2DArray: the same from the previous erosion pass
 // Active tiles (stabilize_tiles.comp, stabilize_tile.vert): image unit and SSBO slots.
 #define SNOW_STABILIZE_TILE_CHANGED 0  // iimage2D R32I per tile: last pass that changed it
