@@ -2,7 +2,6 @@
 // determinism, filters, settings files, and the bad-input table.
 #include <gtest/gtest.h>
 
-
 #include <array>
 #include <cmath>
 #include <cstdio>
