@@ -179,6 +179,8 @@ struct Stabilizer::Impl {
   size_t count() const { return size_t(layers) * size_t(width) * size_t(height); }
   void set_common(const gl::Program& program) const;
   void per_layer(const gl::Program& program, const std::vector<gl::Framebuffer>& fbos);
+  template <class Draw>
+  void each_layer(const gl::Program& program, const std::vector<gl::Framebuffer>& fbos, Draw draw);
   void bind(GLuint unit, const gl::Texture& texture) const {
     glBindTextureUnit(unit, texture.id());
   }
@@ -350,12 +352,11 @@ void Stabilizer::Impl::set_common(const gl::Program& program) const {
   program.set("u_rise", kSurfaceContinuityTexels * grid.texel);
 }
 
-// One full-screen triangle per layer into fbos[l], u_layer = l.
-void Stabilizer::Impl::per_layer(const gl::Program& program,
-                                 const std::vector<gl::Framebuffer>& fbos) {
-  program.use();
-  glBindVertexArray(vao.id());
-  glViewport(0, 0, width, height);
+// draw() once per layer with surfaces, into fbos[l] with u_layer = l and
+// the scissor on the layer's rectangle; `program` is in use.
+template <class Draw>
+void Stabilizer::Impl::each_layer(const gl::Program& program,
+                                  const std::vector<gl::Framebuffer>& fbos, Draw draw) {
   glEnable(GL_SCISSOR_TEST);
   for (int l = 0; l < layers; ++l) {
     const glm::ivec4 r = rect[size_t(l)];
@@ -363,9 +364,18 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
     program.set("u_layer", l);
     glScissor(r.x, r.y, r.z, r.w);
     glBindFramebuffer(GL_FRAMEBUFFER, fbos[size_t(l)].id());
-    glDrawArrays(GL_TRIANGLES, 0, 3);
+    draw();
   }
   glDisable(GL_SCISSOR_TEST);
+}
+
+// One full-screen triangle per layer into fbos[l], u_layer = l.
+void Stabilizer::Impl::per_layer(const gl::Program& program,
+                                 const std::vector<gl::Framebuffer>& fbos) {
+  program.use();
+  glBindVertexArray(vao.id());
+  glViewport(0, 0, width, height);
+  each_layer(program, fbos, [] { glDrawArrays(GL_TRIANGLES, 0, 3); });
 }
 
 // Active tiles. Late in a relaxation only the pile edges still move, so the
@@ -420,16 +430,7 @@ void Stabilizer::Impl::tiled_layers(const gl::Program& program,
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_TILE_LIST, tile_list.id());
   glViewport(0, 0, tiles_x * kTile, tiles_y * kTile);
   glEnable(GL_PROGRAM_POINT_SIZE);
-  glEnable(GL_SCISSOR_TEST);
-  for (int l = 0; l < layers; ++l) {
-    const glm::ivec4 r = rect[size_t(l)];
-    if (r.z == 0) continue;
-    program.set("u_layer", l);
-    glScissor(r.x, r.y, r.z, r.w);
-    glBindFramebuffer(GL_FRAMEBUFFER, fbos[size_t(l)].id());
-    glDrawArraysIndirect(GL_POINTS, nullptr);
-  }
-  glDisable(GL_SCISSOR_TEST);
+  each_layer(program, fbos, [] { glDrawArraysIndirect(GL_POINTS, nullptr); });
   glDisable(GL_PROGRAM_POINT_SIZE);
   glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
 }
