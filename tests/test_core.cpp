@@ -1,10 +1,14 @@
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
+#include <vector>
 
 #include "core/error.h"
 #include "core/fs.h"
+#include "core/parallel.h"
 
 namespace fs = std::filesystem;
 
@@ -51,4 +55,30 @@ TEST(Errors, ExitCodes) {
   EXPECT_EQ(snow::InputError("x").exit_code(), snow::kExitBadInput);
   EXPECT_EQ(snow::GLError("x").exit_code(), snow::kExitNoGL);
   EXPECT_EQ(snow::IOError("x").exit_code(), snow::kExitIO);
+}
+
+TEST(ParallelFor, CallsEveryIndexOnce) {
+  for (unsigned threads : {0u, 1u, 3u, 64u}) {
+    std::vector<std::atomic<int>> calls(1000);
+    snow::parallel_for(
+        calls.size(), [&](size_t i) { ++calls[i]; }, threads);
+    for (size_t i = 0; i < calls.size(); ++i) ASSERT_EQ(calls[i].load(), 1) << i << ", " << threads;
+  }
+  int none = 0;
+  snow::parallel_for(0, [&](size_t) { ++none; });
+  EXPECT_EQ(none, 0);
+}
+
+TEST(ParallelFor, RethrowsTheFirstErrorAfterAllThreadsStop) {
+  std::atomic<int> calls{0};
+  EXPECT_THROW(snow::parallel_for(
+                   100000,
+                   [&](size_t i) {
+                     ++calls;
+                     if (i == 10) throw std::runtime_error("index 10");
+                   },
+                   4),
+               std::runtime_error);
+  // The remaining indices are skipped once one call has thrown.
+  EXPECT_LT(calls.load(), 100000);
 }

@@ -26,6 +26,9 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <mutex>
+#include <numeric>
+#include <optional>
 #include <set>
 #include <string>
 #include <unordered_map>
@@ -44,6 +47,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/parallel.h"
 #include "snow/column.h"
 
 namespace snow {
@@ -687,6 +691,69 @@ std::string unique_name(const std::string& base, std::set<std::string>& used) {
   return name;
 }
 
+// Meshes one patch: its top surface, the closed solid, decimation; nullopt
+// when it is too small or degenerate. Named after its object in mesh.name,
+// made unique by the caller. Safe to run for several patches at once.
+std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const std::vector<float>& d,
+                                    const Scene& scene, const PolygonizeSettings& settings,
+                                    float min_thickness, const PatchTexels& texels) {
+  const float texel = maps.grid.texel;
+  SnowPatch patch;
+  patch.texels = texels.texels.size();
+  std::map<int, size_t> votes;
+  std::vector<float> thickness;
+  thickness.reserve(texels.texels.size());
+  for (size_t k : texels.texels) {
+    patch.depth_volume += double(d[k]) * double(texel) * double(texel);
+    ++votes[maps.object[k]];
+    thickness.push_back(d[k]);
+  }
+  size_t best = 0;
+  for (const auto& [object, count] : votes) {
+    if (count > best) {
+      best = count;
+      patch.object = object;
+    }
+  }
+  if (patch.object < -1) patch.object = -1;
+  const bool named = patch.object >= 0 && size_t(patch.object) < scene.objects.size();
+  const std::string base =
+      named ? "snow/" + scene.objects[size_t(patch.object)].name : std::string("snow/patch");
+
+  // Error budget: half for the grid-level triangulation, half for the
+  // OpenMesh decimation that follows.
+  double error =
+      settings.decimate_error < 0.0f ? 0.5 * double(texel) : double(settings.decimate_error);
+  std::nth_element(thickness.begin(), thickness.begin() + thickness.size() / 2, thickness.end());
+  error = std::min(error, 0.25 * double(thickness[thickness.size() / 2]));
+
+  PatchField field = build_field(maps, d, texels);
+  smooth_field(field, settings.smooth_iterations, min_thickness);
+  TopMesh top = triangulate_top(field, maps.grid, min_thickness, error > 0.0 ? 0.5 * error : -1.0);
+  smooth_outline(top, settings.smooth_iterations, texel);
+  patch.area = top_plan_area(top);
+  if (patch.area < double(settings.min_patch_area)) {
+    log_debug("polygonize: dropping a " + std::to_string(patch.area) + " m^2 snow patch on " +
+              base);
+    return std::nullopt;
+  }
+
+  OMesh mesh;
+  OpenMesh::FPropHandleT<bool> is_top;
+  mesh.add_property(is_top);
+  if (!build_solid(top, field, std::max(settings.bottom_offset, 0.0f), base, mesh, is_top)) {
+    return std::nullopt;
+  }
+  if (error > 0.0) decimate(mesh, 0.5 * error);
+
+  const TriMesh solid = to_trimesh(mesh, is_top, false);
+  patch.volume = signed_volume(solid);
+  patch.mesh = settings.closed ? solid : to_trimesh(mesh, is_top, true);
+  patch.mesh.name = base;
+  patch.mesh.material = 0;
+  return patch;
+}
+
 }  // namespace
 
 std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>& depth,
@@ -720,68 +787,29 @@ std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>
   }
 
   const std::vector<PatchTexels> found = find_patches(maps, d, min_thickness, max_step);
+  // Patches are meshed in parallel, largest first (the ground often outweighs
+  // the rest), then named and kept in their found order.
+  std::vector<size_t> order(found.size());
+  std::iota(order.begin(), order.end(), size_t(0));
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return found[a].texels.size() > found[b].texels.size();
+  });
+  std::vector<std::optional<SnowPatch>> meshed(found.size());
+  Progress progress("polygonize", double(found.size()));
+  std::mutex progress_mutex;
+  size_t done = 0;
+  parallel_for(order.size(), [&](size_t q) {
+    const size_t p = order[q];
+    meshed[p] = mesh_patch(maps, d, scene, settings, min_thickness, found[p]);
+    std::lock_guard<std::mutex> lock(progress_mutex);
+    progress.update(double(++done));
+  });
   std::vector<SnowPatch> out;
   std::set<std::string> used_names;
-  Progress progress("polygonize", double(found.size()));
-  for (size_t p = 0; p < found.size(); ++p) {
-    progress.update(double(p));
-    const PatchTexels& texels = found[p];
-
-    SnowPatch patch;
-    patch.texels = texels.texels.size();
-    std::map<int, size_t> votes;
-    std::vector<float> thickness;
-    thickness.reserve(texels.texels.size());
-    for (size_t k : texels.texels) {
-      patch.depth_volume += double(d[k]) * double(texel) * double(texel);
-      ++votes[maps.object[k]];
-      thickness.push_back(d[k]);
-    }
-    size_t best = 0;
-    for (const auto& [object, count] : votes) {
-      if (count > best) {
-        best = count;
-        patch.object = object;
-      }
-    }
-    if (patch.object < -1) patch.object = -1;
-    const bool named = patch.object >= 0 && size_t(patch.object) < scene.objects.size();
-    const std::string base =
-        named ? "snow/" + scene.objects[size_t(patch.object)].name : std::string("snow/patch");
-
-    // Error budget: half for the grid-level triangulation, half for the
-    // OpenMesh decimation that follows.
-    double error =
-        settings.decimate_error < 0.0f ? 0.5 * double(texel) : double(settings.decimate_error);
-    std::nth_element(thickness.begin(), thickness.begin() + thickness.size() / 2, thickness.end());
-    error = std::min(error, 0.25 * double(thickness[thickness.size() / 2]));
-
-    PatchField field = build_field(maps, d, texels);
-    smooth_field(field, settings.smooth_iterations, min_thickness);
-    TopMesh top =
-        triangulate_top(field, maps.grid, min_thickness, error > 0.0 ? 0.5 * error : -1.0);
-    smooth_outline(top, settings.smooth_iterations, texel);
-    patch.area = top_plan_area(top);
-    if (patch.area < double(settings.min_patch_area)) {
-      log_debug("polygonize: dropping a " + std::to_string(patch.area) + " m^2 snow patch on " +
-                base);
-      continue;
-    }
-
-    OMesh mesh;
-    OpenMesh::FPropHandleT<bool> is_top;
-    mesh.add_property(is_top);
-    if (!build_solid(top, field, std::max(settings.bottom_offset, 0.0f), base, mesh, is_top)) {
-      continue;
-    }
-    if (error > 0.0) decimate(mesh, 0.5 * error);
-
-    const TriMesh solid = to_trimesh(mesh, is_top, false);
-    patch.volume = signed_volume(solid);
-    patch.mesh = settings.closed ? solid : to_trimesh(mesh, is_top, true);
-    patch.mesh.name = unique_name(base, used_names);
-    patch.mesh.material = 0;
-    out.push_back(std::move(patch));
+  for (std::optional<SnowPatch>& patch : meshed) {
+    if (!patch) continue;
+    patch->mesh.name = unique_name(patch->mesh.name, used_names);
+    out.push_back(std::move(*patch));
   }
   progress.finish();
   return out;

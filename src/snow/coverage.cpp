@@ -16,12 +16,12 @@
 #include <limits>
 #include <new>
 #include <string>
-#include <thread>
 
 #include <glm/gtc/packing.hpp>
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/parallel.h"
 #include "gl/gl.h"
 #include "gl/objects.h"
 #include "gl/program.h"
@@ -584,21 +584,17 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     std::unique_ptr<SnowBound> snow_bound;
     if (snow_depth) snow_bound = std::make_unique<SnowBound>(maps, top);
     std::vector<uint8_t> open(recv.size(), 0);
-    const unsigned threads = std::clamp(std::thread::hardware_concurrency(), 1u, 8u);
-    std::vector<std::thread> pool;
-    for (unsigned w = 0; w < threads; ++w) {
-      pool.emplace_back([&, w] {
-        for (size_t r = w; r < recv.size(); r += threads) {
-          const glm::uvec4& rc = recv[r];
-          float y;
-          std::memcpy(&y, &rc.y, sizeof y);
-          const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
-          open[r] = scene_open(im.bvh, p, y, bias, cot_max) &&
-                    (!snow_bound || snow_bound->open(p, y, bias, cot_max));
-        }
-      });
-    }
-    for (std::thread& t : pool) t.join();
+    constexpr size_t kBlock = 1024;  // receivers per parallel_for call
+    parallel_for((recv.size() + kBlock - 1) / kBlock, [&](size_t block) {
+      for (size_t r = block * kBlock; r < std::min(recv.size(), (block + 1) * kBlock); ++r) {
+        const glm::uvec4& rc = recv[r];
+        float y;
+        std::memcpy(&y, &rc.y, sizeof y);
+        const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
+        open[r] = scene_open(im.bvh, p, y, bias, cot_max) &&
+                  (!snow_bound || snow_bound->open(p, y, bias, cot_max));
+      }
+    });
     size_t kept = 0;
     y_lo = kOpenSky;
     y_hi = -kOpenSky;
