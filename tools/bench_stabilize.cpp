@@ -6,13 +6,16 @@
 //                             [--layers L] [--max-stride S] [--passes P]
 //                             [--tiles on|off] [--count-tiles on|off]
 //                             [--max-iterations N] [--route on|off]
+//                             [--trace P]
 // With --passes P, runs exactly P passes (tolerance 0) to time them;
 // otherwise runs to convergence (default settings). --tiles off computes
 // every texel in every pass (StabilizeSettings::active_tiles = false).
 // Relaxation time is reported without the routing that runs at the
 // convergence checks (reported apart). --route off skips the routing
 // (StabilizeSettings::route_steep = false), to time passes on maps too large
-// to route with full passes.
+// to route with full passes. --trace P prints the residual, routed volume and
+// elapsed time every P passes (stderr), to see where the passes go.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -38,7 +41,7 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 int main(int argc, char** argv) {
   using namespace snow;
   std::string scene_name = "courtyard";
-  int side = 1024, layers = 4, passes = -1;
+  int side = 1024, layers = 4, passes = -1, trace = 0;
   StabilizeSettings settings;
   for (int a = 1; a < argc; a += 2) {
     const std::string key = argv[a];
@@ -46,7 +49,7 @@ int main(int argc, char** argv) {
       std::fprintf(key == "-h" || key == "--help" ? stdout : stderr,
                    "usage: snowmodel_bench_stabilize [--scene courtyard|house60|house30] "
                    "[--side N] [--layers L]\n  [--max-stride S] [--passes P] [--tiles on|off] "
-                   "[--count-tiles on|off] [--max-iterations N]\n  [--route on|off]\n");
+                   "[--count-tiles on|off] [--max-iterations N]\n  [--route on|off] [--trace P]\n");
       return key == "-h" || key == "--help" ? 0 : 2;
     }
     const char* value = argv[a + 1];
@@ -66,6 +69,8 @@ int main(int argc, char** argv) {
       settings.active_tiles = std::strcmp(value, "off") != 0;
     else if (key == "--route")
       settings.route_steep = std::strcmp(value, "off") != 0;
+    else if (key == "--trace")
+      trace = std::atoi(value);
     else if (key == "--count-tiles")
       settings.count_tiles = std::strcmp(value, "off") != 0;
     else {
@@ -110,7 +115,31 @@ int main(int argc, char** argv) {
     const StabilizeResult route = stabilizer.iterate(0);  // routing only
     const double route_s = seconds_since(t0);
     t0 = std::chrono::steady_clock::now();
-    const StabilizeResult r = stabilizer.iterate(settings.max_iterations);
+    StabilizeResult r;
+    if (trace > 0) {
+      // The passes in chunks of `trace` (each chunk ends with a convergence
+      // check, as iterate() does), summed as one call would report them.
+      StabilizeResult sum;
+      while (sum.iterations < settings.max_iterations && !sum.converged) {
+        r = stabilizer.iterate(std::min(trace, settings.max_iterations - sum.iterations));
+        sum.iterations += r.iterations;
+        sum.route_passes += r.route_passes;
+        sum.route_seconds += r.route_seconds;
+        sum.routed_volume += r.routed_volume;
+        sum.lost_volume += r.lost_volume;
+        sum.residual = r.residual;
+        sum.converged = r.converged;
+        sum.volume = r.volume;
+        sum.tile_share += r.tile_share * r.iterations;
+        std::fprintf(stderr, "pass %d residual %.3e m routed %.4f m^3 (%d passes) %.1f s\n",
+                     sum.iterations, r.residual, r.routed_volume, r.route_passes,
+                     seconds_since(t0));
+      }
+      sum.tile_share /= std::max(1, sum.iterations);
+      r = sum;
+    } else {
+      r = stabilizer.iterate(settings.max_iterations);
+    }
     const double total_s = seconds_since(t0);
     const double relax_s = total_s - r.route_seconds;
     std::printf(
