@@ -6,10 +6,13 @@
 //
 // Usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]
 //                             [--big-side N] [--big-triangles T] [--no-big | --big-only]
-//                             [scene.glb|scene.gltf ...]
+//                             [--accuracy] [scene.glb|scene.gltf ...]
 // Without scene arguments it runs the bundled courtyard, a few scenes from
 // ../shared/scenes (when present) and a generated scene of about
 // --big-triangles triangles (default 1M) at --big-side (default 2048).
+// --accuracy also casts the same K rays on the CPU for every layer texel
+// (snow::reference::compute_coverage) and adds the mean and largest
+// |GPU - CPU| coverage over the texels with a surface.
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -28,6 +31,7 @@
 #include "scene/load_gltf.h"
 #include "snow/coverage.h"
 #include "snow/peel.h"
+#include "snow/reference/coverage_ref.h"
 
 namespace {
 
@@ -52,7 +56,8 @@ struct Options {
   int big_triangles = 1000000;
   bool big = true;
   bool big_only = false;
-  int repeat = 1;  // coverage runs per scene; each stage's best time is reported
+  int repeat = 1;         // coverage runs per scene; each stage's best time is reported
+  bool accuracy = false;  // compare with the CPU ray-cast reference
   std::vector<std::string> scenes;
 };
 
@@ -67,6 +72,8 @@ struct Row {
   double coverage_cpu = 0;  // CPU seconds of one coverage run, all threads
   double queued_share = 0;  // receivers sent to the exact pass per batch / receivers
   double culled_share = 0;  // receivers found open to the sky on the CPU / all receivers
+  double mean_error = 0, max_error = 0;  // |GPU - CPU reference| coverage (--accuracy)
+  double reference_s = 0;                // wall time of the CPU reference
 };
 
 Row run(const std::string& name, const snow::Scene& scene, int side, const Options& o) {
@@ -103,9 +110,10 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
   // Each stage's best time over the runs (the first run also JIT-compiles
   // the shaders; other processes on the machine only ever add time).
   r.setup = r.shadow_s = r.composite = r.readback = r.coverage_cpu = 1e30;
+  std::vector<float> coverage;
   for (int k = 0; k < o.repeat; ++k) {
     const double c0 = cpu_seconds();
-    renderer.compute(maps, cs);
+    coverage = renderer.compute(maps, cs);
     r.coverage_cpu = std::min(r.coverage_cpu, cpu_seconds() - c0);
     const auto& t = renderer.timings();
     r.setup = std::min(r.setup, t.setup);
@@ -120,6 +128,22 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
         double(std::max<uint64_t>(1, t.pairs / uint64_t(std::min(cs.batch, cs.directions))));
   }
   r.shadow = renderer.shadow_map_size();
+  if (o.accuracy) {
+    const double t0 = seconds();
+    const std::vector<float> cpu =
+        snow::reference::compute_coverage(scene, maps, snow::fall_directions(cs));
+    r.reference_s = seconds() - t0;
+    double sum = 0;
+    size_t n = 0;
+    for (size_t k = 0; k < cpu.size(); ++k) {
+      if (std::isnan(maps.ground[k])) continue;
+      const double e = std::abs(double(coverage[k]) - double(cpu[k]));
+      sum += e;
+      r.max_error = std::max(r.max_error, e);
+      ++n;
+    }
+    r.mean_error = n > 0 ? sum / double(n) : 0.0;
+  }
 
   r.raw_peel = r.raw_shadow = r.raw_grid = 1e30;
   for (int k = 0; k < o.repeat; ++k) {
@@ -133,15 +157,17 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
   return r;
 }
 
-void print(const Row& r) {
+void print(const Row& r, const Options& o) {
   const double total = r.peel + r.setup + r.shadow_s + r.composite + r.readback;
   const double raw = r.raw_peel + r.raw_grid;
   std::printf(
       "| %s | %zu | %dx%d | %d | %.2f | %dx%d | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | "
-      "%.2f | %.2f | %.2f | %.0f%% | %.1f%% |\n",
+      "%.2f | %.2f | %.2f | %.0f%% | %.1f%% |",
       r.name.c_str(), r.triangles, r.width, r.height, r.layers_found, r.peel, r.shadow.x,
       r.shadow.y, r.setup, r.shadow_s, r.composite, r.readback, total, r.raw_peel, r.raw_grid,
       r.raw_shadow, total / raw, r.coverage_cpu, 100.0 * r.culled_share, 100.0 * r.queued_share);
+  if (o.accuracy) std::printf(" %.4f | %.3f | %.1f |", r.mean_error, r.max_error, r.reference_s);
+  std::printf("\n");
   std::fflush(stdout);
 }
 
@@ -166,12 +192,15 @@ int main(int argc, char** argv) {
       o.big = false;
     else if (a == "--big-only")
       o.big_only = true;
+    else if (a == "--accuracy")
+      o.accuracy = true;
     else if (a == "--repeat")
       o.repeat = std::max(1, next());
     else if (a == "-h" || a == "--help") {
       std::printf(
           "usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]\n"
           "  [--big-side N] [--big-triangles T] [--no-big | --big-only] [--repeat R]\n"
+          "  [--accuracy]\n"
           "  [scene.glb|scene.gltf ...]\n");
       return 0;
     } else if (a.rfind("--", 0) == 0) {
@@ -190,8 +219,10 @@ int main(int argc, char** argv) {
         "| scene | triangles | map | layers | peel s | shadow map | setup s | shadow s | count s | "
         "readback s | total s | raw peel s | raw K passes s | raw K passes at shadow size s | "
         "total / raw | coverage CPU s | "
-        "open sky | exact |\n");
-    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        "open sky | exact |%s\n",
+        o.accuracy ? " mean abs error | max abs error | CPU reference s |" : "");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|%s\n",
+                o.accuracy ? "---|---|---|" : "");
     std::vector<std::string> scenes = o.scenes;
     if (scenes.empty()) {
       const std::filesystem::path root(SNOW_SOURCE_DIR);
@@ -208,11 +239,11 @@ int main(int argc, char** argv) {
       snow::LoadSettings ls;
       ls.load_images = false;
       const snow::Scene scene = snow::load_scene(path, ls);
-      print(run(std::filesystem::path(path).filename().string(), scene, o.side, o));
+      print(run(std::filesystem::path(path).filename().string(), scene, o.side, o), o);
     }
     if (o.big && (o.scenes.empty() || o.big_only)) {
       const snow::Scene big = snow::make_terrain(o.big_triangles).build();
-      print(run("generated terrain", big, o.big_side, o));
+      print(run("generated terrain", big, o.big_side, o), o);
     }
   } catch (const snow::Error& e) {
     std::fprintf(stderr, "error: %s\n", e.what());

@@ -2,10 +2,12 @@
 // section 4): exact ray casting against the scene instead of shadow maps.
 #include "snow/reference/coverage_ref.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "snow/bvh.h"
 #include "snow/coverage.h"
 
@@ -72,25 +74,25 @@ std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
   const Bvh bvh(std::move(corners));
   std::vector<float> coverage(maps.ground.size(), 0.0f);
   const MapGrid& grid = maps.grid;
-  for (int l = 0; l < maps.layers; ++l) {
-    for (int j = 0; j < grid.height; ++j) {
-      for (int i = 0; i < grid.width; ++i) {
-        const size_t k = maps.index(l, i, j);
-        if (std::isnan(maps.ground[k])) continue;
-        const float s = snow_depth ? clean_depth((*snow_depth)[k]) : 0.0f;
-        const glm::vec2 xz = grid.center(i, j);
-        const glm::vec3 p(xz.x, maps.ground[k] + s, xz.y);
-        const float eps = 1e-4f + 1e-6f * std::abs(p.y);
-        int lit = 0;
-        for (const glm::vec3& d : directions) {
-          const float rise = -d.y;  // height gained per unit of t along -d
-          if (!(rise > 0.0f)) continue;
-          if (!bvh.occluded(p, -d, eps / rise, kOpenSky)) ++lit;
-        }
-        coverage[k] = float(lit) / float(directions.size());
+  // Rows in parallel (each writes its own texels).
+  parallel_for(size_t(std::max(maps.layers, 0)) * size_t(grid.height), [&](size_t row) {
+    const int l = int(row / size_t(grid.height)), j = int(row % size_t(grid.height));
+    for (int i = 0; i < grid.width; ++i) {
+      const size_t k = maps.index(l, i, j);
+      if (std::isnan(maps.ground[k])) continue;
+      const float s = snow_depth ? clean_depth((*snow_depth)[k]) : 0.0f;
+      const glm::vec2 xz = grid.center(i, j);
+      const glm::vec3 p(xz.x, maps.ground[k] + s, xz.y);
+      const float eps = 1e-4f + 1e-6f * std::abs(p.y);
+      int lit = 0;
+      for (const glm::vec3& d : directions) {
+        const float rise = -d.y;  // height gained per unit of t along -d
+        if (!(rise > 0.0f)) continue;
+        if (!bvh.occluded(p, -d, eps / rise, kOpenSky)) ++lit;
       }
+      coverage[k] = float(lit) / float(directions.size());
     }
-  }
+  });
   return coverage;
 }
 
