@@ -268,6 +268,28 @@ TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
   EXPECT_NE(fine.output.find("--max-side 110"), std::string::npos) << fine.output;
 }
 
+// A run that meshes no snow says why: snow thinner than --min-thickness, or
+// patches smaller than --min-patch-area (a 1 m floor with 2 cm of snow).
+TEST(Cli, SaysWhyNoSnowPatchCameOut) {
+  const fs::path dir = temp_dir("no_patch");
+  snow::SceneBuilder builder;
+  builder.add_plane("Floor", 0.0f, {-0.5f, -0.5f}, {0.5f, 0.5f});
+  save_built_scene(builder, dir / "floor.glb");
+  const std::string common =
+      "snow " + q(dir / "floor.glb") + " --max-side 32 --directions 8 --depth 0.02";
+  const RunResult thin = run(common + " --min-thickness 0.05 -o " + q(dir / "thin.obj"));
+  ASSERT_EQ(thin.code, 0) << thin.output;
+  EXPECT_NE(thin.output.find("thinner than --min-thickness 0.05"), std::string::npos)
+      << thin.output;
+  const RunResult small = run(common + " --min-patch-area 5 -o " + q(dir / "small.obj"));
+  ASSERT_EQ(small.code, 0) << small.output;
+  EXPECT_NE(small.output.find("smaller than --min-patch-area 5"), std::string::npos)
+      << small.output;
+  const RunResult fine = run(common + " -o " + q(dir / "fine.obj"));
+  ASSERT_EQ(fine.code, 0) << fine.output;
+  EXPECT_EQ(fine.output.find("no snow patch"), std::string::npos) << fine.output;
+}
+
 // A sky box around the scene takes all the snow: the run warns and names it,
 // and --ignore of the sky box gives snow on the ground (and the bench, whose
 // snow joins the ground's patch) and no warning.

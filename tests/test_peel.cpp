@@ -166,6 +166,35 @@ TEST(MemoryGuard, EstimateGrowsWithSizeAndSuggestionFits) {
   EXPECT_THROW(check_memory_budget(g, 8, {}, 1 << 20), InputError);
 }
 
+// The pipeline drops the layers no column reaches: the table scene fills 3
+// of 8 (top or floor, the top's underside, the floor under it); what is kept
+// is unchanged, and a single plane keeps 1.
+TEST(Peel, DropEmptyLayersKeepsEverySurface) {
+  REQUIRE_GL();
+  const SnowMaps full = peel_layers(make_table_scene(), settings_with_side(64));
+  ASSERT_EQ(full.layers, 8);
+  SnowMaps maps = full;
+  EXPECT_EQ(maps.drop_empty_layers(), 5);
+  ASSERT_EQ(maps.layers, 3);
+  const size_t n = 3 * maps.grid.texels();
+  ASSERT_EQ(maps.ground.size(), n);
+  ASSERT_EQ(maps.object.size(), n);
+  for (size_t k = 0; k < n; ++k) {
+    ASSERT_TRUE(maps.ground[k] == full.ground[k] ||
+                (std::isnan(maps.ground[k]) && std::isnan(full.ground[k])));
+    ASSERT_EQ(maps.ceiling[k], full.ceiling[k]);
+    ASSERT_EQ(maps.object[k], full.object[k]);
+  }
+  for (size_t k = n; k < full.ground.size(); ++k) ASSERT_TRUE(std::isnan(full.ground[k]));
+  EXPECT_EQ(maps.drop_empty_layers(), 0);  // nothing more to drop
+
+  SceneBuilder plane;
+  plane.add_plane("Floor", 0.0f, {-1.0f, -1.0f}, {1.0f, 1.0f});
+  SnowMaps flat = peel_layers(plane.build(), settings_with_side(16));
+  EXPECT_EQ(flat.drop_empty_layers(), 7);
+  EXPECT_EQ(flat.layers, 1);
+}
+
 TEST(Peel, TableLayersAndCeilings) {
   REQUIRE_GL();
   TableDims dims;  // top at 0.75, 1 m square, 5 cm thick, on a 4 m floor

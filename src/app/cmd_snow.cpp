@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -150,6 +151,30 @@ void warn_if_sheltered(const Scene& scene, const SnowMaps& maps,
            "; use --ignore for a sky dome or helper geometry");
 }
 
+/// Why no snow patch came out: nothing holds snow, the snow is thinner than
+/// --min-thickness everywhere, or every patch is under --min-patch-area.
+void warn_no_patches(const SnowResult& snow, const PolygonizeSettings& settings) {
+  float deepest = 0.0f;
+  for (float d : snow.depth) {
+    if (std::isfinite(d)) deepest = std::max(deepest, d);
+  }
+  char line[300];
+  if (!(snow.volume > 0.0) || deepest <= 0.0f) {
+    std::snprintf(line, sizeof line, "no snow patch came out: nothing in the scene holds snow");
+  } else if (deepest < settings.min_thickness) {
+    std::snprintf(line, sizeof line,
+                  "no snow patch came out: the deepest snow is %.3g m, thinner than "
+                  "--min-thickness %.3g m (lower it, or raise --depth)",
+                  double(deepest), double(settings.min_thickness));
+  } else {
+    std::snprintf(line, sizeof line,
+                  "no snow patch came out: every patch is smaller than --min-patch-area %.3g m^2 "
+                  "(lower it for small models)",
+                  double(settings.min_patch_area));
+  }
+  log_warn(line);
+}
+
 /// Places `tile` at (x, y) of `canvas`.
 void blit(render::ImageRGBA8& canvas, const render::ImageRGBA8& tile, int x0, int y0) {
   for (int y = 0; y < tile.height; ++y) {
@@ -236,7 +261,10 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   log_info("OpenGL: " + context->description());
 
   SnowMaps maps;
-  stage("peel", [&] { maps = peel_layers(snow_scene, s.peel); });
+  stage("peel", [&] {
+    maps = peel_layers(snow_scene, s.peel);
+    maps.drop_empty_layers();  // --layers is an upper bound
+  });
   log_info("maps: " + std::to_string(maps.grid.width) + " x " + std::to_string(maps.grid.height) +
            " texels of " + std::to_string(maps.grid.texel) + " m, " + std::to_string(maps.layers) +
            " layers");
@@ -248,7 +276,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_if_sheltered(snow_scene, maps, snow.coverage);
   std::vector<SnowPatch> patches;
   stage("polygonize", [&] { patches = polygonize(maps, snow.depth, snow_scene, s.polygonize); });
-  if (patches.empty()) log_warn("no snow patch came out: nothing in the scene holds snow");
+  if (patches.empty()) warn_no_patches(snow, s.polygonize);
 
   stage("export", [&] {
     if (!o.output.empty()) {

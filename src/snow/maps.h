@@ -6,7 +6,9 @@
 // z in [origin.y + j*texel, +texel); its centre is grid.center(i, j).
 // Layers are ordered top-down: layer 0 is the highest surface under the sky.
 // Every per-layer array has layers*height*width entries, index(l, i, j).
+#include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -48,6 +50,11 @@ struct SnowMaps {
   bool has_surface(int l, int i, int j) const { return !std::isnan(ground[index(l, i, j)]); }
   /// Allocates every array for `layers` layers of `grid`, all empty.
   void allocate(const MapGrid& g, int layer_count);
+  /// Drops the trailing layers that hold no surface anywhere (the peel
+  /// allocates L layers; most scenes fill fewer), so that later stages
+  /// neither store nor compute them; keeps at least one layer and frees the
+  /// memory. Returns the number of layers dropped.
+  int drop_empty_layers();
 };
 
 inline void SnowMaps::allocate(const MapGrid& g, int layer_count) {
@@ -59,6 +66,32 @@ inline void SnowMaps::allocate(const MapGrid& g, int layer_count) {
   normal.assign(n, glm::vec3(0.0f));
   object.assign(n, -1);
   overflow_columns = 0;
+}
+
+inline int SnowMaps::drop_empty_layers() {
+  const size_t texels = grid.texels();
+  int used = layers;
+  while (used > 1) {
+    const auto first = ground.begin() + ptrdiff_t(size_t(used - 1) * texels);
+    if (std::any_of(first, first + ptrdiff_t(texels), [](float g) { return !std::isnan(g); })) {
+      break;
+    }
+    --used;
+  }
+  const int dropped = layers - used;
+  if (dropped > 0) {
+    const size_t n = size_t(used) * texels;
+    const auto shrink = [n](auto& v) {
+      v.resize(n);
+      v.shrink_to_fit();
+    };
+    shrink(ground);
+    shrink(ceiling);
+    shrink(normal);
+    shrink(object);
+    layers = used;
+  }
+  return dropped;
 }
 
 }  // namespace snow
