@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <optional>
 #include <string>
 
 #include "core/error.h"
@@ -33,6 +35,11 @@ StabilizeResult stabilize_step(Stabilizer& stabilizer, const StabilizeSettings& 
     total.converged = r.converged;
     total.volume = r.volume;
     total.lost_volume += r.lost_volume;
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "stabilize: %d passes, largest move %.3g m, routing %d passes (%.2f s)",
+                  total.iterations, double(r.residual), r.route_passes, r.route_seconds);
+    log_debug(line);
     if (r.converged || passes <= 0 || total.iterations >= settings.max_iterations) break;
     // The larger of the share of passes run and the share of the way down
     // to the tolerance on a log scale (relaxation converges about
@@ -78,11 +85,17 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   }
 
   SnowResult result;
-  CoverageRenderer shadows(scene);
-  Stabilizer stabilizer(maps, stabilize);
-  result.coverage = shadows.compute(maps, coverage);
+  std::optional<CoverageRenderer> shadows(std::in_place, scene);
+  result.coverage = shadows->compute(maps, coverage);
   mask_coverage(maps, receives, result.coverage);
   result.coverage_updates = 1;
+  // Without snow-on-snow updates the shadow maps are done with: they are
+  // freed before the stabilizer allocates its textures, so the two never
+  // take memory at the same time.
+  if (!(settings.snow_on_snow_every > 0 && settings.steps > settings.snow_on_snow_every)) {
+    shadows.reset();
+  }
+  Stabilizer stabilizer(maps, stabilize);
 
   const float per_step = settings.fall_depth / float(settings.steps);
   const double texel_area = double(maps.grid.texel) * double(maps.grid.texel);
@@ -92,7 +105,7 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
         settings.snow_on_snow_every > 0 && step > 0 && step % settings.snow_on_snow_every == 0;
     if (update) {
       const std::vector<float> lying = stabilizer.depth();
-      result.coverage = shadows.compute(maps, coverage, &lying);
+      result.coverage = shadows->compute(maps, coverage, &lying);
       mask_coverage(maps, receives, result.coverage);
       ++result.coverage_updates;
     }
