@@ -235,6 +235,38 @@ TEST(Column, LandingRule) {
 
 // --- CPU reference on analytic maps -----------------------------------------
 
+TEST(StabilizeResult, AddFoldsInALaterCall) {
+  StabilizeResult a;
+  a.iterations = 30;
+  a.residual = 1e-2f;
+  a.route_passes = 5;
+  a.routed_volume = 2.0;
+  a.lost_volume = 0.5;
+  a.volume = 10.0;
+  a.route_seconds = 1.0;
+  a.tile_share = 1.0;
+  StabilizeResult b;
+  b.iterations = 10;
+  b.residual = 1e-5f;
+  b.converged = true;
+  b.route_passes = 3;
+  b.routed_volume = 0.25;
+  b.lost_volume = 0.25;
+  b.volume = 9.5;
+  b.route_seconds = 0.5;
+  b.tile_share = 0.2;
+  a.add(b);
+  EXPECT_EQ(a.iterations, 40);
+  EXPECT_EQ(a.residual, 1e-5f);
+  EXPECT_TRUE(a.converged);
+  EXPECT_EQ(a.route_passes, 8);
+  EXPECT_DOUBLE_EQ(a.routed_volume, 2.25);
+  EXPECT_DOUBLE_EQ(a.lost_volume, 0.75);
+  EXPECT_DOUBLE_EQ(a.volume, 9.5);
+  EXPECT_DOUBLE_EQ(a.route_seconds, 1.5);
+  EXPECT_DOUBLE_EQ(a.tile_share, (30 * 1.0 + 10 * 0.2) / 40);
+}
+
 TEST(StabilizeReference, MassIsConserved) {
   const SnowMaps maps = bumpy_maps(64, 4);
   std::vector<float> depth = random_snow(maps, 0.5f, 7);

@@ -122,20 +122,11 @@ int main(int argc, char** argv) {
       StabilizeResult sum;
       while (sum.iterations < settings.max_iterations && !sum.converged) {
         r = stabilizer.iterate(std::min(trace, settings.max_iterations - sum.iterations));
-        sum.iterations += r.iterations;
-        sum.route_passes += r.route_passes;
-        sum.route_seconds += r.route_seconds;
-        sum.routed_volume += r.routed_volume;
-        sum.lost_volume += r.lost_volume;
-        sum.residual = r.residual;
-        sum.converged = r.converged;
-        sum.volume = r.volume;
-        sum.tile_share += r.tile_share * r.iterations;
+        sum.add(r);
         std::fprintf(stderr, "pass %d residual %.3e m routed %.4f m^3 (%d passes) %.1f s\n",
                      sum.iterations, r.residual, r.routed_volume, r.route_passes,
                      seconds_since(t0));
       }
-      sum.tile_share /= std::max(1, sum.iterations);
       r = sum;
     } else {
       r = stabilizer.iterate(settings.max_iterations);

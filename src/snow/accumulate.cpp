@@ -28,13 +28,7 @@ StabilizeResult stabilize_step(Stabilizer& stabilizer, const StabilizeSettings& 
   for (;;) {
     const int passes = std::min(kPassesPerReport, settings.max_iterations - total.iterations);
     const StabilizeResult r = stabilizer.iterate(passes);
-    total.iterations += r.iterations;
-    total.route_passes += r.route_passes;
-    total.routed_volume += r.routed_volume;
-    total.residual = r.residual;
-    total.converged = r.converged;
-    total.volume = r.volume;
-    total.lost_volume += r.lost_volume;
+    total.add(r);
     char line[200];
     std::snprintf(line, sizeof line,
                   "stabilize: %d passes, largest move %.3g m, routing %d passes (%.2f s)",

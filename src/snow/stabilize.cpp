@@ -121,6 +121,20 @@ std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSett
   return cells;
 }
 
+void StabilizeResult::add(const StabilizeResult& later) {
+  const int passes = iterations + later.iterations;
+  tile_share = passes > 0 ? (tile_share * iterations + later.tile_share * later.iterations) / passes
+                          : later.tile_share;
+  iterations = passes;
+  residual = later.residual;
+  converged = later.converged;
+  route_passes += later.route_passes;
+  routed_volume += later.routed_volume;
+  lost_volume += later.lost_volume;
+  volume = later.volume;
+  route_seconds += later.route_seconds;
+}
+
 double snow_volume(const SnowMaps& maps, const std::vector<float>& depth) {
   double sum = 0.0;
   const size_t n = std::min(depth.size(), maps.ground.size());

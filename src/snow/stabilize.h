@@ -81,6 +81,12 @@ struct StabilizeResult {
   double route_seconds = 0.0;  // s, wall time of the routing (GPU only; 0 in the reference)
   double tile_share = 0.0;     // share (0..1) of the tiles the relaxation passes computed:
                                // 1 with active_tiles off, 0 unless count_tiles (GPU only)
+
+  /// Folds in the result of a later call on the same stabilizer, as one
+  /// call running both would report: counts, times and moved volumes add up;
+  /// residual, converged and volume are the later call's; tile_share is
+  /// weighted by passes.
+  void add(const StabilizeResult& later);
 };
 
 /// Per layer texel inputs of the passes, shared by the GPU upload and the CPU
