@@ -220,24 +220,6 @@ struct Stabilizer::Impl {
 
 Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     : settings(s), grid(maps.grid), layers(maps.layers) {
-  const std::vector<glm::vec4> cell_data = stabilize_cells(maps, s);
-  surface.resize(cell_data.size());
-  for (size_t k = 0; k < cell_data.size(); ++k) {
-    surface[k] = (int(cell_data[k].w) & kCellSurface) != 0 ? 1 : 0;
-  }
-  // Passes draw each layer only over the bounding box of its surfaces;
-  // texels outside keep their cleared values (no snow, no flow).
-  for (int l = 0; l < layers; ++l) {
-    glm::ivec2 lo(grid.width, grid.height), hi(-1, -1);
-    for (int j = 0; j < grid.height; ++j) {
-      for (int i = 0; i < grid.width; ++i) {
-        if (!surface[maps.index(l, i, j)]) continue;
-        lo = glm::min(lo, glm::ivec2(i, j));
-        hi = glm::max(hi, glm::ivec2(i, j));
-      }
-    }
-    rect.push_back(hi.x < 0 ? glm::ivec4(0) : glm::ivec4(lo, hi - lo + 1));
-  }
   width = grid.width;
   height = grid.height;
   reduce_width = (width + kReduceBlock - 1) / kReduceBlock;
@@ -250,9 +232,29 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     throw GLError("stabilize: " + std::to_string(layers) +
                   " layers exceed GL_MAX_ARRAY_TEXTURE_LAYERS " + std::to_string(max_layers));
   }
-  cells = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize cells");
-  glTextureSubImage3D(cells.id(), 0, 0, 0, 0, width, height, layers, GL_RGBA, GL_FLOAT,
-                      cell_data.data());
+  {  // the CPU copy of the cells is freed before the pass textures are allocated
+    const std::vector<glm::vec4> cell_data = stabilize_cells(maps, s);
+    surface.resize(cell_data.size());
+    for (size_t k = 0; k < cell_data.size(); ++k) {
+      surface[k] = (int(cell_data[k].w) & kCellSurface) != 0 ? 1 : 0;
+    }
+    // Passes draw each layer only over the bounding box of its surfaces;
+    // texels outside keep their cleared values (no snow, no flow).
+    for (int l = 0; l < layers; ++l) {
+      glm::ivec2 lo(grid.width, grid.height), hi(-1, -1);
+      for (int j = 0; j < grid.height; ++j) {
+        for (int i = 0; i < grid.width; ++i) {
+          if (!surface[maps.index(l, i, j)]) continue;
+          lo = glm::min(lo, glm::ivec2(i, j));
+          hi = glm::max(hi, glm::ivec2(i, j));
+        }
+      }
+      rect.push_back(hi.x < 0 ? glm::ivec4(0) : glm::ivec4(lo, hi - lo + 1));
+    }
+    cells = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize cells");
+    glTextureSubImage3D(cells.id(), 0, 0, 0, 0, width, height, layers, GL_RGBA, GL_FLOAT,
+                        cell_data.data());
+  }
   for (int x = 0; x < 2; ++x) {
     depth[x] = gl::create_texture_2d_array(GL_RG32F, width, height, layers, "stabilize depth");
     pointer[x] = gl::create_texture_2d_array(GL_R32UI, width, height, layers, "stabilize pointers");
