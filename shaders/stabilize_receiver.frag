@@ -9,7 +9,6 @@
 #include "column.glsl"
 
 layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
-uniform int u_falls_only;  // 1: only receivers below a steep support or an edge
 
 layout(location = 0) out uint o_pointer;
 
@@ -34,8 +33,7 @@ void main() {
       if (land_l < 0) continue;
       float hn = texelFetch(u_stable, ivec3(nc, land_l), 0).r;
       float via = hn + dir_distance(n) * cell.z;
-      bool fall = cell.x - texelFetch(u_cells, ivec3(nc, land_l), 0).x > dir_distance(n) * cell.z;
-      if ((fall || u_falls_only == 0) && hn < hs && (p == self_index || via < best)) {
+      if (hn < hs && (p == self_index || via < best)) {
         best = via;
         p = texel_index(nc, land_l);
       }

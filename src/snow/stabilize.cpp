@@ -200,7 +200,7 @@ struct Stabilizer::Impl {
   }
   void upload_depth(const std::vector<float>& depth);
   void add_snow(const std::vector<float>& add);
-  int route(bool falls_only);
+  int route();
   void relax_pass(int stride);
   void reset_tiles() { stride_last.assign(stride_last.size(), -1); }
   void bind_changed(const gl::Texture& stamps) const {
@@ -495,7 +495,7 @@ GLuint Stabilizer::Impl::count_fragments(const gl::Program& program) {
   return samples;
 }
 
-int Stabilizer::Impl::route(bool falls_only) {
+int Stabilizer::Impl::route() {
   bind(SNOW_STABILIZE_CELLS, cells);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
   // Erosion until nothing changes; the kept height ends in stable_tex[e].
@@ -531,7 +531,6 @@ int Stabilizer::Impl::route(bool falls_only) {
     }
   }
   bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
-  receiver.set("u_falls_only", falls_only ? 1 : 0);
   per_layer(receiver, fbo_pointer[0]);
   int p = 0;  // pointer[p] holds the pointers
   for (;;) {
@@ -635,7 +634,7 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
   if (route_pending) {
     if (settings.route_steep) {
       const auto t0 = std::chrono::steady_clock::now();
-      result.route_passes = route(false);
+      result.route_passes = route();
       // Routed = scattered to terminals (out_a.r) + routed into the void.
       const glm::dvec4 after = reduce_blocks(false);
       result.routed_volume = (after.w + after.z) * area - lost_before;
@@ -660,21 +659,6 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
       if (result.residual < settings.tolerance) {
         result.converged = true;
         break;
-      }
-      if (settings.route_steep) {
-        // What became unable to stay since is routed again.
-        const double lost = sums.z * area;
-        const auto t0 = std::chrono::steady_clock::now();
-        result.route_passes += route(true);
-        const glm::dvec4 after = reduce_blocks(false);
-        result.routed_volume += (after.w + after.z) * area - lost;
-        if (tiled) {  // skipped tiles must read zero outflow (routing used the textures)
-          const float zero[4] = {0, 0, 0, 0};
-          glClearTexImage(out_a.id(), 0, GL_RGBA, GL_FLOAT, zero);
-          glClearTexImage(out_b.id(), 0, GL_RGBA, GL_FLOAT, zero);
-        }
-        glFinish();
-        result.route_seconds += seconds_since(t0);
       }
     }
   }

@@ -270,7 +270,7 @@ float Stabilizer::residual() const {
   return largest;
 }
 
-int Stabilizer::route(double* routed_volume, bool falls_only) {
+int Stabilizer::route(double* routed_volume) {
   const size_t count = cells_.size();
   // Erosion passes (shaders/stabilize_erode.frag): the highest snow surface
   // each texel can keep, H = max(ground, min(H, min over neighbours of
@@ -337,8 +337,7 @@ int Stabilizer::route(double* routed_volume, bool falls_only) {
             if (land_l < 0) continue;
             const size_t kt = index(land_l, ni, nj);
             const float via = stable_[kt] + distance_[n] * cell.z;
-            const bool fall = cell.x - cells_[kt].x > distance_[n] * cell.z;
-            if ((fall || !falls_only) && stable_[kt] < hs && (p == uint32_t(k) || via < best)) {
+            if (stable_[kt] < hs && (p == uint32_t(k) || via < best)) {
               best = via;
               p = uint32_t(kt);
             }
@@ -414,9 +413,6 @@ StabilizeResult Stabilizer::iterate(int passes) {
         result.converged = true;
         break;
       }
-      // What became unable to stay since (piles spilling over edges) is
-      // routed again; a state at rest routes nothing.
-      if (settings_.route_steep) result.route_passes += route(&result.routed_volume, true);
     }
   }
   result.lost_volume = lost_volume() - lost_before;

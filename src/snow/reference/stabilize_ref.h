@@ -53,11 +53,8 @@ class Stabilizer {
   float residual() const;
   /// Routing (erosion until stable, receiver, jumps until every pointer
   /// reaches a terminal, scatter, apply); returns the erosion plus jump passes
-  /// run. With falls_only, only snow whose receiver lies lower than its own
-  /// support by more than distance * tan(repose) (a steep support or an
-  /// edge) is routed: heaps on gentle ground are left to the relaxation. Adds the routed volume
-  /// (m^3) to *routed_volume when given.
-  int route(double* routed_volume = nullptr, bool falls_only = false);
+  /// run. Adds the routed volume (m^3) to *routed_volume when given.
+  int route(double* routed_volume = nullptr);
 
   const std::vector<float>& amount() const { return amount_; }
   const std::vector<uint8_t>& code() const { return code_; }
