@@ -1,25 +1,29 @@
 #version 450 core
-// Stabilizer active tiles: lists the tiles (u_tile x u_tile columns, all
-// layers) the next pass must compute, for an instanced indirect draw of tile
-// quads (stabilize_tile.vert). A tile is active when any tile within u_reach
-// tiles changed (u_changed >= u_since: a pass at or after the last pass whose
-// results the skipped tiles would repeat), or with u_all. The list order
-// varies (atomics); each fragment writes only its own texel, so it does not
-// matter. See "Active tiles" in src/snow/stabilize.cpp.
+// Stabilizer active tiles: lists, per layer, the tiles (u_tile x u_tile
+// columns) the next pass must compute, for one instanced indirect draw of
+// tile quads per layer (stabilize_tile.vert). A tile is active when any tile
+// within u_reach tiles changed (u_changed >= u_since: a pass at or after the
+// last pass whose results the skipped tiles would repeat), or with u_all; an
+// active tile is listed for the layers that have a surface in it, or for
+// every layer with u_all. The list order varies (atomics); each fragment
+// writes only its own texel, so it does not matter. See "Active tiles" in
+// src/snow/stabilize.cpp.
 #include "bindings.h"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform readonly iimage2D u_changed;
+layout(binding = SNOW_STABILIZE_TILE_LAYERS) uniform usampler2DArray u_tile_layers;
 layout(std430, binding = SNOW_STABILIZE_TILE_LIST) buffer TileList {
-  uint command[4];  // glDrawArraysIndirect: count (6), instance count, first, base instance
-  uint tiles[];     // x | y << 16
+  uint data[];  // u_layers draw-indirect commands (count 1, instance count, first, base
+                // instance), then u_layers lists of u_tiles.x * u_tiles.y tiles (x | y << 16)
 };
 
 uniform ivec2 u_tiles;  // tiles per row, per column
+uniform int u_layers;   // L
 uniform int u_reach;    // tiles
 uniform int u_since;    // pass index
-uniform int u_all;      // 1: every tile
+uniform int u_all;      // 1: every tile of every layer
 
 void main() {
   ivec2 t = ivec2(gl_GlobalInvocationID.xy);
@@ -34,5 +38,11 @@ void main() {
       }
     }
   }
-  if (on) tiles[atomicAdd(command[1], 1u)] = uint(t.x) | (uint(t.y) << 16);
+  if (!on) return;
+  uint tile_count = uint(u_tiles.x * u_tiles.y);
+  for (int l = 0; l < u_layers; ++l) {
+    if (u_all == 0 && texelFetch(u_tile_layers, ivec3(t, l), 0).r == 0u) continue;
+    uint slot = atomicAdd(data[4 * l + 1], 1u);
+    data[4u * uint(u_layers) + uint(l) * tile_count + slot] = uint(t.x) | (uint(t.y) << 16);
+  }
 }

@@ -16,6 +16,7 @@
 // to route with full passes. --trace P prints the residual, routed volume and
 // elapsed time every P passes (stderr), to see where the passes go.
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -123,13 +124,30 @@ int main(int argc, char** argv) {
     if (trace > 0) {
       // The passes in chunks of `trace` (each chunk ends with a convergence
       // check, as iterate() does), summed as one call would report them.
+      // Also where the depth changed most over the chunk: layer, texel,
+      // object, ground height, depth.
       StabilizeResult sum;
+      std::vector<float> before = stabilizer.depth();
       while (sum.iterations < settings.max_iterations && !sum.converged) {
         r = stabilizer.iterate(std::min(trace, settings.max_iterations - sum.iterations));
         sum.add(r);
-        std::fprintf(stderr, "pass %d residual %.3e m routed %.4f m^3 (%d passes) %.1f s\n",
-                     sum.iterations, r.residual, r.routed_volume, r.route_passes,
-                     seconds_since(t0));
+        const std::vector<float> after = stabilizer.depth();
+        size_t most = 0;
+        for (size_t k = 0; k < after.size(); ++k) {
+          if (std::abs(after[k] - before[k]) > std::abs(after[most] - before[most])) most = k;
+        }
+        const int l = int(most / maps.grid.texels());
+        const int i = int(most % maps.grid.texels()) % maps.grid.width;
+        const int j = int(most % maps.grid.texels()) / maps.grid.width;
+        const int32_t object = maps.object[most];
+        std::fprintf(stderr,
+                     "pass %d residual %.3e m routed %.4f m^3 (%d passes) %.1f s; largest "
+                     "change %.2e m at layer %d (%d, %d) on %s, ground %.3f m, depth %.4f m\n",
+                     sum.iterations, r.residual, r.routed_volume, r.route_passes, seconds_since(t0),
+                     after[most] - before[most], l, i, j,
+                     object >= 0 ? scene.objects[size_t(object)].name.c_str() : "-",
+                     maps.ground[most], after[most]);
+        before = after;
       }
       r = sum;
     } else {

@@ -171,7 +171,8 @@ struct Stabilizer::Impl {
   bool tiled = false;
   int tiles_x = 0, tiles_y = 0;
   gl::Texture tile_relax, tile_erode;  // R32I per tile: stamp of the last pass that changed it
-  gl::Buffer tile_list;                // draw-indirect command, then the active tiles
+  gl::Texture tile_layers;             // R32UI per tile and layer: 1 where it has a surface
+  gl::Buffer tile_list;                // per layer a draw-indirect command, then its tiles
   gl::Program tile_select, outflow_tiled, gather_tiled, erode_tiled;
   double tiles_drawn = 0.0;      // tiles computed by relaxation passes (count_tiles)
   int pass_counter = 0;          // relaxation passes run since construction (their stamps)
@@ -274,9 +275,27 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   const GLint never = -1;
   glClearTexImage(tile_relax.id(), 0, GL_RED_INTEGER, GL_INT, &never);
   glClearTexImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT, &never);
+  {
+    std::vector<GLuint> occupied(size_t(tiles_x) * size_t(tiles_y) * size_t(layers), 0);
+    for (int l = 0; l < layers; ++l) {
+      for (int j = 0; j < height; ++j) {
+        for (int i = 0; i < width; ++i) {
+          if (surface[maps.index(l, i, j)]) {
+            occupied[(size_t(l) * tiles_y + size_t(j / kTile)) * tiles_x + size_t(i / kTile)] = 1;
+          }
+        }
+      }
+    }
+    tile_layers =
+        gl::create_texture_2d_array(GL_R32UI, tiles_x, tiles_y, layers, "stabilize tile layers");
+    glTextureSubImage3D(tile_layers.id(), 0, 0, 0, 0, tiles_x, tiles_y, layers, GL_RED_INTEGER,
+                        GL_UNSIGNED_INT, occupied.data());
+  }
   tile_list = gl::create_buffer();
-  glNamedBufferStorage(tile_list.id(), GLsizeiptr(sizeof(GLuint) * (4 + size_t(tiles_x) * tiles_y)),
-                       nullptr, GL_DYNAMIC_STORAGE_BIT);
+  glNamedBufferStorage(
+      tile_list.id(),
+      GLsizeiptr(sizeof(GLuint) * size_t(layers) * (4 + size_t(tiles_x) * size_t(tiles_y))),
+      nullptr, GL_DYNAMIC_STORAGE_BIT);
   {
     int levels = 1;
     while ((1 << levels) <= s.max_stride) ++levels;
@@ -353,6 +372,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     p->set("u_tile", kTile);
   }
   tile_select.set("u_tiles", glm::ivec2(tiles_x, tiles_y));
+  tile_select.set("u_layers", layers);
   for (const gl::Program* p : {&outflow_tiled, &gather_tiled, &erode_tiled}) {
     p->set("u_viewport", glm::ivec2(tiles_x * kTile, tiles_y * kTile));
   }
@@ -368,7 +388,7 @@ void Stabilizer::Impl::set_common(const gl::Program& program) const {
   program.set("u_rise", kSurfaceContinuityTexels * grid.texel);
 }
 
-// draw() once per layer with surfaces, into fbos[l] with u_layer = l and
+// draw(l) once per layer l with surfaces, into fbos[l] with u_layer = l and
 // the scissor on the layer's rectangle; `program` is in use.
 template <class Draw>
 void Stabilizer::Impl::each_layer(const gl::Program& program,
@@ -380,7 +400,7 @@ void Stabilizer::Impl::each_layer(const gl::Program& program,
     program.set("u_layer", l);
     glScissor(r.x, r.y, r.z, r.w);
     glBindFramebuffer(GL_FRAMEBUFFER, fbos[size_t(l)].id());
-    draw();
+    draw(l);
   }
   glDisable(GL_SCISSOR_TEST);
 }
@@ -391,14 +411,18 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
   program.use();
   glBindVertexArray(vao.id());
   glViewport(0, 0, width, height);
-  each_layer(program, fbos, [] { glDrawArrays(GL_TRIANGLES, 0, 3); });
+  each_layer(program, fbos, [](int) { glDrawArrays(GL_TRIANGLES, 0, 3); });
 }
 
 // Active tiles. Late in a relaxation only the pile edges still move, so the
 // outflow and gather passes (and the routing's erosion passes) draw only the
-// tiles (kTile x kTile columns, all layers) that may change, as instanced
-// points of kTile pixels (one square per tile) from a list built on the GPU
-// (stabilize_tiles.comp, an indirect draw, no readback). The gather, apply and
+// tiles (kTile x kTile columns) that may change, as instanced points of kTile
+// pixels (one square per tile) from lists built on the GPU
+// (stabilize_tiles.comp, one indirect draw per layer, no readback). Each
+// layer lists only the tiles where it has a surface: a texel without one
+// neither sends nor receives, so after the first pass of each stride (which
+// draws every tile of every layer) its outflow stays zero and its depth
+// stays. The gather, apply and
 // erosion passes stamp the tiles where a texel sent snow or changed with the
 // pass index. A relaxation pass of stride s computes a tile when a tile within
 // ceil(2 s / kTile) tiles (what its outflow reads, and what its inflow's
@@ -416,11 +440,14 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
 // erosion pass changed; no such tile ends the erosion (the same pass count as
 // the occlusion-query check of the full passes).
 void Stabilizer::Impl::select_tiles(const gl::Texture& stamps, int reach, int since, bool all) {
-  const GLuint command[4] = {1, 0, 0, 0};  // one point per tile, no instances yet
-  glNamedBufferSubData(tile_list.id(), 0, sizeof(command), command);
+  std::vector<GLuint> commands(4 * size_t(layers), 0);  // one point per tile, no instances yet
+  for (int l = 0; l < layers; ++l) commands[4 * size_t(l)] = 1;
+  glNamedBufferSubData(tile_list.id(), 0, GLsizeiptr(commands.size() * sizeof(GLuint)),
+                       commands.data());
   glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);  // the stamps of the passes before
   bind_changed(stamps);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_TILE_LIST, tile_list.id());
+  bind(SNOW_STABILIZE_TILE_LAYERS, tile_layers);
   tile_select.use();
   tile_select.set("u_reach", reach);
   tile_select.set("u_since", since);
@@ -430,10 +457,14 @@ void Stabilizer::Impl::select_tiles(const gl::Texture& stamps, int reach, int si
                   GL_BUFFER_UPDATE_BARRIER_BIT);
 }
 
-// The number of tiles the last select_tiles listed (a readback).
+// The number of tiles the last select_tiles listed, over all layers (a
+// readback).
 GLuint Stabilizer::Impl::selected_tiles() {
+  std::vector<GLuint> commands(4 * size_t(layers));
+  glGetNamedBufferSubData(tile_list.id(), 0, GLsizeiptr(commands.size() * sizeof(GLuint)),
+                          commands.data());
   GLuint n = 0;
-  glGetNamedBufferSubData(tile_list.id(), sizeof(GLuint), sizeof(GLuint), &n);
+  for (int l = 0; l < layers; ++l) n += commands[4 * size_t(l) + 1];
   return n;
 }
 
@@ -446,7 +477,9 @@ void Stabilizer::Impl::tiled_layers(const gl::Program& program,
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_TILE_LIST, tile_list.id());
   glViewport(0, 0, tiles_x * kTile, tiles_y * kTile);
   glEnable(GL_PROGRAM_POINT_SIZE);
-  each_layer(program, fbos, [] { glDrawArraysIndirect(GL_POINTS, nullptr); });
+  each_layer(program, fbos, [](int l) {
+    glDrawArraysIndirect(GL_POINTS, reinterpret_cast<const void*>(sizeof(GLuint) * 4 * size_t(l)));
+  });
   glDisable(GL_PROGRAM_POINT_SIZE);
   glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
 }
@@ -668,7 +701,7 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
   result.lost_volume = sums.z * area - lost_before;
   result.tile_share = !tiled ? 1.0
                       : settings.count_tiles && result.iterations > 0
-                          ? tiles_drawn / (double(result.iterations) * tiles_x * tiles_y)
+                          ? tiles_drawn / (double(result.iterations) * tiles_x * tiles_y * layers)
                           : 0.0;
   return result;
 }

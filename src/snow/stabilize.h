@@ -31,10 +31,11 @@
 //    without).
 // Relaxation passes cycle through strides max_stride, ..., 2, 1 (multi-scale,
 // see stabilize_pass_stride), so piles spread in few passes. On the GPU the
-// relaxation and erosion passes draw only the active tiles (16 x 16 columns,
-// all layers) whose inputs changed since the last pass of the same kind and
-// stride (settings.active_tiles); a skipped tile would repeat a pass that
-// moved nothing there, so the result is bit for bit that of full passes.
+// relaxation and erosion passes draw only the active tiles (16 x 16 columns)
+// whose inputs changed since the last pass of the same kind and stride, in
+// the layers that have a surface there (settings.active_tiles); a skipped
+// tile would repeat a pass that moved nothing there, so the result is bit for
+// bit that of full passes.
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -80,8 +81,9 @@ struct StabilizeResult {
                                // the void below the lowest surface)
   double volume = 0.0;         // m^3 of snow lying on the maps after the call
   double route_seconds = 0.0;  // s, wall time of the routing (GPU only; 0 in the reference)
-  double tile_share = 0.0;     // share (0..1) of the tiles the relaxation passes computed:
-                               // 1 with active_tiles off, 0 unless count_tiles (GPU only)
+  double tile_share = 0.0;     // share (0..1) of the tiles times layers the relaxation passes
+                               // computed: 1 with active_tiles off, 0 unless count_tiles
+                               // (GPU only)
 
   /// Folds in the result of a later call on the same stabilizer, as one
   /// call running both would report: counts, times and moved volumes add up;
