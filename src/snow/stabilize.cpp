@@ -240,7 +240,11 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
       surface[k] = (int(cell_data[k].w) & kCellSurface) != 0 ? 1 : 0;
     }
     // Passes draw each layer only over the bounding box of its surfaces;
-    // texels outside keep their cleared values (no snow, no flow).
+    // texels outside keep their cleared values (no snow, no flow). Active
+    // tiles are drawn only in the layers with a surface in them.
+    tiles_x = (width + kTile - 1) / kTile;
+    tiles_y = (height + kTile - 1) / kTile;
+    std::vector<GLuint> occupied(size_t(tiles_x) * size_t(tiles_y) * size_t(layers), 0);
     for (int l = 0; l < layers; ++l) {
       glm::ivec2 lo(grid.width, grid.height), hi(-1, -1);
       for (int j = 0; j < grid.height; ++j) {
@@ -248,10 +252,15 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
           if (!surface[maps.index(l, i, j)]) continue;
           lo = glm::min(lo, glm::ivec2(i, j));
           hi = glm::max(hi, glm::ivec2(i, j));
+          occupied[(size_t(l) * tiles_y + size_t(j / kTile)) * tiles_x + size_t(i / kTile)] = 1;
         }
       }
       rect.push_back(hi.x < 0 ? glm::ivec4(0) : glm::ivec4(lo, hi - lo + 1));
     }
+    tile_layers =
+        gl::create_texture_2d_array(GL_R32UI, tiles_x, tiles_y, layers, "stabilize tile layers");
+    glTextureSubImage3D(tile_layers.id(), 0, 0, 0, 0, tiles_x, tiles_y, layers, GL_RED_INTEGER,
+                        GL_UNSIGNED_INT, occupied.data());
     cells = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize cells");
     glTextureSubImage3D(cells.id(), 0, 0, 0, 0, width, height, layers, GL_RGBA, GL_FLOAT,
                         cell_data.data());
@@ -268,29 +277,11 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   GLfloat point_sizes[2] = {1.0f, 1.0f};
   glGetFloatv(GL_POINT_SIZE_RANGE, point_sizes);
   tiled = s.active_tiles && point_sizes[1] >= float(kTile);  // tiles are drawn as points
-  tiles_x = (width + kTile - 1) / kTile;
-  tiles_y = (height + kTile - 1) / kTile;
   tile_relax = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
   tile_erode = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
   const GLint never = -1;
   glClearTexImage(tile_relax.id(), 0, GL_RED_INTEGER, GL_INT, &never);
   glClearTexImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT, &never);
-  {
-    std::vector<GLuint> occupied(size_t(tiles_x) * size_t(tiles_y) * size_t(layers), 0);
-    for (int l = 0; l < layers; ++l) {
-      for (int j = 0; j < height; ++j) {
-        for (int i = 0; i < width; ++i) {
-          if (surface[maps.index(l, i, j)]) {
-            occupied[(size_t(l) * tiles_y + size_t(j / kTile)) * tiles_x + size_t(i / kTile)] = 1;
-          }
-        }
-      }
-    }
-    tile_layers =
-        gl::create_texture_2d_array(GL_R32UI, tiles_x, tiles_y, layers, "stabilize tile layers");
-    glTextureSubImage3D(tile_layers.id(), 0, 0, 0, 0, tiles_x, tiles_y, layers, GL_RED_INTEGER,
-                        GL_UNSIGNED_INT, occupied.data());
-  }
   tile_list = gl::create_buffer();
   glNamedBufferStorage(
       tile_list.id(),
@@ -418,24 +409,23 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
 // outflow and gather passes (and the routing's erosion passes) draw only the
 // tiles (kTile x kTile columns) that may change, as instanced points of kTile
 // pixels (one square per tile) from lists built on the GPU
-// (stabilize_tiles.comp, one indirect draw per layer, no readback). Each
-// layer lists only the tiles where it has a surface: a texel without one
-// neither sends nor receives, so after the first pass of each stride (which
-// draws every tile of every layer) its outflow stays zero and its depth
-// stays. The gather, apply and
-// erosion passes stamp the tiles where a texel sent snow or changed with the
-// pass index. A relaxation pass of stride s computes a tile when a tile within
-// ceil(2 s / kTile) tiles (what its outflow reads, and what its inflow's
-// outflow reads) was stamped at or after the last pass of stride s. A skipped
-// tile is exact: its inputs are those of that last pass of the same stride,
-// which moved no snow there, so its outflow is zero again (the outflow textures
-// still hold the zeros of the last pass that computed it: a tile that moved
-// snow is computed in the next pass) and its depth stays; both ping-pong depth
-// textures hold the same depth there (it was computed and unchanged, or
+// (stabilize_tiles.comp, one indirect draw per layer, no readback). Each layer
+// lists only the tiles where it has a surface: a texel without one neither
+// sends nor receives, so after the first pass of each stride (which draws every
+// tile of every layer) its outflow stays zero and its depth stays. The gather,
+// apply and erosion passes stamp the tiles where a texel sent snow or changed
+// with the pass index. A relaxation pass of stride s computes a tile when a
+// tile within ceil(2 s / kTile) tiles (what its outflow reads, and what its
+// inflow's outflow reads) was stamped at or after the last pass of stride s. A
+// skipped tile is exact: its inputs are those of that last pass of the same
+// stride, which moved no snow there, so its outflow is zero again (the outflow
+// textures still hold the zeros of the last pass that computed it: a tile that
+// moved snow is computed in the next pass) and its depth stays; both ping-pong
+// depth textures hold the same depth there (it was computed and unchanged, or
 // skipped, in the pass before). The residual reads those zeros and that depth,
-// so it is exact too. After set_depth, add_snow and the first routing every
-// stride's first pass computes all tiles; routing between passes stamps what it
-// changed and clears the outflow textures (the routing uses them as scratch).
+// so it is exact too. After set_depth and add_snow (and the routing that
+// follows, which uses the outflow textures as scratch) every stride's first
+// pass computes all tiles.
 // Erosion passes compute the tiles within one tile of a tile the previous
 // erosion pass changed; no such tile ends the erosion (the same pass count as
 // the occlusion-query check of the full passes).
