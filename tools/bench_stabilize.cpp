@@ -16,8 +16,8 @@
 // to route with full passes. --trace P prints the residual, routed volume and
 // elapsed time every P passes (stderr), to see where the passes go.
 #include <algorithm>
-#include <cmath>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
