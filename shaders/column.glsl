@@ -12,6 +12,7 @@ uniform int u_layer;     // the layer this draw writes
 uniform vec2 u_distance; // metres to an edge neighbour, to a diagonal one
 uniform float u_rise;    // metres, kSurfaceContinuityTexels * texel
 uniform int u_stride;    // texels, stride of a relaxation pass
+uniform float u_min_move;  // metres, StabilizeSettings::min_move
 
 const int kCellSurface = 1;
 const int kCellSolid = 2;

@@ -93,6 +93,7 @@ void main() {
       }
     } else if (wmax > 0.0) {
       float total = min(s, max(0.5 * wmax, over));  // half the largest excess, split by excess
+      if (total < u_min_move) total = 0.0;
       for (int n = 0; n < 8; ++n) amount[n] = total * (w[n] / wsum);
     } else if (over > 0.0 && u_stride == 1) {
       // Snow deeper than its gap with nowhere downhill to go is squeezed out

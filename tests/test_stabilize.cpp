@@ -490,6 +490,38 @@ TEST(StabilizeGpu, MatchesReference) {
   }
 }
 
+TEST(StabilizeGpu, MovesUnderMinMoveAreNotMade) {
+  REQUIRE_GL();
+  // Flat ground, 1 cm texels, 0.3 m of snow and a 12 mm bump at (8, 8): its
+  // excess over the edge neighbours is 0.9..2 mm (45 +- 3 degrees), so a pass
+  // moves about half of that. Two single-step passes without routing; the map
+  // edges drain into the void, 6 texels away.
+  const SnowMaps maps = make_maps(16, 16, 0.01f, 1, [](float, float) {
+    return std::vector<Surface>{{0.0f, kUp}};
+  });
+  std::vector<float> start = snow_on_top(maps, 0.3f);
+  const size_t bump = maps.index(0, 8, 8);
+  start[bump] += 0.012f;
+  StabilizeSettings settings;
+  settings.route_steep = false;
+  settings.max_stride = 1;
+  settings.tolerance = 0.0f;
+  settings.max_iterations = 2;
+  for (float min_move : {0.0f, 0.002f}) {
+    SCOPED_TRACE(min_move);
+    settings.min_move = min_move;
+    std::vector<float> cpu = start, gpu = start;
+    reference::stabilize(maps, cpu, settings);
+    stabilize(maps, gpu, settings);
+    expect_same(gpu, cpu, 1e-6f);
+    if (min_move > 0.0f) {
+      EXPECT_EQ(gpu[bump], start[bump]);
+    } else {
+      EXPECT_LT(gpu[bump], start[bump] - 3e-4f);
+    }
+  }
+}
+
 // --- Builder scenes (reference peel, GPU stabilizer) -------------------------
 
 SnowMaps scene_maps(const Scene& scene, int side, int layers = 8) {

@@ -69,6 +69,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     s.stabilize.repose_jitter_deg);
   v("snow.tolerance", "--tolerance", "Stabilizer stops when the largest move is below this, metres",
     s.stabilize.tolerance);
+  v("snow.min_move", "--min-move",
+    "Stabilizer moves smaller than this are not made, metres (0 = every move)",
+    s.stabilize.min_move);
   v("snow.max_iterations", "--max-iterations", "Stabilizer passes at most per step",
     s.stabilize.max_iterations);
   v("snow.route_steep", "--route-steep",

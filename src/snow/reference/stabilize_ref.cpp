@@ -194,7 +194,9 @@ void Stabilizer::outflow_pass(int stride) {
           // Half the largest excess moves, split over the receivers by their
           // excess: a receiver rises by at most half its excess, so the pair
           // never overshoots and piles end at the repose slope.
-          const float total = std::min(s, std::max(0.5f * wmax, over));
+          // Moves under min_move are not made (rounding noise).
+          float total = std::min(s, std::max(0.5f * wmax, over));
+          if (total < settings_.min_move) total = 0.0f;
           for (int n = 0; n < 8; ++n) out[n] = total * (w[n] / wsum);
         } else if (over > 0.0f && stride == 1) {
           // Snow deeper than its gap with nowhere downhill to go is squeezed
