@@ -36,8 +36,10 @@ bool in_map(ivec2 c) { return all(greaterThanEqual(c, ivec2(0))) && all(lessThan
 
 // snow::land_in_column: the layer of column c on which snow at height h,
 // resting on a support at height `support`, comes to rest, kLandBlocked or
-// kLandVoid.
-int landing(ivec2 c, float h, float support) {
+// kLandVoid. On a landing, also that layer's cell and snow top (ground + depth).
+int landing(ivec2 c, float h, float support, out vec4 land_cell, out float land_top) {
+  land_cell = vec4(0.0);
+  land_top = 0.0;
   if (!in_map(c)) return kLandVoid;
   for (int l = 0; l < u_layers; ++l) {
     vec4 cell = texelFetch(u_cells, ivec3(c, l), 0);
@@ -50,6 +52,8 @@ int landing(ivec2 c, float h, float support) {
     float top = cell.x + texelFetch(u_depth, ivec3(c, l), 0).r;
     if (top <= h) {
       if ((flags & kCellSolid) != 0 || cell.y - support < u_rise) return kLandBlocked;
+      land_cell = cell;
+      land_top = top;
       return l;
     }
     if (h >= cell.x) return kLandBlocked;
@@ -57,9 +61,10 @@ int landing(ivec2 c, float h, float support) {
   return kLandBlocked;
 }
 
-// Snow top (ground + depth) of layer l of column c.
-float snow_top(ivec2 c, int l) {
-  return texelFetch(u_cells, ivec3(c, l), 0).x + texelFetch(u_depth, ivec3(c, l), 0).r;
+int landing(ivec2 c, float h, float support) {
+  vec4 land_cell;
+  float land_top;
+  return landing(c, h, support, land_cell, land_top);
 }
 
 uint texel_index(ivec2 c, int l) {

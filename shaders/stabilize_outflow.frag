@@ -52,13 +52,13 @@ void main() {
       int land_l = 0;
       float path_h = he, path_g = cell.x, path_tan = 0.0;
       float step_tan = cell.z;
+      vec4 mc;    // the landing cell of the step
+      float top;  // and its snow top
       for (int m = 1; m <= u_stride; ++m) {
         nc = c + m * kDir[n];
-        land_l = landing(nc, path_h, path_g);
+        land_l = landing(nc, path_h, path_g, mc, top);
         path_tan += step_tan;
         if (u_stride == 1 || land_l < 0) break;
-        vec4 mc = texelFetch(u_cells, ivec3(nc, land_l), 0);
-        float top = mc.x + texelFetch(u_depth, ivec3(nc, land_l), 0).r;
         if (path_h - top > u_rise) {
           land_l = kLandBlocked;
           break;
@@ -73,8 +73,7 @@ void main() {
         ++voids;
       } else if (land_l >= 0) {
         code[n] = uint(land_l);
-        float ht = snow_top(nc, land_l);
-        float e = he - ht - dir_distance(n) * path_tan;
+        float e = he - top - dir_distance(n) * path_tan;
         w[n] = max(e, 0.0);
         wsum += w[n];
         wmax = max(wmax, w[n]);
