@@ -5,6 +5,8 @@
 
 layout(binding = SNOW_STABILIZE_CELLS) uniform sampler2DArray u_cells;  // ground, ceiling, tan, flags
 layout(binding = SNOW_STABILIZE_DEPTH) uniform sampler2DArray u_depth;  // r = depth (m), g = lost
+// Routing: the highest snow surface each texel keeps (m), in r.
+layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
 
 uniform ivec2 u_size;    // map width, height (texels)
 uniform int u_layers;    // L
@@ -36,8 +38,10 @@ bool in_map(ivec2 c) { return all(greaterThanEqual(c, ivec2(0))) && all(lessThan
 
 // snow::land_in_column: the layer of column c on which snow at height h,
 // resting on a support at height `support`, comes to rest, kLandBlocked or
-// kLandVoid. On a landing, also that layer's cell and snow top (ground + depth).
-int landing(ivec2 c, float h, float support, out vec4 land_cell, out float land_top) {
+// kLandVoid. On a landing, also that layer's cell and snow top. The snow tops
+// are ground + depth, or with `kept` the heights the routing keeps (u_stable),
+// as if the snow that will leave had left.
+int landing(ivec2 c, float h, float support, bool kept, out vec4 land_cell, out float land_top) {
   land_cell = vec4(0.0);
   land_top = 0.0;
   if (!in_map(c)) return kLandVoid;
@@ -49,7 +53,8 @@ int landing(ivec2 c, float h, float support, out vec4 land_cell, out float land_
                                                                                    : kLandVoid;
     }
     if (h >= cell.y) return kLandBlocked;
-    float top = cell.x + texelFetch(u_depth, ivec3(c, l), 0).r;
+    float top = kept ? texelFetch(u_stable, ivec3(c, l), 0).r
+                     : cell.x + texelFetch(u_depth, ivec3(c, l), 0).r;
     if (top <= h) {
       if ((flags & kCellSolid) != 0 || cell.y - support < u_rise) return kLandBlocked;
       land_cell = cell;
@@ -61,10 +66,10 @@ int landing(ivec2 c, float h, float support, out vec4 land_cell, out float land_
   return kLandBlocked;
 }
 
-int landing(ivec2 c, float h, float support) {
+int landing(ivec2 c, float h, float support, bool kept) {
   vec4 land_cell;
   float land_top;
-  return landing(c, h, support, land_cell, land_top);
+  return landing(c, h, support, kept, land_cell, land_top);
 }
 
 uint texel_index(ivec2 c, int l) {

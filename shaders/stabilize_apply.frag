@@ -6,7 +6,6 @@
 
 layout(binding = SNOW_STABILIZE_POINTER) uniform usampler2DArray u_pointer;
 layout(binding = SNOW_STABILIZE_OUT_A) uniform sampler2DArray u_arrive;  // r: scattered sums
-layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
 
 layout(location = 0) out vec2 o_depth;
 // Active tiles: the tile of a texel that changed is stamped with u_pass.

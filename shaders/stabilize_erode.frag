@@ -7,7 +7,6 @@
 #include "bindings.h"
 #include "column.glsl"
 
-layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
 uniform int u_init;
 
 layout(location = 0) out float o_stable;
@@ -29,7 +28,7 @@ void main() {
   if ((int(cell.w) & kCellSurface) != 0 && hs > cell.x) {
     for (int n = 0; n < 8; ++n) {
       ivec2 nc = c + kDir[n];
-      int land_l = landing(nc, he, cell.x);
+      int land_l = landing(nc, he, cell.x, true);
       if (land_l == kLandVoid) {
         hs = cell.x;
       } else if (land_l >= 0) {

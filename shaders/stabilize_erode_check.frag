@@ -4,7 +4,6 @@
 #include "bindings.h"
 #include "column.glsl"
 
-layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
 layout(binding = SNOW_STABILIZE_STABLE_OLD) uniform sampler2DArray u_stable_old;
 
 void main() {

@@ -56,7 +56,7 @@ void main() {
       float top;  // and its snow top
       for (int m = 1; m <= u_stride; ++m) {
         nc = c + m * kDir[n];
-        land_l = landing(nc, path_h, path_g, mc, top);
+        land_l = landing(nc, path_h, path_g, false, mc, top);
         path_tan += step_tan;
         if (u_stride == 1 || land_l < 0) break;
         if (path_h - top > u_rise) {

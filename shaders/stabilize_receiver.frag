@@ -8,7 +8,6 @@
 #include "bindings.h"
 #include "column.glsl"
 
-layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
 
 layout(location = 0) out uint o_pointer;
 
@@ -25,7 +24,7 @@ void main() {
     float best = hs;
     for (int n = 0; n < 8; ++n) {
       ivec2 nc = c + kDir[n];
-      int land_l = landing(nc, he, cell.x);
+      int land_l = landing(nc, he, cell.x, true);
       if (land_l == kLandVoid) {
         p = kPointerVoid;
         break;

@@ -7,7 +7,6 @@
 #include "column.glsl"
 
 layout(binding = SNOW_STABILIZE_POINTER) uniform usampler2DArray u_pointer;
-layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
 
 out VertexData {
   flat int emit;

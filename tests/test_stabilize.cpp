@@ -490,6 +490,31 @@ TEST(StabilizeGpu, MatchesReference) {
   }
 }
 
+TEST(StabilizeGpu, RoutingLeavesASlabEdgeAtRest) {
+  REQUIRE_GL();
+  // A 1.6 m slab, a shallow dish rising 5 % towards its edges, with 0.3 m of
+  // snow; beyond its edges (the map's) is the void. Routing alone cuts the
+  // repose ramp down to the edge: the edge texels shed everything, so the
+  // landing rule must see what they keep, not the snow about to leave them
+  // (which stands higher than the snow beside it).
+  const SnowMaps maps = make_maps(32, 32, 0.05f, 1, [](float x, float z) {
+    return std::vector<Surface>{{0.05f * std::max(std::abs(x - 0.8f), std::abs(z - 0.8f)), kUp}};
+  });
+  const std::vector<float> start = snow_on_top(maps, 0.3f);
+  StabilizeSettings settings;
+  settings.max_iterations = 0;  // routing only
+  std::vector<float> cpu = start, gpu = start;
+  reference::stabilize(maps, cpu, settings);
+  stabilize(maps, gpu, settings);
+  expect_same(gpu, cpu, 1e-6f);
+  const float excess = largest_excess(maps, gpu, settings, 1e-6f);
+  std::printf("slab edge after routing: largest excess %.2e m, edge %.4f m, next %.4f m\n",
+              excess, gpu[maps.index(0, 0, 16)], gpu[maps.index(0, 1, 16)]);
+  EXPECT_LE(excess, 1e-5f);
+  EXPECT_EQ(gpu[maps.index(0, 0, 16)], 0.0f);
+  EXPECT_NEAR(gpu[maps.index(0, 16, 16)], 0.3f, 1e-6f);
+}
+
 TEST(StabilizeGpu, MovesUnderMinMoveAreNotMade) {
   REQUIRE_GL();
   // Flat ground, 1 cm texels, 0.3 m of snow and a 12 mm bump at (8, 8): its

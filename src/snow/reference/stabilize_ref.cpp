@@ -76,8 +76,9 @@ double Stabilizer::lost_volume() const {
   return sum * double(texel_) * double(texel_);
 }
 
-// Mirrors shaders/column.glsl: snow::land_in_column on the cells.
-int Stabilizer::land(int i, int j, float h, float support, float rise) const {
+// Mirrors shaders/column.glsl: snow::land_in_column on the cells, with the
+// snow tops ground + depth, or with `kept` the routing's kept heights.
+int Stabilizer::land(int i, int j, float h, float support, float rise, bool kept) const {
   if (i < 0 || j < 0 || i >= width_ || j >= height_) return kLandVoid;
   for (int l = 0; l < layers_; ++l) {
     const size_t k = index(l, i, j);
@@ -88,7 +89,7 @@ int Stabilizer::land(int i, int j, float h, float support, float rise) const {
                                                                                 : kLandVoid;
     }
     if (h >= cell.y) return kLandBlocked;
-    const float top = cell.x + depth_[k];
+    const float top = kept ? stable_[k] : cell.x + depth_[k];
     if (top <= h) {
       if ((flags & kCellSolid) != 0 || cell.y - support < rise) return kLandBlocked;
       return l;
@@ -297,7 +298,7 @@ int Stabilizer::route(double* routed_volume) {
             const float he = free_top(cell, depth_[k]);
             for (int n = 0; n < 8; ++n) {
               const int ni = i + kDirI[n], nj = j + kDirJ[n];
-              const int land_l = land(ni, nj, he, cell.x, rise_);
+              const int land_l = land(ni, nj, he, cell.x, rise_, true);
               if (land_l == kLandVoid) {
                 hs = cell.x;
               } else if (land_l >= 0) {
@@ -331,7 +332,7 @@ int Stabilizer::route(double* routed_volume) {
           float best = hs;
           for (int n = 0; n < 8; ++n) {
             const int ni = i + kDirI[n], nj = j + kDirJ[n];
-            const int land_l = land(ni, nj, he, cell.x, rise_);
+            const int land_l = land(ni, nj, he, cell.x, rise_, true);
             if (land_l == kLandVoid) {
               p = kPointerVoid;
               break;

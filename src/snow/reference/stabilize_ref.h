@@ -61,7 +61,7 @@ class Stabilizer {
   const std::vector<uint32_t>& pointer() const { return pointer_; }
 
  private:
-  int land(int i, int j, float h, float support, float rise) const;
+  int land(int i, int j, float h, float support, float rise, bool kept = false) const;
   int gap_at(int i, int j, float h) const;
   double snow_volume_of(const std::vector<float>& depth) const;
   size_t index(int l, int i, int j) const {
