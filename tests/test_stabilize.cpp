@@ -508,8 +508,8 @@ TEST(StabilizeGpu, RoutingLeavesASlabEdgeAtRest) {
   stabilize(maps, gpu, settings);
   expect_same(gpu, cpu, 1e-6f);
   const float excess = largest_excess(maps, gpu, settings, 1e-6f);
-  std::printf("slab edge after routing: largest excess %.2e m, edge %.4f m, next %.4f m\n",
-              excess, gpu[maps.index(0, 0, 16)], gpu[maps.index(0, 1, 16)]);
+  std::printf("slab edge after routing: largest excess %.2e m, edge %.4f m, next %.4f m\n", excess,
+              gpu[maps.index(0, 0, 16)], gpu[maps.index(0, 1, 16)]);
   EXPECT_LE(excess, 1e-5f);
   EXPECT_EQ(gpu[maps.index(0, 0, 16)], 0.0f);
   EXPECT_NEAR(gpu[maps.index(0, 16, 16)], 0.3f, 1e-6f);

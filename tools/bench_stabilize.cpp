@@ -13,8 +13,9 @@
 // Routing (before the first pass) and relaxation are timed apart.
 // --route off skips the routing
 // (StabilizeSettings::route_steep = false), to time passes on maps too large
-// to route with full passes. --trace P prints the residual, routed volume and
-// elapsed time every P passes (stderr), to see where the passes go.
+// to route with full passes. --trace P prints the residual, routed volume,
+// elapsed time and share of tiles computed (with --count-tiles on) every P
+// passes (stderr), to see where the passes go.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -140,13 +141,14 @@ int main(int argc, char** argv) {
         const int i = int(most % maps.grid.texels()) % maps.grid.width;
         const int j = int(most % maps.grid.texels()) / maps.grid.width;
         const int32_t object = maps.object[most];
-        std::fprintf(stderr,
-                     "pass %d residual %.3e m routed %.4f m^3 (%d passes) %.1f s, tiles %.1f %%; largest "
-                     "change %.2e m at layer %d (%d, %d) on %s, ground %.3f m, depth %.4f m\n",
-                     sum.iterations, r.residual, r.routed_volume, r.route_passes, seconds_since(t0),
-                     100.0 * r.tile_share, after[most] - before[most], l, i, j,
-                     object >= 0 ? scene.objects[size_t(object)].name.c_str() : "-",
-                     maps.ground[most], after[most]);
+        std::fprintf(
+            stderr,
+            "pass %d residual %.3e m routed %.4f m^3 (%d passes) %.1f s, tiles %.1f %%; largest "
+            "change %.2e m at layer %d (%d, %d) on %s, ground %.3f m, depth %.4f m\n",
+            sum.iterations, r.residual, r.routed_volume, r.route_passes, seconds_since(t0),
+            100.0 * r.tile_share, after[most] - before[most], l, i, j,
+            object >= 0 ? scene.objects[size_t(object)].name.c_str() : "-", maps.ground[most],
+            after[most]);
         before = after;
       }
       r = sum;

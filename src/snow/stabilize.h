@@ -20,7 +20,10 @@
 //    rest, as hydrology routes water over a terrain. What a texel can keep
 //    comes from erosion passes (a distance transform): the highest surface
 //    no more than distance * tan(repose) above what its downhill neighbours
-//    keep, nothing where a neighbour is the void. So snow on a support
+//    keep, nothing where a neighbour is the void; where snow lands is decided
+//    on those kept heights, as if what will leave had left (else snow about
+//    to slide off a slab's edge would stand as a wall behind it, and the
+//    relaxation would drain it for hundreds of passes). So snow on a support
 //    steeper than the repose angle leaves at once, and the edges of a table
 //    or an eave round off at once. The relaxation then only shapes the
 //    piles. Routing runs at the start of each stabilize call and after snow
