@@ -1,9 +1,10 @@
 // Benchmark of stage 3, the stabilizer (src/snow/stabilize.h): iterations to
 // converge and time per iteration on the GL renderer at hand, for a canned
-// scene or a glTF file with 0.3 m of snow on every top surface. Results: tools/RESULTS.md.
+// scene or a glTF file with 0.3 m (--depth) of snow on every top surface.
+// Results: tools/RESULTS.md.
 //
 //   snowmodel_bench_stabilize [--scene courtyard|house60|house30|FILE] [--side N]
-//                             [--layers L] [--max-stride S] [--passes P]
+//                             [--layers L] [--depth METRES] [--max-stride S] [--passes P]
 //                             [--tiles on|off] [--count-tiles on|off]
 //                             [--max-iterations N] [--route on|off]
 //                             [--trace P]
@@ -46,13 +47,15 @@ int main(int argc, char** argv) {
   using namespace snow;
   std::string scene_name = "courtyard";
   int side = 1024, layers = 4, passes = -1, trace = 0;
+  float snow_depth = 0.3f;
   StabilizeSettings settings;
   for (int a = 1; a < argc; a += 2) {
     const std::string key = argv[a];
     if (key == "-h" || key == "--help" || a + 1 == argc) {
       std::fprintf(key == "-h" || key == "--help" ? stdout : stderr,
                    "usage: snowmodel_bench_stabilize [--scene courtyard|house60|house30|FILE.glb] "
-                   "[--side N] [--layers L]\n  [--max-stride S] [--passes P] [--tiles on|off] "
+                   "[--side N] [--layers L]\n  [--depth METRES] [--max-stride S] [--passes P] "
+                   "[--tiles on|off] "
                    "[--count-tiles on|off] [--max-iterations N]\n  [--route on|off] [--trace P]\n");
       return key == "-h" || key == "--help" ? 0 : 2;
     }
@@ -63,6 +66,8 @@ int main(int argc, char** argv) {
       side = std::atoi(value);
     else if (key == "--layers")
       layers = std::atoi(value);
+    else if (key == "--depth")
+      snow_depth = float(std::atof(value));
     else if (key == "--max-stride")
       settings.max_stride = std::atoi(value);
     else if (key == "--passes")
@@ -106,7 +111,7 @@ int main(int argc, char** argv) {
     std::vector<float> depth(size_t(maps.layers) * maps.grid.texels(), 0.0f);
     for (int j = 0; j < maps.grid.height; ++j) {
       for (int i = 0; i < maps.grid.width; ++i) {
-        if (maps.has_surface(0, i, j)) depth[maps.index(0, i, j)] = 0.3f;
+        if (maps.has_surface(0, i, j)) depth[maps.index(0, i, j)] = snow_depth;
       }
     }
     if (passes >= 0) {
