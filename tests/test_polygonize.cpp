@@ -4,12 +4,15 @@
 // matches the snow it was made from.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <set>
+#include <string>
 #include <utility>
 
 #include "core/error.h"
+#include "core/log.h"
 #include "mesh/polygonize.h"
 
 namespace snow {
@@ -550,15 +553,17 @@ TEST(Polygonize, NoSnowGivesNoPatches) {
 
 /// Noisy snow (what the stabilizer's jitter leaves) over a wavy ground: the
 /// meshes must still be closed.
-TEST(Polygonize, NoisySnowOnWavyGroundStaysClosed) {
-  SnowMaps maps = make_maps(64, 64, 0.05f, 1);
+/// Noisy snow on wavy ground: a hill of deeper snow and scattered specks,
+/// on a map of size x size texels.
+void wavy_noisy(SnowMaps& maps, std::vector<float>& depth, int size = 64, float texel = 0.05f) {
+  maps = make_maps(size, size, texel, 1);
   uint32_t state = 12345u;
   auto noise = [&]() {
     state = state * 1664525u + 1013904223u;
     return float(state >> 8) / float(1u << 24);
   };
-  for (int j = 0; j < 64; ++j) {
-    for (int i = 0; i < 64; ++i) {
+  for (int j = 0; j < size; ++j) {
+    for (int i = 0; i < size; ++i) {
       const glm::vec2 c = maps.grid.center(i, j);
       const float y = 0.2f * std::sin(2.0f * c.x) * std::cos(1.5f * c.y);
       const float sx = 0.4f * std::cos(2.0f * c.x) * std::cos(1.5f * c.y);
@@ -566,15 +571,21 @@ TEST(Polygonize, NoisySnowOnWavyGroundStaysClosed) {
       set_layer(maps, 0, i, j, {y, kOpenSky, glm::normalize(glm::vec3(-sx, 1, -sz)), 0});
     }
   }
-  std::vector<float> depth(maps.ground.size(), 0.0f);
-  for (int j = 0; j < 64; ++j) {
-    for (int i = 0; i < 64; ++i) {
+  depth.assign(maps.ground.size(), 0.0f);
+  for (int j = 0; j < size; ++j) {
+    for (int i = 0; i < size; ++i) {
       const glm::vec2 c = maps.grid.center(i, j);
       const float r = glm::length(c) + 0.3f * noise();
       depth[maps.index(0, i, j)] =
-          r < 1.2f ? 0.1f + 0.1f * noise() : (noise() < 0.1f ? 0.05f : 0.0f);
+          r < 1.2f ? 0.1f + 2.0f * texel * noise() : (noise() < 0.1f ? 0.05f : 0.0f);
     }
   }
+}
+
+TEST(Polygonize, NoisySnowOnWavyGroundStaysClosed) {
+  SnowMaps maps;
+  std::vector<float> depth;
+  wavy_noisy(maps, depth);
   const auto patches = polygonize(maps, depth, names_scene({"Hill"}), {});
   ASSERT_GE(patches.size(), 1u);
   double volume = 0.0, depth_volume = 0.0;
@@ -586,6 +597,45 @@ TEST(Polygonize, NoisySnowOnWavyGroundStaysClosed) {
   EXPECT_NEAR(patches[0].volume, patches[0].depth_volume, 0.05 * patches[0].depth_volume);
   std::printf("noisy: %zu patches, volume %.4f m^3 vs %.4f m^3 of snow in them\n", patches.size(),
               volume, depth_volume);
+}
+
+TEST(Polygonize, LargePatchDecimatedInPiecesJoinsClosed) {
+  // The hill is about 280 texels wide, so its top is cut into strips of 16.
+  SnowMaps maps;
+  std::vector<float> depth;
+  wavy_noisy(maps, depth, 400, 0.008f);
+  const Scene scene = names_scene({"Hill"});
+  PolygonizeSettings whole;
+  whole.piece_triangles = 0;
+  PolygonizeSettings split;
+  split.piece_triangles = 20000;  // the hill's top has a few ten thousand: a few pieces
+  const auto a = polygonize(maps, depth, scene, whole);
+  // It really is decimated in pieces: no note of a fall back to one piece.
+  const LogLevel level = log_level();
+  set_log_level(LogLevel::Debug);
+  testing::internal::CaptureStderr();
+  const auto b = polygonize(maps, depth, scene, split);
+  const std::string log = testing::internal::GetCapturedStderr();
+  set_log_level(level);
+  EXPECT_EQ(log.find("decimating it whole"), std::string::npos) << log;
+  ASSERT_GE(a.size(), 1u);
+  ASSERT_EQ(a.size(), b.size());
+  for (const auto& p : b) expect_closed(p);
+  // The hill is the largest patch; its seams keep their full-grid vertices,
+  // so it has more triangles than when decimated whole, and the same volume.
+  const auto largest = [](const std::vector<SnowPatch>& patches) {
+    return *std::max_element(
+        patches.begin(), patches.end(),
+        [](const SnowPatch& p, const SnowPatch& q) { return p.volume < q.volume; });
+  };
+  const SnowPatch& ha = largest(a);
+  const SnowPatch& hb = largest(b);
+  std::printf("hill decimated whole: %zu triangles, %.5f m^3; in pieces: %zu, %.5f m^3\n",
+              ha.mesh.indices.size() / 3, ha.volume, hb.mesh.indices.size() / 3, hb.volume);
+  EXPECT_GT(hb.mesh.indices.size(), ha.mesh.indices.size());
+  EXPECT_LE(hb.mesh.indices.size(), ha.mesh.indices.size() * 5 / 4);
+  EXPECT_NEAR(hb.volume, ha.volume, 0.01 * ha.volume);
+  EXPECT_NEAR(hb.area, ha.area, 1e-9);
 }
 
 }  // namespace

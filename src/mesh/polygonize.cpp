@@ -386,9 +386,11 @@ double plan_area2(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c)
 
 /// The top surface: vertices at patch samples (height g + s) and on the
 /// outline (height g); see the comments inside for the two triangulations.
-/// tolerance < 0: every cell at full resolution.
+/// tolerance < 0: every cell at full resolution. cut (a power of two >= 2,
+/// or 0): no triangle crosses a window sample column k * cut, so the top
+/// splits into strips of columns along edges (see top_pieces).
 TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thickness,
-                        double tolerance) {
+                        double tolerance, int cut = 0) {
   TopMesh top;
   std::vector<int32_t> sample_vertex(f.member.size(), -1);
   std::unordered_map<uint64_t, int32_t> edge_vertex;
@@ -489,6 +491,14 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
       if (inside == 0 || inside == 4) continue;
       for (int q = 0; q < 4; ++q)
         error[size_t(cj + (q >> 1)) * size_t(n) + size_t(ci + (q & 1))] = kForce;
+    }
+  }
+  if (tolerance >= 0.0 && cut >= 2) {
+    // Split every triangle whose hypotenuse midpoint lies on the grid of half
+    // the cut: down to the triangles inside one cut x cut square, whose legs
+    // lie on its sides, centre lines and diagonals.
+    for (int y = 0; y <= tile; y += cut / 2) {
+      for (int x = 0; x <= tile; x += cut / 2) error[size_t(y) * size_t(n) + size_t(x)] = kForce;
     }
   }
   if (tolerance >= 0.0) {
@@ -622,9 +632,17 @@ double top_plan_area(const TopMesh& top) {
 // ---------------------------------------------------------------------------
 // Closed mesh, decimation, output
 
-/// Builds the closed solid (or fails: returns false and warns).
-bool build_solid(const TopMesh& top, const PatchField& f, float bottom_offset,
-                 const std::string& name, OMesh& mesh, OpenMesh::FPropHandleT<bool> is_top) {
+/// The mesh vertices build_solid made for each top vertex: its top vertex
+/// and its bottom one (the same for an outline vertex).
+struct SolidVertices {
+  std::vector<OMesh::VertexHandle> top, bottom;
+};
+
+/// Builds the closed solid into `mesh` (an open one for a piece of a top);
+/// returns the number of faces that would not form a manifold mesh and
+/// were left out (0: all built).
+size_t build_solid(const TopMesh& top, const PatchField& f, float bottom_offset, OMesh& mesh,
+                   OpenMesh::FPropHandleT<bool> is_top, SolidVertices* vertices = nullptr) {
   std::vector<OMesh::VertexHandle> top_v(top.positions.size());
   std::vector<OMesh::VertexHandle> bottom_v(top.positions.size());
   for (size_t v = 0; v < top.positions.size(); ++v) {
@@ -649,12 +667,11 @@ bool build_solid(const TopMesh& top, const PatchField& f, float bottom_offset,
     if (fb.is_valid()) mesh.property(is_top, fb) = false;
     failed += size_t(!ft.is_valid()) + size_t(!fb.is_valid());
   }
-  if (failed > 0) {
-    log_warn("polygonize: dropping snow patch " + name + ": " + std::to_string(failed) +
-             " faces would not form a manifold mesh");
-    return false;
+  if (vertices) {
+    vertices->top = std::move(top_v);
+    vertices->bottom = std::move(bottom_v);
   }
-  return true;
+  return failed;
 }
 
 void decimate(OMesh& mesh, double max_error) {
@@ -675,6 +692,209 @@ void decimate(OMesh& mesh, double max_error) {
   mesh.garbage_collection();
 }
 
+/// The top triangles of one piece of a large top, reindexed, with each
+/// vertex's index in the whole top.
+struct TopPiece {
+  TopMesh top;
+  std::vector<uint32_t> origin;
+};
+
+/// Narrowest strip of window columns (samples) a top is cut into for
+/// decimation in pieces.
+constexpr int kMinCut = 16;
+
+/// The strip of window columns [k * cut, (k + 1) * cut] each triangle of a
+/// top triangulated with that cut lies in, grouped into at most `pieces`
+/// runs of whole strips with about equally many triangles; returns the run
+/// of each triangle, and in `pieces` the number of runs that got triangles.
+std::vector<uint32_t> top_pieces(const TopMesh& top, const PatchField& f, const MapGrid& grid,
+                                 int cut, size_t& pieces) {
+  const size_t n = top.tris.size() / 3;
+  std::vector<uint32_t> strip(n);
+  size_t strips = 0;
+  for (size_t t = 0; t < n; ++t) {
+    double x = 0.0;
+    for (int e = 0; e < 3; ++e) x += top.positions[top.tris[3 * t + size_t(e)]].x;
+    const double column = (x / 3.0 - double(grid.origin.x)) / double(grid.texel) - 0.5 - f.i0;
+    strip[t] = uint32_t(std::clamp(std::floor(column / double(cut)), 0.0, 1e9));
+    strips = std::max(strips, size_t(strip[t]) + 1);
+  }
+  std::vector<size_t> count(strips, 0);
+  for (uint32_t k : strip) ++count[k];
+  std::vector<uint32_t> run(strips, 0);
+  uint32_t p = 0;
+  size_t before = 0, used = 0;
+  for (size_t k = 0; k < strips; ++k) {
+    if (count[k] == 0) continue;
+    if (used > 0 && p + 1 < pieces && before * pieces >= (p + 1) * n) ++p;
+    run[k] = p;
+    used = size_t(p) + 1;
+    before += count[k];
+  }
+  pieces = used;
+  for (uint32_t& k : strip) k = run[k];
+  return strip;
+}
+
+/// The top triangles of each piece (piece[t] of triangle t, below `pieces`).
+/// Where a piece's triangles around a vertex form several fans (the outline
+/// comes in between them), each fan gets a vertex of its own, so every piece
+/// is a manifold mesh; they share the origin.
+std::vector<TopPiece> split_top(const TopMesh& top, const std::vector<uint32_t>& piece,
+                                size_t pieces) {
+  const size_t nv = top.positions.size();
+  std::vector<std::vector<uint32_t>> vertex_tris(nv);
+  for (size_t t = 0; t < piece.size(); ++t) {
+    for (int e = 0; e < 3; ++e) vertex_tris[top.tris[3 * t + size_t(e)]].push_back(uint32_t(t));
+  }
+  std::vector<TopPiece> out(pieces);
+  std::unordered_map<uint64_t, uint32_t> local;  // (triangle, corner) -> piece vertex
+  std::vector<uint32_t> fan;
+  for (size_t v = 0; v < nv; ++v) {
+    // The triangles around v of each piece, joined into fans by the edges
+    // (v, w) they share.
+    const std::vector<uint32_t>& around = vertex_tris[v];
+    fan.resize(around.size());
+    std::iota(fan.begin(), fan.end(), 0u);
+    const auto root = [&](uint32_t a) {
+      while (fan[a] != a) a = fan[a] = fan[fan[a]];
+      return a;
+    };
+    for (size_t a = 0; a < around.size(); ++a) {
+      for (size_t b = a + 1; b < around.size(); ++b) {
+        const uint32_t ta = around[a], tb = around[b];
+        if (piece[ta] != piece[tb]) continue;
+        int shared = 0;
+        for (int ea = 0; ea < 3; ++ea) {
+          for (int eb = 0; eb < 3; ++eb) {
+            shared +=
+                int(top.tris[3 * size_t(ta) + size_t(ea)] == top.tris[3 * size_t(tb) + size_t(eb)]);
+          }
+        }
+        if (shared >= 2) fan[root(uint32_t(a))] = root(uint32_t(b));
+      }
+    }
+    std::unordered_map<uint32_t, uint32_t> fan_vertex;
+    for (size_t a = 0; a < around.size(); ++a) {
+      TopPiece& part = out[piece[around[a]]];
+      const auto [it, fresh] = fan_vertex.try_emplace(root(uint32_t(a)), 0u);
+      if (fresh) {
+        it->second = uint32_t(part.origin.size());
+        part.origin.push_back(uint32_t(v));
+        part.top.positions.push_back(top.positions[v]);
+        part.top.sample.push_back(top.sample[v]);
+      }
+      const uint32_t t = around[a];
+      for (int e = 0; e < 3; ++e) {
+        if (top.tris[3 * size_t(t) + size_t(e)] == v)
+          local[3 * uint64_t(t) + uint64_t(e)] = it->second;
+      }
+    }
+  }
+  for (size_t t = 0; t < piece.size(); ++t) {
+    for (int e = 0; e < 3; ++e) {
+      out[piece[t]].top.tris.push_back(local[3 * uint64_t(t) + uint64_t(e)]);
+    }
+  }
+  return out;
+}
+
+/// A decimated solid: shared vertices, faces, and which faces are top ones.
+struct Solid {
+  std::vector<glm::dvec3> positions;
+  std::vector<uint32_t> tris;
+  std::vector<uint8_t> top;  // per face
+
+  /// Appends the faces of `m`, its vertex v being positions[to[v]].
+  void add_faces(const OMesh& m, OpenMesh::FPropHandleT<bool> is_top,
+                 const std::vector<uint32_t>& to) {
+    for (auto f : m.faces()) {
+      for (auto v : m.fv_range(f)) tris.push_back(to[size_t(v.idx())]);
+      top.push_back(uint8_t(m.property(is_top, f)));
+    }
+  }
+  /// Appends all of `m` (vertices unshared).
+  void add(const OMesh& m, OpenMesh::FPropHandleT<bool> is_top) {
+    std::vector<uint32_t> to(m.n_vertices());
+    for (auto v : m.vertices()) to[size_t(v.idx())] = add_point(m.point(v));
+    add_faces(m, is_top, to);
+  }
+  uint32_t add_point(const OMesh::Point& p) {
+    positions.emplace_back(p[0], p[1], p[2]);
+    return uint32_t(positions.size() - 1);
+  }
+};
+
+/// The closed solid of a large top, built and decimated in pieces (piece[t]
+/// of top triangle t, below `pieces`) on all cores and joined into `mesh`
+/// (PolygonizeSettings::piece_triangles). The vertices a piece shares with
+/// another are locked, so every piece keeps the seam edges as they are and
+/// the pieces join into a closed solid. Returns false when a piece would not
+/// form a manifold mesh.
+bool build_decimated_in_pieces(const TopMesh& top, const std::vector<uint32_t>& piece,
+                               size_t pieces, const PatchField& field, float bottom_offset,
+                               double max_error, Solid& out) {
+  const std::vector<TopPiece> parts = split_top(top, piece, pieces);
+  std::vector<uint8_t> users(top.positions.size(), 0);
+  for (const TopPiece& part : parts) {
+    for (uint32_t v : part.origin) users[v] = uint8_t(std::min(users[v] + 1, 2));
+  }
+  std::vector<OMesh> meshes(parts.size());
+  std::vector<OpenMesh::FPropHandleT<bool>> tops(parts.size());
+  // Per piece vertex: 2 * top index (+ 1 for a bottom vertex) of a seam
+  // vertex, -1 for the others; a property, so it survives the garbage
+  // collection.
+  std::vector<OpenMesh::VPropHandleT<int64_t>> keys(parts.size());
+  std::vector<uint8_t> built(parts.size(), 0);
+  parallel_for(parts.size(), [&](size_t p) {
+    OMesh& m = meshes[p];
+    m.add_property(tops[p]);
+    m.add_property(keys[p]);
+    SolidVertices solid;
+    if (build_solid(parts[p].top, field, bottom_offset, m, tops[p], &solid) > 0) return;
+    m.request_vertex_status();
+    for (auto v : m.vertices()) m.property(keys[p], v) = -1;
+    std::vector<OMesh::VertexHandle> seam;
+    for (size_t v = 0; v < solid.top.size(); ++v) {
+      const int64_t o = int64_t(parts[p].origin[v]);
+      if (users[size_t(o)] < 2) continue;
+      m.property(keys[p], solid.top[v]) = 2 * o;
+      seam.push_back(solid.top[v]);
+      if (solid.bottom[v] != solid.top[v]) {
+        m.property(keys[p], solid.bottom[v]) = 2 * o + 1;
+        seam.push_back(solid.bottom[v]);
+      }
+    }
+    // The seam vertices and their neighbours stay, so the faces at the seam
+    // stay as they are: a collapse next to the seam could join two seam
+    // vertices across a third, from both sides, into an edge of four faces.
+    for (auto v : seam) {
+      m.status(v).set_locked(true);
+      for (auto w : m.vv_range(v)) m.status(w).set_locked(true);
+    }
+    decimate(m, max_error);
+    built[p] = 1;
+  });
+  if (std::count(built.begin(), built.end(), 0) > 0) return false;
+  std::unordered_map<int64_t, uint32_t> seam;
+  for (size_t p = 0; p < parts.size(); ++p) {
+    const OMesh& m = meshes[p];
+    std::vector<uint32_t> to(m.n_vertices());
+    for (auto v : m.vertices()) {
+      const int64_t key = m.property(keys[p], v);
+      if (key < 0) {
+        to[size_t(v.idx())] = out.add_point(m.point(v));
+        continue;
+      }
+      const auto [it, fresh] = seam.try_emplace(key, 0u);
+      if (fresh) it->second = out.add_point(m.point(v));
+      to[size_t(v.idx())] = it->second;
+    }
+    out.add_faces(m, tops[p], to);
+  }
+  return true;
+}
+
 double signed_volume(const TriMesh& m) {
   double v6 = 0.0;
   for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
@@ -686,19 +906,18 @@ double signed_volume(const TriMesh& m) {
   return v6 / 6.0;
 }
 
-/// Copies the faces of `mesh` (all, or only top ones) into a TriMesh with
+/// Copies the faces of `solid` (all, or only top ones) into a TriMesh with
 /// area-weighted vertex normals and planar world UVs.
-TriMesh to_trimesh(const OMesh& mesh, OpenMesh::FPropHandleT<bool> is_top, bool top_only) {
+TriMesh to_trimesh(const Solid& solid, bool top_only) {
   TriMesh out;
-  std::vector<int64_t> remap(mesh.n_vertices(), -1);
-  for (auto f : mesh.faces()) {
-    if (top_only && !mesh.property(is_top, f)) continue;
-    for (auto v : mesh.fv_range(f)) {
-      const size_t vi = size_t(v.idx());
+  std::vector<int64_t> remap(solid.positions.size(), -1);
+  for (size_t f = 0; f < solid.top.size(); ++f) {
+    if (top_only && !solid.top[f]) continue;
+    for (size_t e = 0; e < 3; ++e) {
+      const size_t vi = solid.tris[3 * f + e];
       if (remap[vi] < 0) {
         remap[vi] = int64_t(out.positions.size());
-        const auto& p = mesh.point(v);
-        out.positions.emplace_back(float(p[0]), float(p[1]), float(p[2]));
+        out.positions.emplace_back(solid.positions[vi]);
       }
       out.indices.push_back(uint32_t(remap[vi]));
     }
@@ -766,7 +985,22 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const std::vector<floa
 
   PatchField field = build_field(maps, d, texels);
   smooth_field(field, settings.smooth_iterations, min_thickness);
-  TopMesh top = triangulate_top(field, maps.grid, min_thickness, error > 0.0 ? 0.5 * error : -1.0);
+  const double tolerance = error > 0.0 ? 0.5 * error : -1.0;
+  // A wide window is triangulated with cuts between strips of columns (16
+  // strips or more, each at least kMinCut wide, so the cuts only split a few
+  // large triangles), and a top with many triangles is decimated in pieces
+  // of whole strips.
+  int cut = 0;
+  if (error > 0.0 && settings.piece_triangles > 0) {
+    for (int c = kMinCut; c * 16 <= field.w; c *= 2) cut = c;
+  }
+  TopMesh top = triangulate_top(field, maps.grid, min_thickness, tolerance, cut);
+  size_t pieces = 1;
+  std::vector<uint32_t> piece;
+  if (cut > 0 && top.tris.size() / 3 > settings.piece_triangles) {
+    pieces = (top.tris.size() / 3 + settings.piece_triangles - 1) / settings.piece_triangles;
+    piece = top_pieces(top, field, maps.grid, cut, pieces);
+  }
   smooth_outline(top, settings.smooth_iterations, texel);
   patch.area = top_plan_area(top);
   if (patch.area < double(settings.min_patch_area)) {
@@ -775,17 +1009,32 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const std::vector<floa
     return std::nullopt;
   }
 
-  OMesh mesh;
-  OpenMesh::FPropHandleT<bool> is_top;
-  mesh.add_property(is_top);
-  if (!build_solid(top, field, std::max(settings.bottom_offset, 0.0f), base, mesh, is_top)) {
-    return std::nullopt;
+  const float bottom_offset = std::max(settings.bottom_offset, 0.0f);
+  Solid solid;
+  if (pieces > 1 &&
+      !build_decimated_in_pieces(top, piece, pieces, field, bottom_offset, 0.5 * error, solid)) {
+    log_debug("polygonize: " + base + " does not split into " + std::to_string(pieces) +
+              " manifold pieces; decimating it whole");
+    solid = Solid();
+    pieces = 1;
   }
-  if (error > 0.0) decimate(mesh, 0.5 * error);
+  if (pieces == 1) {
+    OMesh mesh;
+    OpenMesh::FPropHandleT<bool> is_top;
+    mesh.add_property(is_top);
+    const size_t failed = build_solid(top, field, bottom_offset, mesh, is_top);
+    if (failed > 0) {
+      log_warn("polygonize: dropping snow patch " + base + ": " + std::to_string(failed) +
+               " faces would not form a manifold mesh");
+      return std::nullopt;
+    }
+    if (error > 0.0) decimate(mesh, 0.5 * error);
+    solid.add(mesh, is_top);
+  }
 
-  const TriMesh solid = to_trimesh(mesh, is_top, false);
-  patch.volume = signed_volume(solid);
-  patch.mesh = settings.closed ? solid : to_trimesh(mesh, is_top, true);
+  const TriMesh closed = to_trimesh(solid, false);
+  patch.volume = signed_volume(closed);
+  patch.mesh = settings.closed ? closed : to_trimesh(solid, true);
   patch.mesh.name = base;
   patch.mesh.material = 0;
   return patch;

@@ -38,6 +38,11 @@ struct PolygonizeSettings {
   /// snow::landing_layer links them (either way) and their snow tops differ
   /// by at most texel * tan(connect_slope) (degrees, 0 to 89).
   float connect_slope = 70.0f;
+  /// A patch whose top has more triangles than this (count) before
+  /// decimation is decimated in pieces of about this many, side by side
+  /// along x, on all cores; the seams between pieces keep their full-grid
+  /// vertices. 0: never split. Same patch, same pieces on any machine.
+  size_t piece_triangles = 100000;
 };
 
 /// One connected snow patch as a mesh.
