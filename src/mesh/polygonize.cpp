@@ -502,37 +502,38 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
     }
   }
   if (tolerance >= 0.0) {
-    const size_t triangles = size_t(tile) * size_t(tile) * 2 - 2;
-    const size_t parents = triangles - size_t(tile) * size_t(tile);
-    for (size_t t = triangles; t-- > 0;) {
-      size_t id = t + 2;
-      int ax = 0, ay = 0, bx = 0, by = 0, cx = 0, cy = 0;
-      if (id & 1) {
-        bx = by = cx = tile;
-      } else {
-        ax = ay = cy = tile;
-      }
-      while ((id >>= 1) > 1) {
-        const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
-        if (id & 1) {
-          bx = ax, by = ay, ax = cx, ay = cy;
-        } else {
-          ax = bx, ay = by, bx = cx, by = cy;
-        }
-        cx = mx, cy = my;
-      }
-      const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
-      float& e = error[size_t(my) * size_t(n) + size_t(mx)];
-      if (member(ax, ay) && member(bx, by) && member(mx, my)) {
-        const size_t a = f.at(ax, ay), b = f.at(bx, by), m = f.at(mx, my);
-        const float dg = std::abs(0.5f * (f.g[a] + f.g[b]) - f.g[m]);
-        const float dt = std::abs(0.5f * (f.g[a] + f.s[a] + f.g[b] + f.s[b]) - (f.g[m] + f.s[m]));
-        e = std::max(e, std::max(dg, dt));
-      }
-      if (t < parents) {
-        e = std::max({e, error[size_t((ay + cy) >> 1) * size_t(n) + size_t((ax + cx) >> 1)],
-                      error[size_t((by + cy) >> 1) * size_t(n) + size_t((bx + cx) >> 1)]});
-      }
+    // Level by level, finest first: a triangle's error takes in its
+    // children's, which both triangles sharing each child hypotenuse must
+    // have set. Each level is reached by descending from the two root
+    // triangles, which costs about as many steps as there are triangles.
+    // Depths 0 (the roots) to 2 * log2(tile) - 1, whose triangles have
+    // hypotenuses of two texels; only those above have children.
+    int levels = 0;
+    for (int t = 1; t < tile; t *= 2) levels += 2;
+    const std::function<void(int, int, int, int, int, int, int, bool)> level =
+        [&](int depth, int ax, int ay, int bx, int by, int cx, int cy, bool parent) {
+          const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
+          if (depth > 0) {
+            level(depth - 1, cx, cy, ax, ay, mx, my, parent);
+            level(depth - 1, bx, by, cx, cy, mx, my, parent);
+            return;
+          }
+          float& e = error[size_t(my) * size_t(n) + size_t(mx)];
+          if (member(ax, ay) && member(bx, by) && member(mx, my)) {
+            const size_t a = f.at(ax, ay), b = f.at(bx, by), m = f.at(mx, my);
+            const float dg = std::abs(0.5f * (f.g[a] + f.g[b]) - f.g[m]);
+            const float dt =
+                std::abs(0.5f * (f.g[a] + f.s[a] + f.g[b] + f.s[b]) - (f.g[m] + f.s[m]));
+            e = std::max(e, std::max(dg, dt));
+          }
+          if (parent) {
+            e = std::max({e, error[size_t((ay + cy) >> 1) * size_t(n) + size_t((ax + cx) >> 1)],
+                          error[size_t((by + cy) >> 1) * size_t(n) + size_t((bx + cx) >> 1)]});
+          }
+        };
+    for (int depth = levels - 1; depth >= 0; --depth) {
+      level(depth, 0, 0, tile, tile, tile, 0, depth < levels - 1);
+      level(depth, tile, tile, 0, 0, 0, tile, depth < levels - 1);
     }
   }
   std::vector<uint8_t> cell_done(f.member.size(), 0);
