@@ -10,6 +10,7 @@
 #include "core/log.h"
 #include "gl/context.h"
 #include "scene/builder.h"
+#include "snow/gpu_scene.h"
 #include "snow/peel.h"
 #include "snow/reference/peel_ref.h"
 
@@ -74,6 +75,29 @@ Agreement compare_maps(const SnowMaps& a, const SnowMaps& b) {
     }
   }
   return r;
+}
+
+TEST(WeldVertices, EqualCornersBecomeOneVertex) {
+  // Two triangles sharing an edge, a third apart, and a corner at -0 beside
+  // one at +0 (equal as floats: one vertex).
+  const std::vector<glm::vec3> corners = {
+      {0, 0, 0}, {1, 0, 0}, {0, 0, 1},       // t0
+      {1, 0, 0}, {1, 0, 1}, {0, 0, 1},       // t1 shares the edge (1,0,0)-(0,0,1)
+      {5, 5, 5}, {6, 5, 5}, {-0.0f, 0, 0}};  // t2, its last corner equal to t0's first
+  std::vector<glm::vec3> vertices;
+  std::vector<uint32_t> indices;
+  weld_vertices(corners, vertices, indices);
+  ASSERT_EQ(indices.size(), corners.size());
+  EXPECT_EQ(vertices.size(), 6u);
+  for (size_t c = 0; c < corners.size(); ++c) {
+    ASSERT_LT(indices[c], vertices.size());
+    EXPECT_EQ(vertices[indices[c]], corners[c]) << "corner " << c;
+  }
+  EXPECT_EQ(indices[1], indices[3]);
+  EXPECT_EQ(indices[2], indices[5]);
+  EXPECT_EQ(indices[0], indices[8]);
+  EXPECT_NE(indices[0], indices[1]);
+  EXPECT_NE(indices[6], indices[7]);
 }
 
 TEST(MakeGrid, AutomaticTexelFromMaxSide) {

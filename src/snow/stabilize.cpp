@@ -12,6 +12,7 @@
 #include <string>
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "gl/gl.h"
 #include "gl/objects.h"
 #include "gl/program.h"
@@ -98,29 +99,30 @@ std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSett
   check_settings(settings);
   check_maps(maps);
   std::vector<glm::vec4> cells(size_t(maps.layers) * maps.grid.texels());
-  for (int l = 0; l < maps.layers; ++l) {
-    for (int j = 0; j < maps.grid.height; ++j) {
-      for (int i = 0; i < maps.grid.width; ++i) {
-        const size_t k = maps.index(l, i, j);
-        const double angle = double(texel_repose_deg(settings, l, i, j)) * M_PI / 180.0;
-        glm::vec4 cell(0.0f, kCellOpenSky, float(std::tan(angle)), 0.0f);
-        const float g = maps.ground[k];
-        if (std::isfinite(g)) {
-          int flags = kCellSurface;
-          if (gap_is_solid(maps, l, i, j)) flags |= kCellSolid;
-          if (maps.normal[k].y < 0.0f) flags |= kCellDown;
-          cell.x = g;
-          // +inf (open sky) -> 3e38; a ceiling below the ground (inconsistent
-          // maps) -> no gap.
-          cell.y = std::min(maps.ceiling[k], kCellOpenSky);
-          if (std::isnan(maps.ceiling[k])) cell.y = kCellOpenSky;
-          cell.y = std::max(cell.y, g);
-          cell.w = float(flags);
-        }
-        cells[k] = cell;
+  // Rows on all cores (a tangent per texel).
+  const size_t rows = size_t(maps.layers) * size_t(maps.grid.height);
+  parallel_for(rows, [&](size_t row) {
+    const int l = int(row / size_t(maps.grid.height)), j = int(row % size_t(maps.grid.height));
+    for (int i = 0; i < maps.grid.width; ++i) {
+      const size_t k = maps.index(l, i, j);
+      const double angle = double(texel_repose_deg(settings, l, i, j)) * M_PI / 180.0;
+      glm::vec4 cell(0.0f, kCellOpenSky, float(std::tan(angle)), 0.0f);
+      const float g = maps.ground[k];
+      if (std::isfinite(g)) {
+        int flags = kCellSurface;
+        if (gap_is_solid(maps, l, i, j)) flags |= kCellSolid;
+        if (maps.normal[k].y < 0.0f) flags |= kCellDown;
+        cell.x = g;
+        // +inf (open sky) -> 3e38; a ceiling below the ground (inconsistent
+        // maps) -> no gap.
+        cell.y = std::min(maps.ceiling[k], kCellOpenSky);
+        if (std::isnan(maps.ceiling[k])) cell.y = kCellOpenSky;
+        cell.y = std::max(cell.y, g);
+        cell.w = float(flags);
       }
+      cells[k] = cell;
     }
-  }
+  });
   return cells;
 }
 
