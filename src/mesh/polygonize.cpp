@@ -749,8 +749,9 @@ std::vector<TopPiece> split_top(const TopMesh& top, const std::vector<uint32_t>&
     for (int e = 0; e < 3; ++e) vertex_tris[top.tris[3 * t + size_t(e)]].push_back(uint32_t(t));
   }
   std::vector<TopPiece> out(pieces);
-  std::unordered_map<uint64_t, uint32_t> local;  // (triangle, corner) -> piece vertex
+  std::vector<uint32_t> local(top.tris.size());  // piece vertex of each corner
   std::vector<uint32_t> fan;
+  std::vector<std::pair<uint32_t, uint32_t>> fan_vertex;  // fan root, piece vertex
   for (size_t v = 0; v < nv; ++v) {
     // The triangles around v of each piece, joined into fans by the edges
     // (v, w) they share.
@@ -775,27 +776,27 @@ std::vector<TopPiece> split_top(const TopMesh& top, const std::vector<uint32_t>&
         if (shared >= 2) fan[root(uint32_t(a))] = root(uint32_t(b));
       }
     }
-    std::unordered_map<uint32_t, uint32_t> fan_vertex;
+    fan_vertex.clear();
     for (size_t a = 0; a < around.size(); ++a) {
       TopPiece& part = out[piece[around[a]]];
-      const auto [it, fresh] = fan_vertex.try_emplace(root(uint32_t(a)), 0u);
-      if (fresh) {
-        it->second = uint32_t(part.origin.size());
+      const uint32_t r = root(uint32_t(a));
+      auto it = std::find_if(fan_vertex.begin(), fan_vertex.end(),
+                             [&](const auto& fv) { return fv.first == r; });
+      if (it == fan_vertex.end()) {
+        fan_vertex.emplace_back(r, uint32_t(part.origin.size()));
+        it = fan_vertex.end() - 1;
         part.origin.push_back(uint32_t(v));
         part.top.positions.push_back(top.positions[v]);
         part.top.sample.push_back(top.sample[v]);
       }
-      const uint32_t t = around[a];
-      for (int e = 0; e < 3; ++e) {
-        if (top.tris[3 * size_t(t) + size_t(e)] == v)
-          local[3 * uint64_t(t) + uint64_t(e)] = it->second;
+      const size_t t = around[a];
+      for (size_t e = 0; e < 3; ++e) {
+        if (top.tris[3 * t + e] == v) local[3 * t + e] = it->second;
       }
     }
   }
   for (size_t t = 0; t < piece.size(); ++t) {
-    for (int e = 0; e < 3; ++e) {
-      out[piece[t]].top.tris.push_back(local[3 * uint64_t(t) + uint64_t(e)]);
-    }
+    for (size_t e = 0; e < 3; ++e) out[piece[t]].top.tris.push_back(local[3 * t + e]);
   }
   return out;
 }
@@ -827,7 +828,7 @@ struct Solid {
 };
 
 /// The closed solid of a large top, built and decimated in pieces (piece[t]
-/// of top triangle t, below `pieces`) on all cores and joined into `mesh`
+/// of top triangle t, below `pieces`) on all cores and joined into `out`
 /// (PolygonizeSettings::piece_triangles). The vertices a piece shares with
 /// another are locked, so every piece keeps the seam edges as they are and
 /// the pieces join into a closed solid. Returns false when a piece would not
