@@ -197,6 +197,12 @@ TEST(Cli, ExitCodesAndNoPartialOutputs) {
   EXPECT_EQ(run("snow " + q(kCourtyard) + " --layers 0 -o " + q(out / "x.glb")).code, 2);
   EXPECT_EQ(run("snow " + q(kCourtyard) + " --wind 3 -o " + q(out / "x.glb")).code, 2);
   EXPECT_EQ(run("snow " + q(kCourtyard) + " --frobnicate -o " + q(out / "x.glb")).code, 2);
+  // Stabilizer settings are checked before the scene is loaded and peeled.
+  const RunResult bad_stride =
+      run("snow " + q(kCourtyard) + " --max-stride 3 -o " + q(out / "x.glb"));
+  EXPECT_EQ(bad_stride.code, 2);
+  EXPECT_NE(bad_stride.output.find("max_stride"), std::string::npos) << bad_stride.output;
+  EXPECT_EQ(bad_stride.output.find("peel"), std::string::npos) << bad_stride.output;
   write_all(dir / "bad_settings.json", R"({"maps": {"texle": 0.1}})");
   const RunResult bad_config = run("snow " + q(kCourtyard) + " --config " +
                                    q(dir / "bad_settings.json") + " -o " + q(out / "x.glb"));

@@ -235,6 +235,40 @@ TEST(Column, LandingRule) {
 
 // --- CPU reference on analytic maps -----------------------------------------
 
+TEST(StrideSchedule, LengthensOnlyWhereTheSnowCreeps) {
+  StabilizeSettings settings;  // max_stride 4, check_every 16
+  StrideSchedule schedule(settings);
+  const auto run = [&](int passes, float residual) {
+    std::vector<int> strides;
+    for (int p = 0; p < passes; ++p) strides.push_back(schedule.next());
+    schedule.checked(strides.back(), residual);
+    return strides;
+  };
+  EXPECT_EQ(run(16, 1e-2f), std::vector<int>(16, 1));  // single steps first
+  EXPECT_EQ(run(16, 1e-3f), std::vector<int>(16, 1));  // fell tenfold: stays
+  EXPECT_EQ(schedule.largest(), 1);
+  run(16, 0.9e-3f);  // fell by a tenth only: creeping, strides up to 2
+  EXPECT_EQ(schedule.largest(), 2);
+  EXPECT_EQ(run(6, 0.0f), (std::vector<int>{2, 1, 2, 1, 2, 1}));
+  schedule.checked(2, 1.0f);  // checks after a strided pass do not count
+  EXPECT_EQ(schedule.largest(), 2);
+  run(16, 0.85e-3f);  // slow again: 4
+  run(18, 0.8e-3f);   // and again, but 4 is the most
+  EXPECT_EQ(schedule.largest(), 4);
+  EXPECT_EQ(run(6, 0.0f), (std::vector<int>{4, 2, 1, 4, 2, 1}));
+  schedule.restart();  // snow added
+  EXPECT_EQ(schedule.largest(), 1);
+  EXPECT_EQ(schedule.next(), 1);
+
+  settings.adaptive_stride = false;
+  StrideSchedule fixed(settings);
+  EXPECT_EQ(fixed.largest(), 4);
+  for (int expected : {4, 2, 1, 4, 2, 1}) EXPECT_EQ(fixed.next(), expected);
+  fixed.checked(1, 1.0f);
+  fixed.restart();
+  EXPECT_EQ(fixed.next(), 4);
+}
+
 TEST(StabilizeResult, AddFoldsInALaterCall) {
   StabilizeResult a;
   a.iterations = 30;
@@ -476,18 +510,22 @@ TEST(StabilizeGpu, MatchesReference) {
   const std::vector<float> start = random_snow(maps, 0.5f, 3);
   StabilizeSettings settings;
   settings.tolerance = 0.0f;
-  for (int passes : {0, 1, 2, 7, 60}) {
-    settings.max_iterations = passes;
-    std::vector<float> cpu = start, gpu = start;
-    const StabilizeResult rc = reference::stabilize(maps, cpu, settings);
-    const StabilizeResult rg = stabilize(maps, gpu, settings);
-    SCOPED_TRACE(passes);
-    EXPECT_EQ(rg.iterations, rc.iterations);
-    EXPECT_EQ(rg.route_passes, rc.route_passes);
-    EXPECT_NEAR(rg.lost_volume, rc.lost_volume, 1e-4);
-    EXPECT_NEAR(rg.volume, rc.volume, 1e-4);
-    expect_same(gpu, cpu, 1e-4f);
-  }
+  // Adaptive strides (single steps here) and strides 4, 2, 1 from the start.
+  for (const bool adaptive : {true, false})
+    for (int passes : {0, 1, 2, 7, 60}) {
+      settings.adaptive_stride = adaptive;
+      settings.max_iterations = passes;
+      std::vector<float> cpu = start, gpu = start;
+      const StabilizeResult rc = reference::stabilize(maps, cpu, settings);
+      const StabilizeResult rg = stabilize(maps, gpu, settings);
+      SCOPED_TRACE(adaptive);
+      SCOPED_TRACE(passes);
+      EXPECT_EQ(rg.iterations, rc.iterations);
+      EXPECT_EQ(rg.route_passes, rc.route_passes);
+      EXPECT_NEAR(rg.lost_volume, rc.lost_volume, 1e-4);
+      EXPECT_NEAR(rg.volume, rc.volume, 1e-4);
+      expect_same(gpu, cpu, 1e-4f);
+    }
 }
 
 TEST(StabilizeGpu, RoutingLeavesASlabEdgeAtRest) {
@@ -814,6 +852,7 @@ TEST(StabilizeGpu, ActiveTilesAreExact) {
     for (int max_stride : {4, 32}) {
       StabilizeSettings settings;
       settings.max_stride = max_stride;
+      settings.adaptive_stride = false;  // strided passes from the first
       settings.count_tiles = true;
       settings.max_iterations = 150;
       std::vector<float> on = snow_on_top(maps, 0.3f), off = on;

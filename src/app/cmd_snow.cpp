@@ -24,6 +24,7 @@
 #include "mesh/write_maps.h"
 #include "render/preview.h"
 #include "scene/builder.h"
+#include "snow/stabilize.h"
 
 namespace snow::app {
 namespace {
@@ -263,6 +264,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
       throw IOError("cannot write " + path + ": folder " + folder.string() + " does not exist");
   }
   if (!o.snow_output.empty()) format_from_path(o.snow_output);
+
+  check_stabilize_settings(s.stabilize);  // before minutes of peeling and shadows
 
   Scene scene;
   stage("load", [&] { scene = load_scene(o.input, s.load); });

@@ -74,6 +74,12 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     s.stabilize.min_move);
   v("snow.max_iterations", "--max-iterations", "Stabilizer passes at most per step",
     s.stabilize.max_iterations);
+  v("snow.max_stride", "--max-stride",
+    "Longest stabilizer move in texels (a power of two, 1..64; 1 = single steps)",
+    s.stabilize.max_stride);
+  v("snow.adaptive_stride", "--adaptive-stride",
+    "Start with single steps, longer moves only where the snow creeps (true/false)",
+    s.stabilize.adaptive_stride);
   v("snow.route_steep", "--route-steep",
     "Route snow off supports steeper than repose in one go (true/false)", s.stabilize.route_steep);
   // Meshes.

@@ -36,7 +36,8 @@ bool same(const StabilizeSettings& a, const StabilizeSettings& b) {
   return a.repose_deg == b.repose_deg && a.repose_jitter_deg == b.repose_jitter_deg &&
          a.tolerance == b.tolerance && a.min_move == b.min_move &&
          a.max_iterations == b.max_iterations && a.check_every == b.check_every &&
-         a.max_stride == b.max_stride && a.route_steep == b.route_steep && a.seed == b.seed;
+         a.max_stride == b.max_stride && a.adaptive_stride == b.adaptive_stride &&
+         a.route_steep == b.route_steep && a.seed == b.seed;
 }
 
 void check(const LiveSettings& s) {

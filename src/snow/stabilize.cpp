@@ -25,7 +25,9 @@ namespace {
 constexpr int kReduceBlock = 16;  // columns per side of a residual block
 constexpr int kTile = 16;         // columns per side of an active tile (all layers)
 
-void check_settings(const StabilizeSettings& s) {
+}  // namespace
+
+void check_stabilize_settings(const StabilizeSettings& s) {
   auto bad = [](const std::string& what) { throw InputError("stabilize: " + what); };
   if (!(s.repose_deg >= 5.0f && s.repose_deg <= 85.0f)) {
     bad("repose_deg must be in 5..85 degrees, got " + std::to_string(s.repose_deg));
@@ -47,6 +49,8 @@ void check_settings(const StabilizeSettings& s) {
     bad("max_stride must be a power of two in 1..64, got " + std::to_string(s.max_stride));
   }
 }
+
+namespace {
 
 void check_maps(const SnowMaps& maps) {
   const size_t n = size_t(maps.layers) * maps.grid.texels();
@@ -89,14 +93,34 @@ float texel_repose_deg(const StabilizeSettings& settings, int l, int i, int j) {
   return float(double(settings.repose_deg) + (2.0 * u - 1.0) * double(settings.repose_jitter_deg));
 }
 
-int stabilize_pass_stride(const StabilizeSettings& settings, int pass) {
+void StrideSchedule::restart() {
+  cap_ = adaptive_ ? 1 : max_;
+  cycle_ = 0;
+  since_ = 0;
+  last_ = -1.0;
+}
+
+int StrideSchedule::next() {
   int levels = 1;
-  while ((1 << levels) <= settings.max_stride) ++levels;  // max_stride = 2^(levels-1)
-  return settings.max_stride >> (pass % levels);
+  while ((1 << levels) <= cap_) ++levels;  // cap_ = 2^(levels-1)
+  ++since_;
+  return cap_ >> (cycle_++ % levels);
+}
+
+void StrideSchedule::checked(int stride, float residual) {
+  if (stride != 1 || since_ < every_) return;
+  // Fell by less than half per check_every passes: creeping, longer moves.
+  if (adaptive_ && last_ >= 0.0 &&
+      cap_<max_&& double(residual)> last_ * std::pow(0.5, double(since_) / double(every_))) {
+    cap_ *= 2;
+    cycle_ = 0;
+  }
+  last_ = double(residual);
+  since_ = 0;
 }
 
 std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSettings& settings) {
-  check_settings(settings);
+  check_stabilize_settings(settings);
   check_maps(maps);
   std::vector<glm::vec4> cells(size_t(maps.layers) * maps.grid.texels());
   // Rows on all cores (a tangent per texel).
@@ -184,6 +208,7 @@ struct Stabilizer::Impl {
   int erode_counter = 0;         // erosion passes run since construction (their stamps)
   std::vector<int> stride_last;  // per stride level: stamp of its last pass since the last
                                  // reset, -1 for none
+  StrideSchedule schedule{settings};
 
   Impl(const SnowMaps& maps, const StabilizeSettings& s);
   ~Impl() { release_bindings(); }
@@ -688,7 +713,7 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
   bool measured = false;
   int last_check = 0;
   for (int pass = 1; pass <= passes; ++pass) {
-    const int stride = stabilize_pass_stride(settings, pass - 1);
+    const int stride = schedule.next();
     relax_pass(stride);
     ++result.iterations;
     if ((stride == 1 && pass - last_check >= settings.check_every) || pass == passes) {
@@ -696,6 +721,7 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
       sums = reduce_blocks(true);
       measured = true;
       result.residual = float(sums.x);
+      schedule.checked(stride, result.residual);
       if (result.residual < settings.tolerance) {
         result.converged = true;
         break;
@@ -731,6 +757,7 @@ void Stabilizer::set_depth(const std::vector<float>& depth) {
   impl_->upload_depth(clean);  // lost (g) = 0
   impl_->route_pending = true;
   impl_->reset_tiles();
+  impl_->schedule.restart();
   impl_->lost_is_zero = true;
 }
 
@@ -747,6 +774,7 @@ void Stabilizer::add_snow(const std::vector<float>& amount, float scale) {
   impl_->add_snow(add);
   impl_->route_pending = true;
   impl_->reset_tiles();
+  impl_->schedule.restart();
 }
 
 StabilizeResult Stabilizer::iterate(int passes) { return impl_->iterate(std::max(0, passes)); }

@@ -32,8 +32,8 @@
 //    stabilizer's time and saved no passes on the test scenes, the
 //    courtyard or a terrain (one more stair test: 486 passes with it, 522
 //    without).
-// Relaxation passes cycle through strides max_stride, ..., 2, 1 (multi-scale,
-// see stabilize_pass_stride), so piles spread in few passes. On the GPU the
+// Relaxation passes cycle through strides up to max_stride, ..., 2, 1
+// (multi-scale, see StrideSchedule), so creeping piles spread in few passes. On the GPU the
 // relaxation and erosion passes draw only the active tiles (16 x 16 columns)
 // whose inputs changed since the last pass of the same kind and stride, in
 // the layers that have a surface there (settings.active_tiles); a skipped
@@ -66,6 +66,9 @@ struct StabilizeSettings {
                                    // passes (a power of two, 1..64; 1 = single steps only).
                                    // Not scaled with the map size: on the courtyard at 256
                                    // texels, 8 and 32 took 160 and 234 passes against 126
+  bool adaptive_stride = true;     // start with single steps and lengthen the strides where
+                                   // the snow creeps (StrideSchedule); false: cycle from
+                                   // max_stride from the first pass
   bool route_steep = true;         // route what cannot stay (steep supports, edges) in one go
                                    // before relaxing (off:
                                    // relaxation only, for comparisons)
@@ -111,6 +114,9 @@ constexpr float kCellOpenSky = 3.0e38f;
 /// squeezed out sideways into the neighbouring columns' gaps.
 constexpr float kCeilingClearance = 1e-4f;
 
+/// Throws InputError naming the first setting out of range.
+void check_stabilize_settings(const StabilizeSettings& settings);
+
 /// The repose angle of layer texel (l, i, j) in degrees: repose_deg plus a
 /// jitter in [-repose_jitter_deg, +repose_jitter_deg] hashed from (l, i, j,
 /// seed). Throws InputError for settings out of range.
@@ -121,15 +127,44 @@ float texel_repose_deg(const StabilizeSettings& settings, int l, int i, int j);
 /// of range.
 std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSettings& settings);
 
-/// The stride (texels) of relaxation pass `pass` (0-based) of a call: the
-/// passes cycle through max_stride, max_stride/2, ..., 1. A strided pass
-/// moves snow `stride` columns at once along a path of single steps that
-/// neither fall over an edge nor rise, against the sum of the path's repose
-/// slopes, so piles spread over long distances in few passes while a state at
-/// rest for single steps stays at rest. Convergence is checked after
-/// stride-1 passes.
-int stabilize_pass_stride(const StabilizeSettings& settings, int pass);
+/// The strides (texels) of the relaxation passes. A strided pass moves snow
+/// `stride` columns at once along a path of single steps that neither fall
+/// over an edge nor rise, against the sum of the path's repose slopes, so
+/// piles spread over long distances in few passes while a state at rest for
+/// single steps stays at rest. Strides help where piles creep (SheenChair at
+/// 256 texels: 1824 passes with single steps, 756 with strides up to 4) and
+/// hurt where single steps settle the snow fast (1M terrain at 1024: 48
+/// against 118; the courtyard at 256: 80 against 118). So the passes start
+/// with single steps, and a convergence check after a single step at which
+/// the largest move fell by less than half per check_every passes since the
+/// previous such check doubles the largest stride, up to max_stride; passes
+/// cycle through that stride, its half, ..., 1. Snow set or added starts
+/// over with single steps. With settings.adaptive_stride off, the passes
+/// cycle from max_stride from the first. The GPU stabilizer and the
+/// reference share this.
+class StrideSchedule {
+ public:
+  explicit StrideSchedule(const StabilizeSettings& settings)
+      : max_(settings.max_stride),
+        every_(settings.check_every),
+        adaptive_(settings.adaptive_stride),
+        cap_(adaptive_ ? 1 : max_) {}
+  /// Back to single steps (snow set or added).
+  void restart();
+  /// The stride of the next pass.
+  int next();
+  /// A convergence check after a pass of `stride` found `residual` (m).
+  void checked(int stride, float residual);
+  int largest() const { return cap_; }
 
+ private:
+  int max_, every_;
+  bool adaptive_;
+  int cap_;           // largest stride now
+  int cycle_ = 0;     // passes since cap_ was set
+  int since_ = 0;     // passes since the last single-step check that counted
+  double last_ = -1;  // its residual (m); < 0: none yet
+};
 /// Snow volume (m^3): sum of depth (m) over the layer texels that have a
 /// surface times texel^2, in double.
 double snow_volume(const SnowMaps& maps, const std::vector<float>& depth);

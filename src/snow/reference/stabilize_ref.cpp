@@ -55,6 +55,7 @@ void Stabilizer::set_depth(const std::vector<float>& depth) {
   }
   std::fill(lost_.begin(), lost_.end(), 0.0f);
   route_pending_ = true;
+  schedule_.restart();
 }
 
 void Stabilizer::add_snow(const std::vector<float>& amount, float scale) {
@@ -68,6 +69,7 @@ void Stabilizer::add_snow(const std::vector<float>& amount, float scale) {
     if ((cell_flags(cells_[k]) & kCellSurface) && add > 0.0f) depth_[k] = depth_[k] + add;
   }
   route_pending_ = true;
+  schedule_.restart();
 }
 
 double Stabilizer::lost_volume() const {
@@ -405,13 +407,14 @@ StabilizeResult Stabilizer::iterate(int passes) {
   }
   int last_check = 0;
   for (int pass = 1; pass <= passes; ++pass) {
-    const int stride = stabilize_pass_stride(settings_, pass - 1);
+    const int stride = schedule_.next();
     outflow_pass(stride);
     gather_pass(stride);
     ++result.iterations;
     if ((stride == 1 && pass - last_check >= settings_.check_every) || pass == passes) {
       last_check = pass;
       result.residual = residual();
+      schedule_.checked(stride, result.residual);
       if (result.residual < settings_.tolerance) {
         result.converged = true;
         break;

@@ -69,6 +69,7 @@ class Stabilizer {
   }
 
   StabilizeSettings settings_;
+  StrideSchedule schedule_{settings_};
   int width_ = 0, height_ = 0, layers_ = 0;
   float texel_ = 0.0f;
   float distance_[8] = {};  // metres, per direction
