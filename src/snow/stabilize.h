@@ -65,7 +65,8 @@ struct StabilizeSettings {
   int max_stride = 4;              // texels, largest stride of the multi-scale relaxation
                                    // passes (a power of two, 1..64; 1 = single steps only).
                                    // Not scaled with the map size: on the courtyard at 256
-                                   // texels, 8 and 32 took 160 and 234 passes against 126
+                                   // texels, fixed cycles from 8 and 32 took 160 and 234
+                                   // passes against 126
   bool adaptive_stride = true;     // start with single steps and lengthen the strides where
                                    // the snow creeps (StrideSchedule); false: cycle from
                                    // max_stride from the first pass
