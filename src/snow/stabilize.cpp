@@ -110,8 +110,9 @@ int StrideSchedule::next() {
 void StrideSchedule::checked(int stride, float residual) {
   if (stride != 1 || since_ < every_) return;
   // Fell by less than half per check_every passes: creeping, longer moves.
-  if (adaptive_ && last_ >= 0.0 &&
-      cap_<max_&& double(residual)> last_ * std::pow(0.5, double(since_) / double(every_))) {
+  const double creeping = last_ * std::pow(0.5, double(since_) / double(every_));
+  const bool longer = adaptive_ && last_ >= 0.0 && cap_ < max_;
+  if (longer && double(residual) > creeping) {
     cap_ *= 2;
     cycle_ = 0;
   }
