@@ -33,12 +33,12 @@
 //    courtyard or a terrain (one more stair test: 486 passes with it, 522
 //    without).
 // Relaxation passes cycle through strides up to max_stride, ..., 2, 1
-// (multi-scale, see StrideSchedule), so creeping piles spread in few passes. On the GPU the
-// relaxation and erosion passes draw only the active tiles (16 x 16 columns)
-// whose inputs changed since the last pass of the same kind and stride, in
-// the layers that have a surface there (settings.active_tiles); a skipped
-// tile would repeat a pass that moved nothing there, so the result is bit for
-// bit that of full passes.
+// (multi-scale, see StrideSchedule), so creeping piles spread in few passes.
+// On the GPU the relaxation and erosion passes draw only the active tiles
+// (16 x 16 columns) whose inputs changed since the last pass of the same kind
+// and stride, in the layers that have a surface there
+// (settings.active_tiles); a skipped tile would repeat a pass that moved
+// nothing there, so the result is bit for bit that of full passes.
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -150,7 +150,8 @@ class StrideSchedule {
         every_(settings.check_every),
         adaptive_(settings.adaptive_stride),
         cap_(adaptive_ ? 1 : max_) {}
-  /// Back to single steps (snow set or added).
+  /// Back to the first stride: single steps, or max_stride when not adaptive
+  /// (snow set or added).
   void restart();
   /// The stride of the next pass.
   int next();
