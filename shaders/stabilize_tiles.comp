@@ -4,8 +4,7 @@
 // tile quads per layer (stabilize_tile.vert). A tile is active when any tile
 // within u_reach tiles changed (u_changed >= u_since: a pass at or after the
 // last pass whose results the skipped tiles would repeat), or with u_all; an
-// active tile is listed for the layers that have a surface in it, or for
-// every layer with u_all. The list order varies (atomics); each fragment
+// active tile is listed for the layers that have a surface in it. The list order varies (atomics); each fragment
 // writes only its own texel, so it does not matter. See "Active tiles" in
 // src/snow/stabilize.cpp.
 #include "bindings.h"
@@ -23,7 +22,7 @@ uniform ivec2 u_tiles;  // tiles per row, per column
 uniform int u_layers;   // L
 uniform int u_reach;    // tiles
 uniform int u_since;    // pass index
-uniform int u_all;      // 1: every tile of every layer
+uniform int u_all;      // 1: every tile
 
 void main() {
   ivec2 t = ivec2(gl_GlobalInvocationID.xy);
@@ -41,7 +40,7 @@ void main() {
   if (!on) return;
   uint tile_count = uint(u_tiles.x * u_tiles.y);
   for (int l = 0; l < u_layers; ++l) {
-    if (u_all == 0 && texelFetch(u_tile_layers, ivec3(t, l), 0).r == 0u) continue;
+    if (texelFetch(u_tile_layers, ivec3(t, l), 0).r == 0u) continue;
     uint slot = atomicAdd(data[4 * l + 1], 1u);
     data[4u * uint(u_layers) + uint(l) * tile_count + slot] = uint(t.x) | (uint(t.y) << 16);
   }
