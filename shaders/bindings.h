@@ -48,5 +48,7 @@
 #define SNOW_STABILIZE_TILE_LIST 0
 // usampler2DArray R32UI per tile and layer: 1 where the layer has a surface in the tile.
 #define SNOW_STABILIZE_TILE_LAYERS 9
+// usampler2D R8UI per column: its layers with a surface (they are packed from layer 0).
+#define SNOW_STABILIZE_COLUMN 10
 
 #endif  // SNOW_SHADERS_BINDINGS_H

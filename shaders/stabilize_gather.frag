@@ -10,6 +10,7 @@
 layout(binding = SNOW_STABILIZE_OUT_A) uniform sampler2DArray u_out_a;
 layout(binding = SNOW_STABILIZE_OUT_B) uniform sampler2DArray u_out_b;
 layout(binding = SNOW_STABILIZE_CODE) uniform usampler2DArray u_code;
+layout(binding = SNOW_STABILIZE_COLUMN) uniform usampler2D u_column;  // surfaces per column
 
 layout(location = 0) out vec2 o_depth;  // depth (m), lost (m)
 // Active tiles: the tile of a texel that changed is stamped with u_pass.
@@ -24,9 +25,9 @@ uint code_of(uvec2 packed_codes, int n) { return (packed_codes[n >> 2] >> (8 * (
 float inflow(ivec2 c, const int n, float s) {
   ivec2 m = c - u_stride * kDir[n];
   if (!in_map(m)) return s;
-  for (int lm = 0; lm < u_layers; ++lm) {
+  int surfaces = int(texelFetch(u_column, m, 0).r);  // layers are packed
+  for (int lm = 0; lm < surfaces; ++lm) {
     ivec3 t = ivec3(m, lm);
-    if ((int(texelFetch(u_cells, t, 0).w) & kCellSurface) == 0) break;  // layers are packed
     uint code = (texelFetch(u_code, t, 0)[n >> 2] >> (8 * (n & 3))) & 0xffu;
     if (code == uint(u_layer)) {
       s += n < 4 ? texelFetch(u_out_a, t, 0)[n] : texelFetch(u_out_b, t, 0)[n - 4];

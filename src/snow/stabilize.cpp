@@ -202,6 +202,7 @@ struct Stabilizer::Impl {
   int tiles_x = 0, tiles_y = 0;
   gl::Texture tile_relax, tile_erode;  // R32I per tile: stamp of the last pass that changed it
   gl::Texture tile_layers;             // R32UI per tile and layer: 1 where it has a surface
+  gl::Texture column;                  // R8UI per column: layers with a surface
   gl::Buffer tile_list;                // per layer a draw-indirect command, then its tiles
   gl::Program tile_select, outflow_tiled, gather_tiled, erode_tiled;
   double tiles_drawn = 0.0;      // tiles computed by relaxation passes (count_tiles)
@@ -289,6 +290,17 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
       }
       rect.push_back(hi.x < 0 ? glm::ivec4(0) : glm::ivec4(lo, hi - lo + 1));
     }
+    std::vector<uint8_t> surfaces(size_t(width) * size_t(height), 0);
+    for (int l = 0; l < layers; ++l) {
+      for (size_t k = 0; k < surfaces.size(); ++k) {
+        surfaces[k] = uint8_t(surfaces[k] + surface[size_t(l) * surfaces.size() + k]);
+      }
+    }
+    column = gl::create_texture_2d(GL_R8UI, width, height, "stabilize column surfaces");
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTextureSubImage2D(column.id(), 0, 0, 0, width, height, GL_RED_INTEGER, GL_UNSIGNED_BYTE,
+                        surfaces.data());
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
     tile_layers =
         gl::create_texture_2d_array(GL_R32UI, tiles_x, tiles_y, layers, "stabilize tile layers");
     glTextureSubImage3D(tile_layers.id(), 0, 0, 0, 0, tiles_x, tiles_y, layers, GL_RED_INTEGER,
@@ -644,6 +656,7 @@ void Stabilizer::Impl::relax_pass(int stride) {
   bind(SNOW_STABILIZE_OUT_A, out_a);
   bind(SNOW_STABILIZE_OUT_B, out_b);
   bind(SNOW_STABILIZE_CODE, code);
+  bind(SNOW_STABILIZE_COLUMN, column);
   bind_changed(tile_relax);
   if (tiled) {
     tiled_layers(gather_program, fbo_depth[1 - cur]);
