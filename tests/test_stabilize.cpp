@@ -849,20 +849,26 @@ TEST(StabilizeGpu, ActiveTilesAreExact) {
       {"stairs", make_stairs_scene(StairsDims{})}};
   for (const auto& [name, scene] : scenes) {
     const SnowMaps maps = scene_maps(scene, 96, 6);
-    for (int max_stride : {4, 32}) {
+    // Fixed cycles run strided passes from the first; adaptive strides start
+    // with single steps, and their first strided passes draw only the tiles
+    // stamped since the last single-step pass.
+    for (const auto& [max_stride, adaptive] :
+         {std::pair{4, false}, std::pair{32, false}, std::pair{4, true}}) {
       StabilizeSettings settings;
       settings.max_stride = max_stride;
-      settings.adaptive_stride = false;  // strided passes from the first
+      settings.adaptive_stride = adaptive;
       settings.count_tiles = true;
       settings.max_iterations = 150;
       std::vector<float> on = snow_on_top(maps, 0.3f), off = on;
       const StabilizeResult r_on = stabilize(maps, on, settings);
       settings.active_tiles = false;
       const StabilizeResult r_off = stabilize(maps, off, settings);
-      std::printf("%s, max_stride %d: %d passes (+%d routing), tiles computed %.1f %%\n", name,
-                  max_stride, r_on.iterations, r_on.route_passes, 100.0 * r_on.tile_share);
+      std::printf(
+          "%s, max_stride %d, adaptive %d: %d passes (+%d routing), tiles computed %.1f %%\n", name,
+          max_stride, int(adaptive), r_on.iterations, r_on.route_passes, 100.0 * r_on.tile_share);
       SCOPED_TRACE(name);
       SCOPED_TRACE(max_stride);
+      SCOPED_TRACE(adaptive);
       EXPECT_EQ(r_on.iterations, r_off.iterations);
       EXPECT_EQ(r_on.route_passes, r_off.route_passes);
       EXPECT_EQ(r_on.residual, r_off.residual);

@@ -470,9 +470,13 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
 // moved snow is computed in the next pass) and its depth stays; both ping-pong
 // depth textures hold the same depth there (it was computed and unchanged, or
 // skipped, in the pass before). The residual reads those zeros and that depth,
-// so it is exact too. After set_depth and add_snow (and the routing that
-// follows, which uses the outflow textures as scratch) every stride's first
-// pass computes all tiles with a surface.
+// so it is exact too. A strided pass moves only snow that single steps would
+// move on the same depths (stabilize_outflow.frag), so the last pass of stride
+// 1 serves as that last pass for every stride, when it came later: a tile
+// stamped nowhere within reach since then sends nothing now, at any stride.
+// After set_depth and add_snow (and the routing that follows, which uses the
+// outflow textures as scratch) the first pass computes all tiles with a
+// surface, and so does a strided pass before any pass of stride 1.
 // Tiles of 4 x 4 columns are llvmpipe's shading blocks; on the Kenney
 // building-small-a at 256 texels (246 passes) the relaxation took 27.2 s with
 // 16 x 16 tiles, 18.9 s with 8, 15.9 s with 4 and 23.5 s with 2.
@@ -646,7 +650,9 @@ void Stabilizer::Impl::relax_pass(int stride) {
   gather_program.set("u_stride", stride);
   gather_program.set("u_pass", pass_counter);
   if (tiled) {
-    const int since = stride_last[size_t(level)];
+    // Since the last pass of this stride or of stride 1, whichever came later
+    // (a strided pass moves only what single steps move; "Active tiles").
+    const int since = std::max(stride_last[size_t(level)], stride_last.back());
     select_tiles(tile_relax, (2 * stride + kTile - 1) / kTile, since, since < 0);
     if (settings.count_tiles) tiles_drawn += double(selected_tiles());
     tiled_layers(out_program, fbo_outflow);
