@@ -80,9 +80,9 @@ struct StabilizeSettings {
                                    // relaxation only, for comparisons)
   uint32_t seed = 1;               // seed of the repose jitter; same seed, same result
   bool active_tiles = true;        // GPU: relaxation and erosion passes compute only the
-                                   // 16 x 16-column tiles that can still change (bit-identical
+                                   // 4 x 4-column tiles that can still change (bit-identical
                                    // results; off: every texel every pass, for comparisons;
-                                   // also off where GL points cannot be 16 pixels wide)
+                                   // also off where GL points cannot be 4 pixels wide)
   bool count_tiles = false;        // GPU: count the active tiles (a small readback per pass)
                                    // into StabilizeResult::tile_share, for benchmarks
 };
