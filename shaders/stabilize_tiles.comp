@@ -4,9 +4,9 @@
 // tile quads per layer (stabilize_tile.vert). A tile is active when any tile
 // within u_reach tiles changed (u_changed >= u_since: a pass at or after the
 // last pass whose results the skipped tiles would repeat), or with u_all; an
-// active tile is listed for the layers that have a surface in it. The list order varies (atomics); each fragment
-// writes only its own texel, so it does not matter. See "Active tiles" in
-// src/snow/stabilize.cpp.
+// active tile is listed for the layers that have a surface in it. The list
+// order varies (atomics); each fragment writes only its own texel, so it does
+// not matter. See "Active tiles" in src/snow/stabilize.cpp.
 #include "bindings.h"
 
 layout(local_size_x = 8, local_size_y = 8) in;

@@ -278,6 +278,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     tiles_x = (width + kTile - 1) / kTile;
     tiles_y = (height + kTile - 1) / kTile;
     std::vector<GLuint> occupied(size_t(tiles_x) * size_t(tiles_y) * size_t(layers), 0);
+    std::vector<uint8_t> surfaces(size_t(width) * size_t(height), 0);  // per column
     for (int l = 0; l < layers; ++l) {
       glm::ivec2 lo(grid.width, grid.height), hi(-1, -1);
       for (int j = 0; j < grid.height; ++j) {
@@ -286,15 +287,10 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
           lo = glm::min(lo, glm::ivec2(i, j));
           hi = glm::max(hi, glm::ivec2(i, j));
           occupied[(size_t(l) * tiles_y + size_t(j / kTile)) * tiles_x + size_t(i / kTile)] = 1;
+          ++surfaces[size_t(j) * size_t(width) + size_t(i)];
         }
       }
       rect.push_back(hi.x < 0 ? glm::ivec4(0) : glm::ivec4(lo, hi - lo + 1));
-    }
-    std::vector<uint8_t> surfaces(size_t(width) * size_t(height), 0);
-    for (int l = 0; l < layers; ++l) {
-      for (size_t k = 0; k < surfaces.size(); ++k) {
-        surfaces[k] = uint8_t(surfaces[k] + surface[size_t(l) * surfaces.size() + k]);
-      }
     }
     column = gl::create_texture_2d(GL_R8UI, width, height, "stabilize column surfaces");
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
