@@ -15,6 +15,7 @@
 #include <cstring>
 #include <limits>
 #include <new>
+#include <numeric>
 #include <string>
 
 #include <glm/gtc/packing.hpp>
@@ -119,7 +120,9 @@ glm::vec3 gradient_normal(const SnowMaps& maps, const std::vector<float>& top, i
 // only be in its way if height(q) > y + eps + |q - p|_xz * cot(theta_max)
 // (eps is the pass-1 bias, below which a surface counts as the receiver's
 // own). The scene's BVH is walked with that test on each node's highest
-// point at its box's xz distance; in a leaf that fails, a triangle is
+// point at its box's xz distance, once per small tile of receivers (at the
+// tile's distance and lowest receiver); then per receiver, in each leaf
+// the tile kept whose node fails for it, a triangle is
 // harmless when its highest point passes the test at its footprint's
 // distance, or when its slope is at most cot(theta_max) and its plane
 // extended to p lies at most y + eps (height minus the cone, over the whole
@@ -152,36 +155,57 @@ double distance_xz(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c
 bool triangle_harmless(const glm::vec3* corner, const glm::vec2& p, double limit, double cot) {
   const glm::dvec3 a(corner[0]), b(corner[1]), c(corner[2]);
   const glm::dvec3 n = glm::cross(b - a, c - a);
-  // Either test suffices: the highest point at the footprint's distance, or
-  // for a gentle plane, the plane extended to p.
-  if (std::max({a.y, b.y, c.y}) <= limit + distance_xz(a, b, c, p) * cot) return true;
-  if (!(std::abs(n.y) > 1e-9 * glm::length(n))) return false;
-  const double gx = -n.x / n.y, gz = -n.z / n.y;
-  return gx * gx + gz * gz <= cot * cot && a.y + gx * (p.x - a.x) + gz * (p.y - a.z) <= limit;
+  // Either test suffices: for a gentle plane, the plane extended to p (the
+  // cheaper one, first), or the highest point at the footprint's distance.
+  if (std::abs(n.y) > 1e-9 * glm::length(n)) {
+    const double gx = -n.x / n.y, gz = -n.z / n.y;
+    if (gx * gx + gz * gz <= cot * cot && a.y + gx * (p.x - a.x) + gz * (p.y - a.z) <= limit) {
+      return true;
+    }
+  }
+  return std::max({a.y, b.y, c.y}) <= limit + distance_xz(a, b, c, p) * cot;
 }
 
-// True when no triangle of `bvh` can be in the way of a line of fall from
-// (p, y): the stackless walk of Bvh::occluded with the test above.
-bool scene_open(const Bvh& bvh, const glm::vec2& p, float y, float eps, float cot) {
+// The leaves of `bvh` that can hold a triangle in the way of a line of fall
+// from some point of the xz rectangle [lo, hi] at height y or above (the
+// stackless walk of Bvh::occluded with the node test above at the
+// rectangle's distance), appended to `leaves`. A node that passes for the
+// rectangle passes for each of its points, so a point's own walk reaches
+// only leaves listed here.
+void candidate_leaves(const Bvh& bvh, const glm::vec2& lo, const glm::vec2& hi, float y, float eps,
+                      float cot, std::vector<uint32_t>& leaves) {
   const std::vector<Bvh::Node>& nodes = bvh.nodes();
-  const std::vector<glm::vec3>& corners = bvh.corners();
   const double limit = double(y) + double(eps);
   const uint32_t count = uint32_t(nodes.size());
   for (uint32_t i = 0; i < count;) {
     const Bvh::Node& node = nodes[i];
-    const double dx = std::max({double(node.min.x) - p.x, double(p.x) - node.max.x, 0.0});
-    const double dz = std::max({double(node.min.z) - p.y, double(p.y) - node.max.z, 0.0});
+    const double dx = std::max({double(node.min.x) - hi.x, double(lo.x) - node.max.x, 0.0});
+    const double dz = std::max({double(node.min.z) - hi.y, double(lo.y) - node.max.z, 0.0});
     const bool harmless = double(node.max.y) <= limit + std::sqrt(dx * dx + dz * dz) * cot;
     if (node.count == 0) {
       i = harmless ? node.first : i + 1;
       continue;
     }
-    if (!harmless) {
-      for (uint32_t t = node.first; t < node.first + node.count; ++t) {
-        if (!triangle_harmless(&corners[3 * size_t(t)], p, limit, cot)) return false;
-      }
-    }
+    if (!harmless) leaves.push_back(i);
     ++i;
+  }
+}
+
+// True when no triangle of the listed leaves can be in the way of a line of
+// fall from (p, y): the node test, then each triangle's.
+bool leaves_open(const Bvh& bvh, const std::vector<uint32_t>& leaves, const glm::vec2& p, float y,
+                 float eps, float cot) {
+  const std::vector<Bvh::Node>& nodes = bvh.nodes();
+  const std::vector<glm::vec3>& corners = bvh.corners();
+  const double limit = double(y) + double(eps);
+  for (uint32_t leaf : leaves) {
+    const Bvh::Node& node = nodes[leaf];
+    const double dx = std::max({double(node.min.x) - p.x, double(p.x) - node.max.x, 0.0});
+    const double dz = std::max({double(node.min.z) - p.y, double(p.y) - node.max.z, 0.0});
+    if (double(node.max.y) <= limit + std::sqrt(dx * dx + dz * dz) * cot) continue;
+    for (uint32_t t = node.first; t < node.first + node.count; ++t) {
+      if (!triangle_harmless(&corners[3 * size_t(t)], p, limit, cot)) return false;
+    }
   }
   return true;
 }
@@ -595,16 +619,53 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     const float cot_max = tan_max > 0 ? float(1.0 / tan_max) : 1e30f;
     std::unique_ptr<SnowBound> snow_bound;
     if (snow_depth) snow_bound = std::make_unique<SnowBound>(maps, top);
+    // Receivers come in layer, row, column order. Per band of kTile rows
+    // of a layer (a run of receivers), they are walked in tiles of kTile x
+    // kTile texels: the tile's rectangle and lowest receiver list the BVH
+    // leaves that can shade any of them, and each receiver tests only those
+    // (1M-triangle terrain at 2048, 3.9M receivers: 2.2 -> 0.75 s; tiles of
+    // 2 and 8 texels: 0.9 and 1.0 s).
+    constexpr int kTile = 4;
+    const auto band_of = [&](size_t r) {
+      return std::make_pair(recv_index[r] / texels, (recv[r].x >> 16) / uint32_t(kTile));
+    };
+    std::vector<size_t> bands;  // first receiver of each band, then recv.size()
+    for (size_t r = 0; r < recv.size(); ++r) {
+      if (r == 0 || band_of(r) != band_of(r - 1)) bands.push_back(r);
+    }
+    bands.push_back(recv.size());
     std::vector<uint8_t> open(recv.size(), 0);
-    constexpr size_t kBlock = 1024;  // receivers per parallel_for call
-    parallel_for((recv.size() + kBlock - 1) / kBlock, [&](size_t block) {
-      for (size_t r = block * kBlock; r < std::min(recv.size(), (block + 1) * kBlock); ++r) {
-        const glm::uvec4& rc = recv[r];
-        float y;
-        std::memcpy(&y, &rc.y, sizeof y);
-        const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
-        open[r] = scene_open(im.bvh, p, y, bias, cot_max) &&
-                  (!snow_bound || snow_bound->open(p, y, bias, cot_max));
+    parallel_for(bands.size() - 1, [&](size_t b) {
+      const size_t r0 = bands[b], r1 = bands[b + 1];
+      const auto tile_of = [&](size_t r) { return (recv[r].x & 0xffffu) / uint32_t(kTile); };
+      std::vector<uint32_t> order(r1 - r0);
+      std::iota(order.begin(), order.end(), uint32_t(r0));
+      std::stable_sort(order.begin(), order.end(),
+                       [&](uint32_t a, uint32_t c) { return tile_of(a) < tile_of(c); });
+      std::vector<uint32_t> leaves;
+      for (size_t a = 0; a < order.size();) {
+        size_t e = a;
+        glm::vec2 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+        float y_min = kOpenSky;
+        for (; e < order.size() && tile_of(order[e]) == tile_of(order[a]); ++e) {
+          const glm::uvec4& rc = recv[order[e]];
+          const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
+          float y;
+          std::memcpy(&y, &rc.y, sizeof y);
+          lo = glm::min(lo, p);
+          hi = glm::max(hi, p);
+          y_min = std::min(y_min, y);
+        }
+        leaves.clear();
+        candidate_leaves(im.bvh, lo, hi, y_min, bias, cot_max, leaves);
+        for (; a < e; ++a) {
+          const glm::uvec4& rc = recv[order[a]];
+          float y;
+          std::memcpy(&y, &rc.y, sizeof y);
+          const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
+          open[order[a]] = leaves_open(im.bvh, leaves, p, y, bias, cot_max) &&
+                           (!snow_bound || snow_bound->open(p, y, bias, cot_max));
+        }
       }
     });
     size_t kept = 0;
