@@ -1,7 +1,7 @@
 # Per-target defaults: C++17, warnings, optional sanitizers. No global flags.
 #
 # SNOW_SANITIZE: AddressSanitizer + UndefinedBehaviorSanitizer (UB aborts:
-#   -fno-sanitize-recover). tools/test builds CI this way; the run-time options
+#   -fno-sanitize-recover) + libstdc++'s container bounds checks. tools/test builds CI this way; the run-time options
 #   and the LSan suppressions for Mesa/LLVM live in tests/sanitizers/.
 # SNOW_FUZZ: the same sanitizers plus libFuzzer's coverage instrumentation
 #   (clang only); the fuzz targets in tests/fuzz link -fsanitize=fuzzer.
@@ -30,6 +30,9 @@ function(snow_target_defaults target)
     target_compile_options(${target} PUBLIC -fsanitize=${sanitizers} -fno-omit-frame-pointer
                                             -fno-sanitize-recover=undefined)
     target_link_options(${target} PUBLIC -fsanitize=address,undefined)
+    # Bounds checks in the standard containers: ASan misses a read past a
+    # vector's size but within its capacity.
+    target_compile_definitions(${target} PUBLIC _GLIBCXX_ASSERTIONS)
     get_target_property(type ${target} TYPE)
     if(type STREQUAL "EXECUTABLE")
       target_sources(${target} PRIVATE ${CMAKE_BINARY_DIR}/sanitizer_defaults.cpp)

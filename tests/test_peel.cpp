@@ -190,33 +190,47 @@ TEST(MemoryGuard, EstimateGrowsWithSizeAndSuggestionFits) {
   EXPECT_THROW(check_memory_budget(g, 8, {}, 1 << 20), InputError);
 }
 
-// The pipeline drops the layers no column reaches: the table scene fills 3
-// of 8 (top or floor, the top's underside, the floor under it); what is kept
-// is unchanged, and a single plane keeps 1.
-TEST(Peel, DropEmptyLayersKeepsEverySurface) {
+// The peel returns only the layers some column reaches: the table scene
+// fills 3 of 8 (top or floor, the top's underside, the floor under it), a
+// single plane 1; the same as with L = 3. drop_empty_layers trims empty
+// layers added after them and keeps what is there.
+TEST(Peel, KeepsOnlyTheLayersColumnsReach) {
   REQUIRE_GL();
-  const SnowMaps full = peel_layers(make_table_scene(), settings_with_side(64));
-  ASSERT_EQ(full.layers, 8);
-  SnowMaps maps = full;
-  EXPECT_EQ(maps.drop_empty_layers(), 5);
-  ASSERT_EQ(maps.layers, 3);
-  const size_t n = 3 * maps.grid.texels();
-  ASSERT_EQ(maps.ground.size(), n);
-  ASSERT_EQ(maps.object.size(), n);
+  const SnowMaps full = peel_layers(make_table_scene(), settings_with_side(64, 8));
+  ASSERT_EQ(full.layers, 3);
+  const size_t n = 3 * full.grid.texels();
+  ASSERT_EQ(full.ground.size(), n);
+  ASSERT_EQ(full.object.size(), n);
+  const SnowMaps three = peel_layers(make_table_scene(), settings_with_side(64, 3));
+  ASSERT_EQ(three.layers, 3);
   for (size_t k = 0; k < n; ++k) {
-    ASSERT_TRUE(maps.ground[k] == full.ground[k] ||
-                (std::isnan(maps.ground[k]) && std::isnan(full.ground[k])));
-    ASSERT_EQ(maps.ceiling[k], full.ceiling[k]);
-    ASSERT_EQ(maps.object[k], full.object[k]);
+    ASSERT_TRUE(three.ground[k] == full.ground[k] ||
+                (std::isnan(three.ground[k]) && std::isnan(full.ground[k])));
+    ASSERT_EQ(three.ceiling[k], full.ceiling[k]);
+    ASSERT_EQ(three.object[k], full.object[k]);
   }
-  for (size_t k = n; k < full.ground.size(); ++k) ASSERT_TRUE(std::isnan(full.ground[k]));
-  EXPECT_EQ(maps.drop_empty_layers(), 0);  // nothing more to drop
+  for (int l = 0; l < 3; ++l) {
+    bool any = false;
+    for (size_t t = 0; t < full.grid.texels(); ++t)
+      any |= !std::isnan(full.ground[l * full.grid.texels() + t]);
+    EXPECT_TRUE(any) << "layer " << l;
+  }
+
+  SnowMaps padded = full;
+  for (int l = 0; l < 5; ++l) padded.add_layer();
+  ASSERT_EQ(padded.ground.size(), 8 * full.grid.texels());
+  EXPECT_EQ(padded.drop_empty_layers(), 5);
+  ASSERT_EQ(padded.layers, 3);
+  EXPECT_EQ(padded.ground.size(), n);
+  EXPECT_EQ(padded.ceiling, full.ceiling);
+  EXPECT_EQ(padded.object, full.object);
+  EXPECT_EQ(padded.drop_empty_layers(), 0);  // nothing more to drop
 
   SceneBuilder plane;
   plane.add_plane("Floor", 0.0f, {-1.0f, -1.0f}, {1.0f, 1.0f});
-  SnowMaps flat = peel_layers(plane.build(), settings_with_side(16));
-  EXPECT_EQ(flat.drop_empty_layers(), 7);
+  const SnowMaps flat = peel_layers(plane.build(), settings_with_side(16));
   EXPECT_EQ(flat.layers, 1);
+  EXPECT_EQ(flat.ground.size(), flat.grid.texels());
 }
 
 TEST(Peel, TableLayersAndCeilings) {
@@ -224,7 +238,7 @@ TEST(Peel, TableLayersAndCeilings) {
   TableDims dims;  // top at 0.75, 1 m square, 5 cm thick, on a 4 m floor
   const Scene scene = make_table_scene(dims);
   const SnowMaps maps = peel_layers(scene, settings_with_side(128));
-  ASSERT_EQ(maps.layers, 8);
+  ASSERT_EQ(maps.layers, 3);  // of 8: no column holds a fourth surface
   EXPECT_EQ(maps.overflow_columns, 0u);
   const glm::ivec2 mid = texel_at(maps.grid, 0.01f, 0.01f);
   // Layer 0: the table top, facing up; no ceiling.
@@ -244,7 +258,6 @@ TEST(Peel, TableLayersAndCeilings) {
   EXPECT_NEAR(maps.ground[k], 0.0f, 1e-5);
   EXPECT_EQ(maps.object[k], 0);
   EXPECT_NEAR(maps.ceiling[k], 0.70f, 1e-4);
-  EXPECT_TRUE(std::isnan(maps.ground[maps.index(3, mid.x, mid.y)]));
   // Outside the table the floor is layer 0 under the open sky.
   const glm::ivec2 out = texel_at(maps.grid, 1.5f, 0.0f);
   k = maps.index(0, out.x, out.y);
@@ -319,7 +332,7 @@ TEST(Peel, CoplanarDuplicatesMergeAndFlippedFacesAreFloors) {
   EXPECT_NEAR(maps.ground[maps.index(0, mid.x, mid.y)], 0.3f, 1e-5);
   EXPECT_NEAR(maps.ground[maps.index(1, mid.x, mid.y)], 0.0005f, 1e-6);
   EXPECT_EQ(maps.object[maps.index(1, mid.x, mid.y)], 2);
-  EXPECT_TRUE(std::isnan(maps.ground[maps.index(2, mid.x, mid.y)]));  // floor merged
+  EXPECT_EQ(maps.layers, 2);  // the floor merged into the decal's layer: no third
   const glm::ivec2 side = texel_at(maps.grid, 1.5f, 0.01f);
   const size_t k = maps.index(0, side.x, side.y);
   EXPECT_NEAR(maps.ground[k], 0.0f, 1e-6);

@@ -288,7 +288,6 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   stage("peel", [&] {
     const auto context = gl_context(true);
     maps = peel_layers(snow_scene, s.peel);
-    maps.drop_empty_layers();  // --layers is an upper bound
   });
   log_info("maps: " + std::to_string(maps.grid.width) + " x " + std::to_string(maps.grid.height) +
            " texels of " + std::to_string(maps.grid.texel) + " m, " + std::to_string(maps.layers) +

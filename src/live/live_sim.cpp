@@ -72,7 +72,6 @@ LiveSim::~LiveSim() = default;
 void LiveSim::peel() {
   const auto start = Clock::now();
   SnowMaps maps = peel_layers(scene_, settings_.peel);
-  maps.drop_empty_layers();  // the layer setting is an upper bound
   auto stabilizer = std::make_unique<Stabilizer>(maps, settings_.stabilize);
   maps_ = std::move(maps);
   stabilizer_ = std::move(stabilizer);

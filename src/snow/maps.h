@@ -50,10 +50,15 @@ struct SnowMaps {
   bool has_surface(int l, int i, int j) const { return !std::isnan(ground[index(l, i, j)]); }
   /// Allocates every array for `layers` layers of `grid`, all empty.
   void allocate(const MapGrid& g, int layer_count);
-  /// Drops the trailing layers that hold no surface anywhere (the peel
-  /// allocates L layers; most scenes fill fewer), so that later stages
-  /// neither store nor compute them; keeps at least one layer and frees the
-  /// memory. Returns the number of layers dropped.
+  /// Appends one empty layer. Within a capacity set by reserve_layers, the
+  /// arrays neither move nor copy.
+  void add_layer();
+  /// Reserves capacity for `count` layers: address space only, so layers
+  /// never added cost no memory.
+  void reserve_layers(int count);
+  /// Drops the trailing layers that hold no surface anywhere, so that later
+  /// stages neither store nor compute them; keeps at least one layer and
+  /// frees the memory. Returns the number of layers dropped.
   int drop_empty_layers();
 };
 
@@ -66,6 +71,23 @@ inline void SnowMaps::allocate(const MapGrid& g, int layer_count) {
   normal.assign(n, glm::vec3(0.0f));
   object.assign(n, -1);
   overflow_columns = 0;
+}
+
+inline void SnowMaps::add_layer() {
+  const size_t n = size_t(layers + 1) * grid.texels();
+  ground.resize(n, kNoSurface);
+  ceiling.resize(n, kOpenSky);
+  normal.resize(n, glm::vec3(0.0f));
+  object.resize(n, -1);
+  ++layers;
+}
+
+inline void SnowMaps::reserve_layers(int count) {
+  const size_t n = size_t(std::max(count, 0)) * grid.texels();
+  ground.reserve(n);
+  ceiling.reserve(n);
+  normal.reserve(n);
+  object.reserve(n);
 }
 
 inline int SnowMaps::drop_empty_layers() {

@@ -202,7 +202,11 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
   std::vector<glm::vec3> tri_normal;
   std::vector<int32_t> tri_object;
   try {
-    maps.allocate(grid, settings.layers);
+    // Layers are added as passes find surfaces, in capacity reserved for
+    // all L: the layers a scene does not fill are never touched (8 layers of
+    // 2048 x 2048 texels: 800 MB to fill and, after, to drop).
+    maps.allocate(grid, 0);
+    maps.reserve_layers(settings.layers);
     surface.resize(grid.texels());
     tri_normal.resize(scene.triangle_count());
     tri_object.assign(scene.triangle_count(), -1);
@@ -211,7 +215,10 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
                      std::to_string(grid.height) + " texels x " + std::to_string(settings.layers) +
                      " layers; use a coarser texel size");
   }
-  if (scene.triangle_count() == 0 || scene.bounds.empty()) return maps;
+  if (scene.triangle_count() == 0 || scene.bounds.empty()) {
+    maps.add_layer();
+    return maps;
+  }
   // Per triangle: unit geometric normal as wound, and object index.
   for (size_t t = 0; t < tri_normal.size(); ++t) {
     const glm::dvec3 a(scene.positions[3 * t]);
@@ -308,6 +315,7 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
       for (const glm::uvec2& s : surface) maps.overflow_columns += s.x != empty_bits;
       break;
     }
+    maps.add_layer();
     const size_t base = size_t(l) * texels;
     for (size_t t = 0; t < texels; ++t) {
       const glm::uvec2& s = surface[t];
@@ -322,6 +330,8 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
   }
   progress.finish();
   glBindTextureUnit(SNOW_PEEL_PREV_TEXTURE, 0);
+  if (maps.layers == 0) maps.add_layer();
+  maps.drop_empty_layers();  // a pass can find only triangles out of range
   if (maps.overflow_columns > 0) {
     log_warn(std::to_string(maps.overflow_columns) + " map columns hold more than " +
              std::to_string(settings.layers) +

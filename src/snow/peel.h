@@ -61,7 +61,10 @@ void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings
 /// ground[l-1], +inf on layer 0), the geometric normal as wound (unit,
 /// possibly facing down) and the object index; counts the columns holding
 /// more than L surfaces in overflow_columns and warns once if any. Reports
-/// progress. Throws InputError (grid, budget, a side over GL_MAX_TEXTURE_SIZE)
+/// progress. Returns the layers down to the lowest one holding a surface
+/// (1..L; one empty layer for an empty scene), so later stages neither store
+/// nor compute layers no column reaches; the layers a scene does not fill
+/// take no memory. Throws InputError (grid, budget, a side over GL_MAX_TEXTURE_SIZE)
 /// or GLError (GL_OUT_OF_MEMORY, shaders).
 SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings);
 

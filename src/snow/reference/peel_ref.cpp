@@ -104,6 +104,7 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
       ++layer;
     }
   }
+  maps.drop_empty_layers();
   return maps;
 }
 

@@ -9,9 +9,10 @@ namespace snow::reference {
 /// every triangle it crosses (either winding; triangles seen edge-on are
 /// missed, as by a rasterizer). Hits are ordered from the top down (ties by
 /// triangle index); a hit less than merge_distance (metres) below the
-/// current layer's surface merges into it. Keeps `layers` layers with the
-/// same fields and rules as snow::peel_layers (ground, ceiling, unit
-/// geometric normal as wound, object index) and counts overflow columns.
+/// current layer's surface merges into it. Keeps up to `layers` layers with
+/// the same fields and rules as snow::peel_layers (ground, ceiling, unit
+/// geometric normal as wound, object index; trailing empty layers dropped)
+/// and counts overflow columns.
 /// Exact up to ties on triangle edges, which the GPU resolves by its fill
 /// rule. Throws InputError for layers outside 1..64 or an empty grid.
 SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers,
