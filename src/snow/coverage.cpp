@@ -166,6 +166,15 @@ bool triangle_harmless(const glm::vec3* corner, const glm::vec2& p, double limit
   return std::max({a.y, b.y, c.y}) <= limit + distance_xz(a, b, c, p) * cot;
 }
 
+// The node test at the box's xz distance from the rectangle [lo, hi] (for
+// a point, lo = hi).
+bool node_harmless(const Bvh::Node& node, const glm::vec2& lo, const glm::vec2& hi, double limit,
+                   double cot) {
+  const double dx = std::max({double(node.min.x) - hi.x, double(lo.x) - node.max.x, 0.0});
+  const double dz = std::max({double(node.min.z) - hi.y, double(lo.y) - node.max.z, 0.0});
+  return double(node.max.y) <= limit + std::sqrt(dx * dx + dz * dz) * cot;
+}
+
 // The leaves of `bvh` that can hold a triangle in the way of a line of fall
 // from some point of the xz rectangle [lo, hi] at height y or above (the
 // stackless walk of Bvh::occluded with the node test above at the
@@ -179,9 +188,7 @@ void candidate_leaves(const Bvh& bvh, const glm::vec2& lo, const glm::vec2& hi, 
   const uint32_t count = uint32_t(nodes.size());
   for (uint32_t i = 0; i < count;) {
     const Bvh::Node& node = nodes[i];
-    const double dx = std::max({double(node.min.x) - hi.x, double(lo.x) - node.max.x, 0.0});
-    const double dz = std::max({double(node.min.z) - hi.y, double(lo.y) - node.max.z, 0.0});
-    const bool harmless = double(node.max.y) <= limit + std::sqrt(dx * dx + dz * dz) * cot;
+    const bool harmless = node_harmless(node, lo, hi, limit, cot);
     if (node.count == 0) {
       i = harmless ? node.first : i + 1;
       continue;
@@ -200,9 +207,7 @@ bool leaves_open(const Bvh& bvh, const std::vector<uint32_t>& leaves, const glm:
   const double limit = double(y) + double(eps);
   for (uint32_t leaf : leaves) {
     const Bvh::Node& node = nodes[leaf];
-    const double dx = std::max({double(node.min.x) - p.x, double(p.x) - node.max.x, 0.0});
-    const double dz = std::max({double(node.min.z) - p.y, double(p.y) - node.max.z, 0.0});
-    if (double(node.max.y) <= limit + std::sqrt(dx * dx + dz * dz) * cot) continue;
+    if (node_harmless(node, p, p, limit, cot)) continue;
     for (uint32_t t = node.first; t < node.first + node.count; ++t) {
       if (!triangle_harmless(&corners[3 * size_t(t)], p, limit, cot)) return false;
     }
