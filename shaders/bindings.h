@@ -44,7 +44,10 @@
 #define SNOW_STABILIZE_STABLE_OLD 8  // sampler2DArray: the same from the previous erosion pass
 // Active tiles (stabilize_tiles.comp, stabilize_tile.vert): image unit and SSBO slots.
 #define SNOW_STABILIZE_TILE_CHANGED 0  // iimage2D R32I per tile: last pass that changed it
-// SSBO: per layer a draw-indirect command (uint[4]), then per layer its tiles.
+// image2DArray RG32F: the depth a column pass writes (stabilize_gather.frag).
+#define SNOW_STABILIZE_DEPTH_OUT 1
+// SSBO: per layer and for the column passes a draw-indirect command (uint[4]),
+// then per layer and for the column passes its tiles.
 #define SNOW_STABILIZE_TILE_LIST 0
 // usampler2DArray R32UI per tile and layer: 1 where the layer has a surface in the tile.
 #define SNOW_STABILIZE_TILE_LAYERS 9

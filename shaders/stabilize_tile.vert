@@ -20,7 +20,7 @@ uniform int u_layer;       // the layer this draw writes
 void main() {
   uint tile_count = uint(u_viewport.x / u_tile) * uint(u_viewport.y / u_tile);
   uint packed_tile =
-      data[4u * uint(u_layers) + uint(u_layer) * tile_count + uint(gl_InstanceID)];
+      data[4u * uint(u_layers + 1) + uint(u_layer) * tile_count + uint(gl_InstanceID)];
   ivec2 t = ivec2(int(packed_tile & 0xffffu), int(packed_tile >> 16));
   vec2 centre = (vec2(t) + 0.5) * float(u_tile);
   gl_Position = vec4(centre / vec2(u_viewport) * 2.0 - 1.0, 0.0, 1.0);

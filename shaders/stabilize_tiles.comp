@@ -4,9 +4,10 @@
 // tile quads per layer (stabilize_tile.vert). A tile is active when any tile
 // within u_reach tiles changed (u_changed >= u_since: a pass at or after the
 // last pass whose results the skipped tiles would repeat), or with u_all; an
-// active tile is listed for the layers that have a surface in it. The list
-// order varies (atomics); each fragment writes only its own texel, so it does
-// not matter. See "Active tiles" in src/snow/stabilize.cpp.
+// active tile is listed for the layers that have a surface in it, and in a
+// last list (index u_layers) for the passes that draw each column once for
+// all its layers when any has. The list order varies (atomics); each
+// fragment writes only its own texel or column, so it does not matter. See "Active tiles" in src/snow/stabilize.cpp.
 #include "bindings.h"
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -14,8 +15,8 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform readonly iimage2D u_changed;
 layout(binding = SNOW_STABILIZE_TILE_LAYERS) uniform usampler2DArray u_tile_layers;
 layout(std430, binding = SNOW_STABILIZE_TILE_LIST) buffer TileList {
-  uint data[];  // u_layers draw-indirect commands (count 1, instance count, first, base
-                // instance), then u_layers lists of u_tiles.x * u_tiles.y tiles (x | y << 16)
+  uint data[];  // u_layers + 1 draw-indirect commands (count 1, instance count, first, base
+                // instance), then u_layers + 1 lists of u_tiles.x * u_tiles.y tiles (x | y << 16)
 };
 
 uniform ivec2 u_tiles;  // tiles per row, per column
@@ -39,9 +40,16 @@ void main() {
   }
   if (!on) return;
   uint tile_count = uint(u_tiles.x * u_tiles.y);
+  uint lists = uint(u_layers + 1);
+  bool any_surface = false;
   for (int l = 0; l < u_layers; ++l) {
     if (texelFetch(u_tile_layers, ivec3(t, l), 0).r == 0u) continue;
+    any_surface = true;
     uint slot = atomicAdd(data[4 * l + 1], 1u);
-    data[4u * uint(u_layers) + uint(l) * tile_count + slot] = uint(t.x) | (uint(t.y) << 16);
+    data[4u * lists + uint(l) * tile_count + slot] = uint(t.x) | (uint(t.y) << 16);
+  }
+  if (any_surface) {  // the column passes' list
+    uint slot = atomicAdd(data[4 * u_layers + 1], 1u);
+    data[4u * lists + uint(u_layers) * tile_count + slot] = uint(t.x) | (uint(t.y) << 16);
   }
 }

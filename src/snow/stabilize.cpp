@@ -243,6 +243,7 @@ struct Stabilizer::Impl {
   void select_tiles(const gl::Texture& stamps, int reach, int since, bool all);
   GLuint selected_tiles();
   void tiled_layers(const gl::Program& program, const std::vector<gl::Framebuffer>& fbos);
+  void per_column(const gl::Program& program);
   GLuint count_fragments(const gl::Program& program);
   // Per-block reduction summed over blocks: max move, sum depth, sum lost,
   // sum of out_a.r (the scattered snow after routing); metres.
@@ -325,7 +326,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   tile_list = gl::create_buffer();
   glNamedBufferStorage(
       tile_list.id(),
-      GLsizeiptr(sizeof(GLuint) * size_t(layers) * (4 + size_t(tiles_x) * size_t(tiles_y))),
+      GLsizeiptr(sizeof(GLuint) * size_t(layers + 1) * (4 + size_t(tiles_x) * size_t(tiles_y))),
       nullptr, GL_DYNAMIC_STORAGE_BIT);
   {
     int levels = 1;
@@ -480,8 +481,9 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
 // erosion pass changed; no such tile ends the erosion (the same pass count as
 // the occlusion-query check of the full passes).
 void Stabilizer::Impl::select_tiles(const gl::Texture& stamps, int reach, int since, bool all) {
-  std::vector<GLuint> commands(4 * size_t(layers), 0);  // one point per tile, no instances yet
-  for (int l = 0; l < layers; ++l) commands[4 * size_t(l)] = 1;
+  // Per layer and for the column passes: one point per tile, no instances yet.
+  std::vector<GLuint> commands(4 * size_t(layers + 1), 0);
+  for (int l = 0; l <= layers; ++l) commands[4 * size_t(l)] = 1;
   glNamedBufferSubData(tile_list.id(), 0, GLsizeiptr(commands.size() * sizeof(GLuint)),
                        commands.data());
   glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);  // the stamps of the passes before
@@ -498,7 +500,7 @@ void Stabilizer::Impl::select_tiles(const gl::Texture& stamps, int reach, int si
 }
 
 // The number of tiles the last select_tiles listed, over all layers (a
-// readback).
+// readback; the column passes' list is not counted).
 GLuint Stabilizer::Impl::selected_tiles() {
   std::vector<GLuint> commands(4 * size_t(layers));
   glGetNamedBufferSubData(tile_list.id(), 0, GLsizeiptr(commands.size() * sizeof(GLuint)),
@@ -522,6 +524,35 @@ void Stabilizer::Impl::tiled_layers(const gl::Program& program,
   });
   glDisable(GL_PROGRAM_POINT_SIZE);
   glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
+}
+
+// One fragment per column with a surface, for all its layers at once (the
+// gather pass, which writes through images): with active tiles the tiles
+// listed for any layer, else layer 0's rectangle (layers are packed, so it
+// holds the others).
+void Stabilizer::Impl::per_column(const gl::Program& program) {
+  const glm::ivec4 r = rect[0];
+  if (r.z == 0) return;
+  program.use();
+  glBindVertexArray(vao.id());
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_empty.id());
+  glEnable(GL_SCISSOR_TEST);
+  glScissor(r.x, r.y, r.z, r.w);
+  if (tiled) {
+    program.set("u_layer", layers);  // the list of tiles with any surface
+    glBindBuffer(GL_DRAW_INDIRECT_BUFFER, tile_list.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_TILE_LIST, tile_list.id());
+    glViewport(0, 0, tiles_x * kTile, tiles_y * kTile);
+    glEnable(GL_PROGRAM_POINT_SIZE);
+    glDrawArraysIndirect(GL_POINTS,
+                         reinterpret_cast<const void*>(sizeof(GLuint) * 4 * size_t(layers)));
+    glDisable(GL_PROGRAM_POINT_SIZE);
+    glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
+  } else {
+    glViewport(0, 0, width, height);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  }
+  glDisable(GL_SCISSOR_TEST);
 }
 
 void Stabilizer::Impl::upload_depth(const std::vector<float>& d) {
@@ -660,11 +691,12 @@ void Stabilizer::Impl::relax_pass(int stride) {
   bind(SNOW_STABILIZE_CODE, code);
   bind(SNOW_STABILIZE_COLUMN, column);
   bind_changed(tile_relax);
-  if (tiled) {
-    tiled_layers(gather_program, fbo_depth[1 - cur]);
-  } else {
-    per_layer(gather_program, fbo_depth[1 - cur]);
-  }
+  glBindImageTexture(SNOW_STABILIZE_DEPTH_OUT, depth[1 - cur].id(), 0, GL_TRUE, 0, GL_WRITE_ONLY,
+                     GL_RG32F);
+  per_column(gather_program);
+  // Its depth is read by texel fetches, readbacks and later draws into it.
+  glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
+                  GL_TEXTURE_UPDATE_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
   stride_last[size_t(level)] = pass_counter++;
   cur = 1 - cur;
 }
