@@ -46,6 +46,8 @@
 #define SNOW_STABILIZE_TILE_CHANGED 0  // iimage2D R32I per tile: last pass that changed it
 // image2DArray RG32F: the depth a column pass writes (stabilize_gather.frag).
 #define SNOW_STABILIZE_DEPTH_OUT 1
+// uimage2D R32UI per tile: the largest move of a checked pass (float bits).
+#define SNOW_STABILIZE_TILE_MOVES 2
 // SSBO: per layer and for the column passes a draw-indirect command (uint[4]),
 // then per layer and for the column passes its tiles.
 #define SNOW_STABILIZE_TILE_LIST 0

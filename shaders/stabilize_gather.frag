@@ -7,7 +7,9 @@
 // reference::Stabilizer::gather_pass (per target layer: own outflow in
 // direction order, then inflow in direction order, source layers upwards).
 // Writes the new depth with imageStore and stamps the tiles that changed
-// (active tiles, src/snow/stabilize.cpp).
+// (active tiles, src/snow/stabilize.cpp). On convergence checks it also
+// keeps, per tile, the largest move (sum of a texel's 8 amounts, summed in
+// direction order as the reference does).
 #include "bindings.h"
 #include "column.glsl"
 
@@ -19,8 +21,11 @@ layout(binding = SNOW_STABILIZE_COLUMN) uniform usampler2D u_column;  // surface
 layout(binding = SNOW_STABILIZE_DEPTH_OUT, rg32f) uniform writeonly image2DArray u_depth_out;
 // Active tiles: the tile of a column that changed is stamped with u_pass.
 layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform writeonly iimage2D u_changed;
-uniform int u_pass;  // index stamped on changed tiles
-uniform int u_tile;  // texels per tile side
+// Per tile, the largest move (float bits; moves are >= 0), with u_measure.
+layout(binding = SNOW_STABILIZE_TILE_MOVES, r32ui) uniform coherent uimage2D u_moves;
+uniform int u_pass;     // index stamped on changed tiles
+uniform int u_tile;     // texels per tile side
+uniform int u_measure;  // 1: keep the largest move in u_moves
 
 const int kMaxLayers = 64;
 
@@ -31,6 +36,7 @@ void main() {
   float s[kMaxLayers], lost[kMaxLayers];
   vec2 before[kMaxLayers];
   bool changed = false;
+  float largest = 0.0;
   for (int l = 0; l < surfaces; ++l) {
     ivec3 t = ivec3(c, l);
     before[l] = texelFetch(u_depth, t, 0).rg;
@@ -45,6 +51,18 @@ void main() {
       if (((own[n >> 2] >> (8 * (n & 3))) & 0xffu) == kCodeVoid) lost[l] += amount;
     }
     changed = changed || any(notEqual(a, vec4(0.0))) || any(notEqual(b, vec4(0.0)));
+    if (u_measure != 0) {
+      float move = 0.0;
+      move += a.x;
+      move += a.y;
+      move += a.z;
+      move += a.w;
+      move += b.x;
+      move += b.y;
+      move += b.z;
+      move += b.w;
+      largest = max(largest, move);
+    }
   }
   // Inflow, in direction order as the reference adds it.
   for (int n = 0; n < 8; ++n) {
@@ -65,4 +83,5 @@ void main() {
     imageStore(u_depth_out, ivec3(c, l), vec4(s[l], lost[l], 0.0, 0.0));
   }
   if (changed) imageStore(u_changed, c / u_tile, ivec4(u_pass));
+  if (largest > 0.0) imageAtomicMax(u_moves, c / u_tile, floatBitsToUint(largest));
 }

@@ -522,6 +522,7 @@ TEST(StabilizeGpu, MatchesReference) {
       SCOPED_TRACE(passes);
       EXPECT_EQ(rg.iterations, rc.iterations);
       EXPECT_EQ(rg.route_passes, rc.route_passes);
+      EXPECT_EQ(rg.residual, rc.residual);  // the largest move of the last pass, bit for bit
       EXPECT_NEAR(rg.lost_volume, rc.lost_volume, 1e-4);
       EXPECT_NEAR(rg.volume, rc.volume, 1e-4);
       expect_same(gpu, cpu, 1e-4f);

@@ -22,7 +22,7 @@
 namespace snow {
 namespace {
 
-constexpr int kReduceBlock = 16;  // columns per side of a residual block
+constexpr int kReduceBlock = 16;  // columns per side of a block of the snow sums
 constexpr int kTile = 4;          // columns per side of an active tile (all layers)
 
 }  // namespace
@@ -191,12 +191,13 @@ struct Stabilizer::Impl {
   std::vector<glm::ivec4> rect;  // per layer: x, y, width, height of its surfaces (0 size: none)
 
   gl::Texture cells, depth[2], out_a, out_b, code, pointer[2], stable, reduce;
+  gl::Texture tile_moves;  // R32UI per tile: largest move of a checked pass (float bits)
   std::vector<gl::Framebuffer> fbo_outflow, fbo_depth[2], fbo_pointer[2], fbo_stable[2];
   gl::Framebuffer fbo_scatter, fbo_reduce, fbo_empty;
   gl::VertexArray vao;
   gl::Query query;
   gl::Program outflow, gather, erode, erode_check, receiver, jump, jump_check, scatter, apply, add,
-      residual;
+      sums;
   // Active tiles (see "Active tiles" below).
   bool tiled = false;
   int tiles_x = 0, tiles_y = 0;
@@ -234,7 +235,7 @@ struct Stabilizer::Impl {
   void upload_depth(const std::vector<float>& depth);
   void add_snow(const std::vector<float>& add);
   int route();
-  void relax_pass(int stride);
+  void relax_pass(int stride, bool measure);
   void reset_tiles() { stride_last.assign(stride_last.size(), -1); }
   void bind_changed(const gl::Texture& stamps) const {
     glBindImageTexture(SNOW_STABILIZE_TILE_CHANGED, stamps.id(), 0, GL_FALSE, 0, GL_READ_WRITE,
@@ -245,9 +246,12 @@ struct Stabilizer::Impl {
   void tiled_layers(const gl::Program& program, const std::vector<gl::Framebuffer>& fbos);
   void per_column(const gl::Program& program);
   GLuint count_fragments(const gl::Program& program);
-  // Per-block reduction summed over blocks: max move, sum depth, sum lost,
-  // sum of out_a.r (the scattered snow after routing); metres.
-  glm::dvec4 reduce_blocks(bool with_moves);
+  // Per-block sums summed over blocks: depth, lost, out_a.r (the scattered
+  // snow after routing); metres.
+  glm::dvec3 sum_blocks();
+  // The largest move (m) of the last relaxation pass, which must have been
+  // measured.
+  float largest_move() const;
   std::vector<glm::vec2> read_depth() const;
   std::vector<float> read_channel(GLenum channel) const;
   StabilizeResult iterate(int passes);
@@ -314,12 +318,13 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   out_b = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize outflow");
   code = gl::create_texture_2d_array(GL_RG32UI, width, height, layers, "stabilize codes");
   stable = gl::create_texture_2d_array(GL_R32F, width, height, layers, "stabilize kept height");
-  reduce = gl::create_texture_2d(GL_RGBA32F, reduce_width, reduce_height, "stabilize residual");
+  reduce = gl::create_texture_2d(GL_RGBA32F, reduce_width, reduce_height, "stabilize sums");
   GLfloat point_sizes[2] = {1.0f, 1.0f};
   glGetFloatv(GL_POINT_SIZE_RANGE, point_sizes);
   tiled = s.active_tiles && point_sizes[1] >= float(kTile);  // tiles are drawn as points
   tile_relax = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
   tile_erode = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
+  tile_moves = gl::create_texture_2d(GL_R32UI, tiles_x, tiles_y, "stabilize tile moves");
   const GLint never = -1;
   glClearTexImage(tile_relax.id(), 0, GL_RED_INTEGER, GL_INT, &never);
   glClearTexImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT, &never);
@@ -371,7 +376,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   gl::check_framebuffer(fbo_scatter, "stabilize scatter framebuffer");
   fbo_reduce = gl::create_framebuffer();
   glNamedFramebufferTexture(fbo_reduce.id(), GL_COLOR_ATTACHMENT0, reduce.id(), 0);
-  gl::check_framebuffer(fbo_reduce, "stabilize residual framebuffer");
+  gl::check_framebuffer(fbo_reduce, "stabilize sums framebuffer");
   fbo_empty = gl::create_framebuffer();
   glNamedFramebufferParameteri(fbo_empty.id(), GL_FRAMEBUFFER_DEFAULT_WIDTH, width);
   glNamedFramebufferParameteri(fbo_empty.id(), GL_FRAMEBUFFER_DEFAULT_HEIGHT, height);
@@ -391,14 +396,14 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
       gl::Program({"stabilize_scatter.vert", "stabilize_scatter.geom", "stabilize_scatter.frag"});
   apply = gl::Program({"stabilize.vert", "stabilize_apply.frag"});
   add = gl::Program({"stabilize.vert", "stabilize_add.frag"});
-  residual = gl::Program({"stabilize.vert", "stabilize_residual.frag"});
+  sums = gl::Program({"stabilize.vert", "stabilize_sums.frag"});
   tile_select = gl::Program({"stabilize_tiles.comp"});
   outflow_tiled = gl::Program({"stabilize_tile.vert", "stabilize_outflow.frag"});
   gather_tiled = gl::Program({"stabilize_tile.vert", "stabilize_gather.frag"});
   erode_tiled = gl::Program({"stabilize_tile.vert", "stabilize_erode.frag"});
   for (const gl::Program* p :
        {&outflow, &gather, &erode, &erode_check, &receiver, &jump, &jump_check, &scatter, &apply,
-        &add, &residual, &outflow_tiled, &gather_tiled, &erode_tiled}) {
+        &add, &sums, &outflow_tiled, &gather_tiled, &erode_tiled}) {
     set_common(*p);
     p->set("u_stride", 1);
     p->set("u_tile", kTile);
@@ -408,7 +413,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   for (const gl::Program* p : {&outflow_tiled, &gather_tiled, &erode_tiled}) {
     p->set("u_viewport", glm::ivec2(tiles_x * kTile, tiles_y * kTile));
   }
-  residual.set("u_block", kReduceBlock);
+  sums.set("u_block", kReduceBlock);
   release_bindings();
   gl::check_error("stabilize: set-up");
 }
@@ -466,9 +471,9 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
 // textures still hold the zeros of the last pass that computed it: a tile that
 // moved snow is computed in the next pass) and its depth stays; both ping-pong
 // depth textures hold the same depth there (it was computed and unchanged, or
-// skipped, in the pass before). The residual reads those zeros and that depth,
-// so it is exact too. A strided pass moves only snow that single steps would
-// move on the same depths (stabilize_outflow.frag), so the last pass of stride
+// skipped, in the pass before). The largest move of a pass is zero in a
+// skipped tile, so the gather's per-tile maximum is exact too. A strided pass moves only snow that
+// single steps would move on the same depths (stabilize_outflow.frag), so the last pass of stride
 // 1 serves as that last pass for every stride, when it came later: a tile
 // stamped nowhere within reach since then sends nothing now, at any stride.
 // After set_depth and add_snow (and the routing that follows, which uses the
@@ -666,7 +671,9 @@ int Stabilizer::Impl::route() {
   return passes;
 }
 
-void Stabilizer::Impl::relax_pass(int stride) {
+// One relaxation pass (outflow, then gather); with `measure`, the gather
+// keeps the largest move per tile for largest_move().
+void Stabilizer::Impl::relax_pass(int stride, bool measure) {
   int level = 0;
   while ((settings.max_stride >> level) > stride) ++level;
   bind(SNOW_STABILIZE_CELLS, cells);
@@ -676,6 +683,13 @@ void Stabilizer::Impl::relax_pass(int stride) {
   out_program.set("u_stride", stride);
   gather_program.set("u_stride", stride);
   gather_program.set("u_pass", pass_counter);
+  gather_program.set("u_measure", measure ? 1 : 0);
+  if (measure) {
+    const GLuint zero = 0;
+    glClearTexImage(tile_moves.id(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+    glBindImageTexture(SNOW_STABILIZE_TILE_MOVES, tile_moves.id(), 0, GL_FALSE, 0, GL_READ_WRITE,
+                       GL_R32UI);
+  }
   if (tiled) {
     // Since the last pass of this stride or of stride 1, whichever came later
     // (a strided pass moves only what single steps move; "Active tiles").
@@ -701,13 +715,11 @@ void Stabilizer::Impl::relax_pass(int stride) {
   cur = 1 - cur;
 }
 
-glm::dvec4 Stabilizer::Impl::reduce_blocks(bool with_moves) {
-  bind(SNOW_STABILIZE_CELLS, cells);
+glm::dvec3 Stabilizer::Impl::sum_blocks() {
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
   bind(SNOW_STABILIZE_OUT_A, out_a);
-  bind(SNOW_STABILIZE_OUT_B, out_b);
-  residual.use();
-  residual.set("u_with_moves", with_moves ? 1 : 0);
+  bind(SNOW_STABILIZE_COLUMN, column);
+  sums.use();
   glBindVertexArray(vao.id());
   glBindFramebuffer(GL_FRAMEBUFFER, fbo_reduce.id());
   glViewport(0, 0, reduce_width, reduce_height);
@@ -715,15 +727,22 @@ glm::dvec4 Stabilizer::Impl::reduce_blocks(bool with_moves) {
   std::vector<glm::vec4> blocks(size_t(reduce_width) * size_t(reduce_height));
   glGetTextureImage(reduce.id(), 0, GL_RGBA, GL_FLOAT, GLsizei(blocks.size() * sizeof(glm::vec4)),
                     blocks.data());
-  gl::check_error("stabilize: residual");
-  glm::dvec4 r(0.0);
-  for (const glm::vec4& b : blocks) {
-    r.x = std::max(r.x, double(b.x));
-    r.y += double(b.y);
-    r.z += double(b.z);
-    r.w += double(b.w);
-  }
+  gl::check_error("stabilize: snow sums");
+  glm::dvec3 r(0.0);
+  for (const glm::vec4& b : blocks) r += glm::dvec3(b);
   return r;
+}
+
+float Stabilizer::Impl::largest_move() const {
+  std::vector<GLuint> moves(size_t(tiles_x) * size_t(tiles_y));
+  glGetTextureImage(tile_moves.id(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT,
+                    GLsizei(moves.size() * sizeof(GLuint)), moves.data());
+  gl::check_error("stabilize: largest move");
+  GLuint largest = 0;  // the bits of non-negative floats order as the floats
+  for (GLuint m : moves) largest = std::max(largest, m);
+  float move = 0.0f;
+  std::memcpy(&move, &largest, sizeof(move));
+  return move;
 }
 
 // One channel of the depth texture (GL_RED: depth, GL_GREEN: lost), half the
@@ -747,33 +766,30 @@ std::vector<glm::vec2> Stabilizer::Impl::read_depth() const {
 StabilizeResult Stabilizer::Impl::iterate(int passes) {
   StabilizeResult result;
   const double area = double(grid.texel) * double(grid.texel);
-  const double lost_before = lost_is_zero ? 0.0 : reduce_blocks(false).z * area;
+  const double lost_before = lost_is_zero ? 0.0 : sum_blocks().y * area;
   lost_is_zero = false;
   if (route_pending) {
     if (settings.route_steep) {
       const auto t0 = std::chrono::steady_clock::now();
       result.route_passes = route();
       // Routed = scattered to terminals (out_a.r) + routed into the void.
-      const glm::dvec4 after = reduce_blocks(false);
-      result.routed_volume = (after.w + after.z) * area - lost_before;
+      const glm::dvec3 after = sum_blocks();
+      result.routed_volume = (after.z + after.y) * area - lost_before;
       result.route_seconds += seconds_since(t0);
     }
     route_pending = false;
     reset_tiles();
   }
   tiles_drawn = 0.0;
-  glm::dvec4 sums(0.0);
-  bool measured = false;
   int last_check = 0;
   for (int pass = 1; pass <= passes; ++pass) {
     const int stride = schedule.next();
-    relax_pass(stride);
+    const bool check = (stride == 1 && pass - last_check >= settings.check_every) || pass == passes;
+    relax_pass(stride, check);
     ++result.iterations;
-    if ((stride == 1 && pass - last_check >= settings.check_every) || pass == passes) {
+    if (check) {
       last_check = pass;
-      sums = reduce_blocks(true);
-      measured = true;
-      result.residual = float(sums.x);
+      result.residual = largest_move();
       schedule.checked(stride, result.residual);
       if (result.residual < settings.tolerance) {
         result.converged = true;
@@ -781,10 +797,10 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
       }
     }
   }
-  if (!measured) sums = reduce_blocks(false);
+  const glm::dvec3 totals = sum_blocks();
   release_bindings();
-  result.volume = sums.y * area;
-  result.lost_volume = sums.z * area - lost_before;
+  result.volume = totals.x * area;
+  result.lost_volume = totals.y * area - lost_before;
   result.tile_share = !tiled ? 1.0
                       : settings.count_tiles && result.iterations > 0
                           ? tiles_drawn / (double(result.iterations) * tiles_x * tiles_y * layers)

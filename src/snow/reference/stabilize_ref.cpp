@@ -276,7 +276,7 @@ void Stabilizer::gather_pass(int stride) {
   depth_.swap(next);
 }
 
-// Mirrors shaders/stabilize_residual.frag (the max part).
+// Mirrors the largest move of shaders/stabilize_gather.frag.
 float Stabilizer::residual() const {
   float largest = 0.0f;
   for (size_t k = 0; k < cells_.size(); ++k) {
