@@ -42,7 +42,6 @@
 #include <OpenMesh/Core/Geometry/QuadricT.hh>
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>
 #include <OpenMesh/Tools/Decimater/ModBaseT.hh>
-#include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
 #pragma GCC diagnostic pop
 
 #include "core/error.h"
@@ -108,7 +107,12 @@ struct OMesh : OpenMesh::TriMesh_ArrayKernelT<SnowMeshTraits> {
 /// ModQuadricT weights them by area, which makes the bound unitless). The
 /// error of a collapse is the sum of squared distances (m^2) of the kept
 /// vertex to every plane merged into it, so a bound err^2 keeps every vertex
-/// within err metres of each original plane around it.
+/// within err metres of each original plane around it. A collapse within the
+/// bound must also not turn a face's normal by more than
+/// set_max_normal_deviation: the test of OpenMesh's ModNormalFlippingT, run
+/// here after the cheap error bound rather than as a module of its own,
+/// which the Decimater asks first for every candidate (10k terrain at 2048:
+/// decimation 10.7 -> 9.7 s of thread time, the same meshes).
 template <class MeshT>
 class ModPlaneErrorT : public OpenMesh::Decimater::ModBaseT<MeshT> {
  public:
@@ -118,6 +122,8 @@ class ModPlaneErrorT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   ~ModPlaneErrorT() override { Base::mesh().remove_property(quadrics_); }
 
   void set_max_err(double max_err_m2) { max_err_ = max_err_m2; }
+  /// Degrees; as ModNormalFlippingT::set_max_normal_deviation.
+  void set_max_normal_deviation(double degrees) { min_cos_ = std::cos(degrees / 180.0 * M_PI); }
 
   void initialize() override {
     Mesh& m = Base::mesh();
@@ -149,7 +155,8 @@ class ModPlaneErrorT : public OpenMesh::Decimater::ModBaseT<MeshT> {
     OpenMesh::Geometry::Quadricd q = Base::mesh().property(quadrics_, ci.v0);
     q += Base::mesh().property(quadrics_, ci.v1);
     const double err = q(ci.p1);
-    return err < max_err_ ? float(err) : float(Base::ILLEGAL_COLLAPSE);
+    if (!(err < max_err_) || flips_normal(ci)) return float(Base::ILLEGAL_COLLAPSE);
+    return float(err);
   }
 
   void postprocess_collapse(const CollapseInfo& ci) override {
@@ -157,8 +164,25 @@ class ModPlaneErrorT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   }
 
  private:
+  // Whether moving v0 to p1 turns a face around it (other than the two that
+  // go) by more than the deviation, as ModNormalFlippingT::collapse_priority
+  // computes it (the face normals are kept up to date by the Decimater).
+  bool flips_normal(const CollapseInfo& ci) {
+    Mesh& m = Base::mesh();
+    m.set_point(ci.v0, ci.p1);
+    bool flips = false;
+    for (auto vf = m.cvf_iter(ci.v0); vf.is_valid() && !flips; ++vf) {
+      const auto f = *vf;
+      if (f == ci.fl || f == ci.fr) continue;
+      flips = (m.normal(f) | m.calc_face_normal(f)) < min_cos_;
+    }
+    m.set_point(ci.v0, ci.p0);
+    return flips;
+  }
+
   static constexpr unsigned kMaxValence = 12;
   double max_err_ = 0.0;
+  double min_cos_ = -1.0;  // no normal test
   OpenMesh::VPropHandleT<OpenMesh::Geometry::Quadricd> quadrics_;
 };
 
@@ -689,11 +713,9 @@ void decimate(OMesh& mesh, double max_error) {
   mesh.update_face_normals();
   OpenMesh::Decimater::DecimaterT<OMesh> decimater(mesh);
   typename ModPlaneErrorT<OMesh>::Handle plane_error;
-  OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle normal_flipping;
   decimater.add(plane_error);
-  decimater.add(normal_flipping);
   decimater.module(plane_error).set_max_err(max_error * max_error);
-  decimater.module(normal_flipping).set_max_normal_deviation(60.0);
+  decimater.module(plane_error).set_max_normal_deviation(60.0);
   decimater.initialize();
   decimater.decimate();
   mesh.garbage_collection();
