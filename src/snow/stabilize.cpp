@@ -130,10 +130,11 @@ std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSett
     const int l = int(row / size_t(maps.grid.height)), j = int(row % size_t(maps.grid.height));
     for (int i = 0; i < maps.grid.width; ++i) {
       const size_t k = maps.index(l, i, j);
-      const double angle = double(texel_repose_deg(settings, l, i, j)) * M_PI / 180.0;
-      glm::vec4 cell(0.0f, kCellOpenSky, float(std::tan(angle)), 0.0f);
+      glm::vec4 cell(0.0f, kCellOpenSky, 0.0f, 0.0f);
       const float g = maps.ground[k];
       if (std::isfinite(g)) {
+        const double angle = double(texel_repose_deg(settings, l, i, j)) * M_PI / 180.0;
+        cell.z = float(std::tan(angle));
         int flags = kCellSurface;
         if (gap_is_solid(maps, l, i, j)) flags |= kCellSolid;
         if (maps.normal[k].y < 0.0f) flags |= kCellDown;

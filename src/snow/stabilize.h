@@ -110,7 +110,8 @@ struct StabilizeResult {
 
 /// Per layer texel inputs of the passes, shared by the GPU upload and the CPU
 /// reference (maps' layout): x = ground (m; 0 where no surface), y = ceiling
-/// (m; 3e38 for open sky), z = tan(repose angle + jitter), w = flags
+/// (m; 3e38 for open sky), z = tan(repose angle + jitter; 0 where no
+/// surface), w = flags
 /// (kCellSurface | kCellSolid | kCellDown, stored as a float).
 constexpr int kCellSurface = 1;  // the texel has a surface
 constexpr int kCellSolid = 2;    // its gap is the inside of a solid (snow::gap_is_solid)
