@@ -197,8 +197,7 @@ struct Stabilizer::Impl {
   gl::Framebuffer fbo_scatter, fbo_reduce, fbo_empty;
   gl::VertexArray vao;
   gl::Query query;
-  gl::Program outflow, gather, erode, erode_check, receiver, jump, jump_check, scatter, apply, add,
-      sums;
+  gl::Program outflow, gather, erode, erode_check, receiver, jump, scatter, apply, add, sums;
   // Active tiles (see "Active tiles" below).
   bool tiled = false;
   int tiles_x = 0, tiles_y = 0;
@@ -206,6 +205,7 @@ struct Stabilizer::Impl {
   gl::Texture tile_layers;             // R32UI per tile and layer: 1 where it has a surface
   gl::Texture column;                  // R8UI per column: layers with a surface
   gl::Buffer tile_list;                // per layer a draw-indirect command, then its tiles
+  gl::Buffer jump_changed;             // uint: a pointer-jumping pass moved a pointer on
   gl::Program tile_select, outflow_tiled, gather_tiled, erode_tiled;
   double tiles_drawn = 0.0;      // tiles computed by relaxation passes (count_tiles)
   int pass_counter = 0;          // relaxation passes run since construction (their stamps)
@@ -329,6 +329,8 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   const GLint never = -1;
   glClearTexImage(tile_relax.id(), 0, GL_RED_INTEGER, GL_INT, &never);
   glClearTexImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT, &never);
+  jump_changed = gl::create_buffer();
+  glNamedBufferStorage(jump_changed.id(), sizeof(GLuint), nullptr, GL_DYNAMIC_STORAGE_BIT);
   tile_list = gl::create_buffer();
   glNamedBufferStorage(
       tile_list.id(),
@@ -392,7 +394,6 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   erode_check = gl::Program({"stabilize.vert", "stabilize_erode_check.frag"});
   receiver = gl::Program({"stabilize.vert", "stabilize_receiver.frag"});
   jump = gl::Program({"stabilize.vert", "stabilize_jump.frag"});
-  jump_check = gl::Program({"stabilize.vert", "stabilize_jump_check.frag"});
   scatter =
       gl::Program({"stabilize_scatter.vert", "stabilize_scatter.geom", "stabilize_scatter.frag"});
   apply = gl::Program({"stabilize.vert", "stabilize_apply.frag"});
@@ -402,9 +403,8 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   outflow_tiled = gl::Program({"stabilize_tile.vert", "stabilize_outflow.frag"});
   gather_tiled = gl::Program({"stabilize_tile.vert", "stabilize_gather.frag"});
   erode_tiled = gl::Program({"stabilize_tile.vert", "stabilize_erode.frag"});
-  for (const gl::Program* p :
-       {&outflow, &gather, &erode, &erode_check, &receiver, &jump, &jump_check, &scatter, &apply,
-        &add, &sums, &outflow_tiled, &gather_tiled, &erode_tiled}) {
+  for (const gl::Program* p : {&outflow, &gather, &erode, &erode_check, &receiver, &jump, &scatter,
+                               &apply, &add, &sums, &outflow_tiled, &gather_tiled, &erode_tiled}) {
     set_common(*p);
     p->set("u_stride", 1);
     p->set("u_tile", kTile);
@@ -643,10 +643,18 @@ int Stabilizer::Impl::route() {
   bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
   per_layer(receiver, fbo_pointer[0]);
   int p = 0;  // pointer[p] holds the pointers
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_JUMP_CHANGED, jump_changed.id());
   for (;;) {
+    // A pass that moves no pointer on copies them: the chains have ended,
+    // and that pass does not count.
+    const GLuint zero = 0;
+    glNamedBufferSubData(jump_changed.id(), 0, sizeof(zero), &zero);
     bind(SNOW_STABILIZE_POINTER, pointer[p]);
-    if (count_fragments(jump_check) == 0) break;
     per_layer(jump, fbo_pointer[1 - p]);
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    GLuint changed = 0;
+    glGetNamedBufferSubData(jump_changed.id(), 0, sizeof(changed), &changed);
+    if (changed == 0) break;
     p = 1 - p;
     ++passes;
     if (passes > 100000) throw GLError("stabilize: routing pointers did not settle");
@@ -661,7 +669,14 @@ int Stabilizer::Impl::route() {
   glEnable(GL_BLEND);
   glBlendEquation(GL_FUNC_ADD);
   glBlendFunc(GL_ONE, GL_ONE);
-  glDrawArrays(GL_POINTS, 0, GLsizei(count()));
+  // One point per layer texel in the rows of its layer's rectangle (the
+  // texels outside have no surface and route nothing), in texel order.
+  for (int l = 0; l < layers; ++l) {
+    const glm::ivec4 r = rect[size_t(l)];
+    if (r.z == 0) continue;
+    const size_t first = (size_t(l) * size_t(height) + size_t(r.y)) * size_t(width);
+    glDrawArrays(GL_POINTS, GLint(first), GLsizei(size_t(r.w) * size_t(width)));
+  }
   glDisable(GL_BLEND);
   bind(SNOW_STABILIZE_OUT_A, out_a);
   bind_changed(tile_relax);

@@ -365,7 +365,8 @@ int Stabilizer::route(double* routed_volume) {
     }
   }
   // Jump passes (shaders/stabilize_jump.frag) until every pointer reaches a
-  // terminal (shaders/stabilize_jump_check.frag counts those that do not).
+  // terminal (the GPU runs one more, which moves no pointer on and does not
+  // count).
   auto unfinished = [&]() {
     size_t open = 0;
     for (size_t k = 0; k < count; ++k) {
