@@ -500,7 +500,8 @@ void Stabilizer::Impl::select_tiles(const gl::Texture& stamps, int reach, int si
   tile_select.set("u_reach", reach);
   tile_select.set("u_since", since);
   tile_select.set("u_all", all ? 1 : 0);
-  glDispatchCompute(GLuint((tiles_x + 7) / 8), GLuint((tiles_y + 7) / 8), 1);
+  // One invocation per block of 8 x 8 tiles, in work groups of 8 x 8 blocks.
+  glDispatchCompute(GLuint((tiles_x + 63) / 64), GLuint((tiles_y + 63) / 64), 1);
   glMemoryBarrier(GL_COMMAND_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT |
                   GL_BUFFER_UPDATE_BARRIER_BIT);
 }
