@@ -534,6 +534,9 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     throw InputError("coverage: snow depth has " + std::to_string(snow_depth->size()) +
                      " values, the maps have " + std::to_string(total));
   }
+  // From here: the stage's time includes finding and culling the receivers
+  // (about 1 s of a 2048 map), not only the shadow passes.
+  Progress progress("coverage", double(dirs.size()));
 
   std::vector<float> coverage;
   std::vector<glm::uvec4> recv;
@@ -814,7 +817,6 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
   im.timings.setup = t_mark - t_start;
 
   const int max_groups = 65535;
-  Progress progress("coverage", double(k_count));
   for (size_t b0 = 0; b0 < k_count; b0 += size_t(batch)) {
     const int n = int(std::min(size_t(batch), k_count - b0));
     for (int k = 0; k < n; ++k) {
