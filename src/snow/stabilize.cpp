@@ -1,8 +1,10 @@
 // The snow stabilizer on the GPU (DESIGN.md "Stabilizer"; angle of repose
 // relaxation after Fearing 2000, section 5, on the snow amount maps of Tokoi
 // 2006; routing of what cannot stay as flow routing over a terrain, with a
-// distance-transform erosion and pointer jumping). One full-screen draw per map layer and pass,
-// ping-pong between two depth texture arrays; the CPU twin is reference/stabilize_ref.
+// distance-transform erosion and pointer jumping). One draw per map layer and
+// pass (the gather pass: one draw for all layers, one fragment per column,
+// written through an image), ping-pong between two depth texture arrays; the
+// CPU twin is reference/stabilize_ref.
 #include "snow/stabilize.h"
 
 #include <algorithm>
@@ -457,27 +459,30 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
 // outflow and gather passes (and the routing's erosion passes) draw only the
 // tiles (kTile x kTile columns) that may change, as instanced points of kTile
 // pixels (one square per tile) from lists built on the GPU
-// (stabilize_tiles.comp, one indirect draw per layer, no readback). Each layer
-// lists only the tiles where it has a surface: a texel without one neither
-// sends nor receives, and every pass leaves its depth and outflow at zero (the
-// textures are cleared at the start; the outflow pass writes zeros there, the
-// routing's erosion (out_b) keeps its free top, 0, and its scatter (out_a)
-// reaches only surfaces; the gather pass reads no codes there). The gather,
-// apply and erosion passes stamp the tiles where a texel sent snow or changed
-// with the pass index. A relaxation pass of stride s computes a tile when a
-// tile within ceil(2 s / kTile) tiles (what its outflow reads, and what its
-// inflow's outflow reads) was stamped at or after the last pass of stride s. A
-// skipped tile is exact: its inputs are those of that last pass of the same
-// stride, which moved no snow there, so its outflow is zero again (the outflow
-// textures still hold the zeros of the last pass that computed it: a tile that
-// moved snow is computed in the next pass) and its depth stays; both ping-pong
-// depth textures hold the same depth there (it was computed and unchanged, or
-// skipped, in the pass before). The largest move of a pass is zero in a
-// skipped tile, so the gather's per-tile maximum is exact too. A strided pass moves only snow that
-// single steps would move on the same depths (stabilize_outflow.frag), so the last pass of stride
-// 1 serves as that last pass for every stride, when it came later: a tile
-// stamped nowhere within reach since then sends nothing now, at any stride.
-// After set_depth and add_snow (and the routing that follows, which uses the
+// (stabilize_tiles.comp, no readback): one indirect draw per layer of the
+// tiles where that layer has a surface, and for the gather pass, which
+// computes a column's layers in one fragment, one draw of the tiles where
+// any layer has one. A texel without a surface neither sends nor receives,
+// and every pass leaves its depth and outflow at zero (the textures are
+// cleared at the start; the outflow pass writes zeros there, the routing's
+// erosion (out_b) keeps its free top, 0, and its scatter (out_a) reaches
+// only surfaces; the gather pass reads no codes there). The gather, apply
+// and erosion passes stamp the tiles where a texel sent snow or changed with
+// the pass index. A relaxation pass of stride s computes a tile when a tile
+// within ceil(2 s / kTile) tiles (what its outflow reads, and what its
+// inflow's outflow reads) was stamped at or after the last pass of stride s.
+// A skipped tile is exact: its inputs are those of that last pass of the
+// same stride, which moved no snow there, so its outflow is zero again (the
+// outflow textures still hold the zeros of the last pass that computed it: a
+// tile that moved snow is computed in the next pass) and its depth stays;
+// both ping-pong depth textures hold the same depth there (it was computed
+// and unchanged, or skipped, in the pass before). The largest move of a pass
+// is zero in a skipped tile, so the gather's per-tile maximum is exact too.
+// A strided pass moves only snow that single steps would move on the same
+// depths (stabilize_outflow.frag), so the last pass of stride 1 serves as
+// that last pass for every stride, when it came later: a tile stamped
+// nowhere within reach since then sends nothing now, at any stride. After
+// set_depth and add_snow (and the routing that follows, which uses the
 // outflow textures as scratch) the first pass computes all tiles with a
 // surface, and so does a strided pass before any pass of stride 1.
 // Tiles of 4 x 4 columns are llvmpipe's shading blocks; on the Kenney
