@@ -235,6 +235,18 @@ Texture create_texture_2d(GLenum internal_format, int width, int height, const c
   return texture;
 }
 
+Texture create_texture_view(const Texture& original, GLenum internal_format, int layers,
+                            const char* what) {
+  GLuint id = 0;
+  glGenTextures(1, &id);  // a view needs a name that is not yet a texture object
+  Texture view(id);
+  glTextureView(view.id(), GL_TEXTURE_2D_ARRAY, original.id(), internal_format, 0, 1, 0,
+                GLuint(layers));
+  set_nearest_clamp(view.id());
+  check_error(what);
+  return view;
+}
+
 void check_framebuffer(const Framebuffer& fbo, const char* what) {
   const GLenum status = glCheckNamedFramebufferStatus(fbo.id(), GL_FRAMEBUFFER);
   if (status != GL_FRAMEBUFFER_COMPLETE) {

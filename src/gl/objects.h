@@ -69,6 +69,12 @@ Texture create_texture_2d_array(GLenum internal_format, int width, int height, i
                                 const char* what);
 /// Same for a 2D texture.
 Texture create_texture_2d(GLenum internal_format, int width, int height, const char* what);
+/// A view of all `layers` layers of a 2D texture array made by
+/// create_texture_2d_array, as `internal_format` (of the same size class:
+/// RG32UI for RG32F, ...), sharing its memory; nearest filtering and
+/// clamp-to-edge. Throws GLError naming `what`.
+Texture create_texture_view(const Texture& original, GLenum internal_format, int layers,
+                            const char* what);
 
 /// Throws GLError naming `what` unless the framebuffer is complete.
 void check_framebuffer(const Framebuffer& fbo, const char* what);

@@ -193,9 +193,14 @@ struct Stabilizer::Impl {
   std::vector<uint8_t> surface;  // per layer texel: has a surface
   std::vector<glm::ivec4> rect;  // per layer: x, y, width, height of its surfaces (0 size: none)
 
-  gl::Texture cells, depth[2], out_a, out_b, code, pointer[2], stable, reduce;
+  gl::Texture cells, depth[2], out_a, out_b, code, reduce;
+  // The routing's data live in the outflow textures, free between passes
+  // (the first pass after the routing computes every tile again): views of
+  // the same memory as other formats (see route()).
+  gl::Texture code_float, out_a_uint, out_b_uint;
   gl::Texture tile_moves;  // R32UI per tile: largest move of a checked pass (float bits)
-  std::vector<gl::Framebuffer> fbo_outflow, fbo_depth[2], fbo_pointer[2], fbo_stable[2];
+  std::vector<gl::Framebuffer> fbo_outflow, fbo_depth[2];
+  std::vector<gl::Framebuffer> fbo_out_b, fbo_code_float, fbo_code, fbo_out_a_uint, fbo_out_b_uint;
   gl::Framebuffer fbo_scatter, fbo_reduce, fbo_empty;
   gl::VertexArray vao;
   gl::Query query;
@@ -315,12 +320,13 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   }
   for (int x = 0; x < 2; ++x) {
     depth[x] = gl::create_texture_2d_array(GL_RG32F, width, height, layers, "stabilize depth");
-    pointer[x] = gl::create_texture_2d_array(GL_R32UI, width, height, layers, "stabilize pointers");
   }
   out_a = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize outflow");
   out_b = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize outflow");
   code = gl::create_texture_2d_array(GL_RG32UI, width, height, layers, "stabilize codes");
-  stable = gl::create_texture_2d_array(GL_R32F, width, height, layers, "stabilize kept height");
+  code_float = gl::create_texture_view(code, GL_RG32F, layers, "stabilize kept heights");
+  out_a_uint = gl::create_texture_view(out_a, GL_RGBA32UI, layers, "stabilize pointers");
+  out_b_uint = gl::create_texture_view(out_b, GL_RGBA32UI, layers, "stabilize pointers");
   reduce = gl::create_texture_2d(GL_RGBA32F, reduce_width, reduce_height, "stabilize sums");
   GLfloat point_sizes[2] = {1.0f, 1.0f};
   glGetFloatv(GL_POINT_SIZE_RANGE, point_sizes);
@@ -346,7 +352,6 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   const float zero[4] = {0, 0, 0, 0};
   const GLuint no_codes[2] = {0xfefefefeu, 0xfefefefeu};  // kCodeNone in every direction
   glClearTexImage(code.id(), 0, GL_RG_INTEGER, GL_UNSIGNED_INT, no_codes);
-  glClearTexImage(stable.id(), 0, GL_RED, GL_FLOAT, zero);
   glClearTexImage(depth[0].id(), 0, GL_RG, GL_FLOAT, zero);
   glClearTexImage(depth[1].id(), 0, GL_RG, GL_FLOAT, zero);
   glClearTexImage(out_a.id(), 0, GL_RGBA, GL_FLOAT, zero);
@@ -368,13 +373,12 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   };
   for (int l = 0; l < layers; ++l) {
     fbo_outflow.push_back(layer_fbo({&out_a, &out_b, &code}, l));
-    for (int x = 0; x < 2; ++x) {
-      fbo_depth[x].push_back(layer_fbo({&depth[x]}, l));
-      fbo_pointer[x].push_back(layer_fbo({&pointer[x]}, l));
-    }
-    // Erosion ping-pongs between `stable` and out_b (free while routing).
-    fbo_stable[0].push_back(layer_fbo({&stable}, l));
-    fbo_stable[1].push_back(layer_fbo({&out_b}, l));
+    for (int x = 0; x < 2; ++x) fbo_depth[x].push_back(layer_fbo({&depth[x]}, l));
+    fbo_out_b.push_back(layer_fbo({&out_b}, l));
+    fbo_code_float.push_back(layer_fbo({&code_float}, l));
+    fbo_code.push_back(layer_fbo({&code}, l));
+    fbo_out_a_uint.push_back(layer_fbo({&out_a_uint}, l));
+    fbo_out_b_uint.push_back(layer_fbo({&out_b_uint}, l));
   }
   fbo_scatter = gl::create_framebuffer();
   glNamedFramebufferTexture(fbo_scatter.id(), GL_COLOR_ATTACHMENT0, out_a.id(), 0);  // layered
@@ -614,10 +618,15 @@ GLuint Stabilizer::Impl::count_fragments(const gl::Program& program) {
 int Stabilizer::Impl::route() {
   bind(SNOW_STABILIZE_CELLS, cells);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
+  // The routing runs in the outflow textures (r of each texel): the kept
+  // heights ping-pong between out_b and code (as floats), the pointers
+  // between the one of those two without the final kept heights (as
+  // integers) and out_a (as integers), the scatter's target at the end.
   // Erosion until nothing changes; the kept height ends in stable_tex[e].
-  const gl::Texture* stable_tex[2] = {&stable, &out_b};
+  const gl::Texture* stable_tex[2] = {&out_b, &code_float};
+  const std::vector<gl::Framebuffer>* fbo_stable[2] = {&fbo_out_b, &fbo_code_float};
   erode.set("u_init", 1);
-  per_layer(erode, fbo_stable[0]);
+  per_layer(erode, *fbo_stable[0]);
   erode.set("u_init", 0);
   int e = 0;
   int passes = 0;
@@ -629,10 +638,10 @@ int Stabilizer::Impl::route() {
       select_tiles(tile_erode, 1, erode_counter - 1, passes == 0);
       if (passes > 0 && selected_tiles() == 0) break;
       erode_tiled.set("u_pass", erode_counter);
-      tiled_layers(erode_tiled, fbo_stable[1 - e]);
+      tiled_layers(erode_tiled, *fbo_stable[1 - e]);
     } else {
       erode.set("u_pass", erode_counter);
-      per_layer(erode, fbo_stable[1 - e]);
+      per_layer(erode, *fbo_stable[1 - e]);
     }
     ++erode_counter;
     ++passes;
@@ -647,7 +656,10 @@ int Stabilizer::Impl::route() {
     }
   }
   bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
-  per_layer(receiver, fbo_pointer[0]);
+  const gl::Texture* pointer[2] = {e == 0 ? &code : &out_b_uint, &out_a_uint};
+  const std::vector<gl::Framebuffer>* fbo_pointer[2] = {e == 0 ? &fbo_code : &fbo_out_b_uint,
+                                                        &fbo_out_a_uint};
+  per_layer(receiver, *fbo_pointer[0]);
   int p = 0;  // pointer[p] holds the pointers
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_JUMP_CHANGED, jump_changed.id());
   for (;;) {
@@ -655,8 +667,8 @@ int Stabilizer::Impl::route() {
     // and that pass does not count.
     const GLuint zero = 0;
     glNamedBufferSubData(jump_changed.id(), 0, sizeof(zero), &zero);
-    bind(SNOW_STABILIZE_POINTER, pointer[p]);
-    per_layer(jump, fbo_pointer[1 - p]);
+    bind(SNOW_STABILIZE_POINTER, *pointer[p]);
+    per_layer(jump, *fbo_pointer[1 - p]);
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     GLuint changed = 0;
     glGetNamedBufferSubData(jump_changed.id(), 0, sizeof(changed), &changed);
@@ -665,7 +677,10 @@ int Stabilizer::Impl::route() {
     ++passes;
     if (passes > 100000) throw GLError("stabilize: routing pointers did not settle");
   }
-  // Scatter the routed snow into out_a (cleared), then apply.
+  // The last jump pass copied the pointers: read them from pointer[0], not
+  // from out_a, which the scatter now clears and sums the routed snow into;
+  // then apply.
+  bind(SNOW_STABILIZE_POINTER, *pointer[0]);
   const float zero[4] = {0, 0, 0, 0};
   glClearTexImage(out_a.id(), 0, GL_RGBA, GL_FLOAT, zero);
   scatter.use();

@@ -194,7 +194,7 @@ StabilizeResult stabilize(const SnowMaps& maps, std::vector<float>& depth,
 /// current in every call, including destruction.
 class Stabilizer {
  public:
-  /// Uploads the maps (cells) and allocates the pass textures (84 B per
+  /// Uploads the maps (cells) and allocates the pass textures (72 B per
   /// layer texel); the snow starts empty. Throws like stabilize().
   Stabilizer(const SnowMaps& maps, const StabilizeSettings& settings);
   ~Stabilizer();
