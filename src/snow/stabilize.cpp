@@ -463,32 +463,31 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
 // outflow and gather passes (and the routing's erosion passes) draw only the
 // tiles (kTile x kTile columns) that may change, as instanced points of kTile
 // pixels (one square per tile) from lists built on the GPU
-// (stabilize_tiles.comp, no readback): one indirect draw per layer of the
-// tiles where that layer has a surface, and for the gather pass, which
-// computes a column's layers in one fragment, one draw of the tiles where
-// any layer has one. A texel without a surface neither sends nor receives,
-// and every pass leaves its depth and outflow at zero (the textures are
-// cleared at the start; the outflow pass writes zeros there, the routing's
-// erosion (out_b) keeps its free top, 0, and its scatter (out_a) reaches
-// only surfaces; the gather pass reads no codes there). The gather, apply
-// and erosion passes stamp the tiles where a texel sent snow or changed with
-// the pass index. A relaxation pass of stride s computes a tile when a tile
-// within ceil(2 s / kTile) tiles (what its outflow reads, and what its
-// inflow's outflow reads) was stamped at or after the last pass of stride s.
-// A skipped tile is exact: its inputs are those of that last pass of the
-// same stride, which moved no snow there, so its outflow is zero again (the
-// outflow textures still hold the zeros of the last pass that computed it: a
-// tile that moved snow is computed in the next pass) and its depth stays;
-// both ping-pong depth textures hold the same depth there (it was computed
-// and unchanged, or skipped, in the pass before). The largest move of a pass
-// is zero in a skipped tile, so the gather's per-tile maximum is exact too.
-// A strided pass moves only snow that single steps would move on the same
-// depths (stabilize_outflow.frag), so the last pass of stride 1 serves as
-// that last pass for every stride, when it came later: a tile stamped
-// nowhere within reach since then sends nothing now, at any stride. After
-// set_depth and add_snow (and the routing that follows, which uses the
-// outflow textures as scratch) the first pass computes all tiles with a
-// surface, and so does a strided pass before any pass of stride 1.
+// (stabilize_tiles.comp, no readback): one indirect draw per layer of the tiles
+// where that layer has a surface, and for the gather pass, which computes a
+// column's layers in one fragment, one draw of the tiles where any layer has
+// one. A texel without a surface neither sends nor receives: its depth stays
+// zero (cleared at the start; no pass adds snow there), and no pass reads its
+// outflow or codes (the gather pass and the sums read only the layers with a
+// surface, so the routing may leave its data there). The gather, apply and
+// erosion passes stamp the tiles where a texel sent snow or changed with the
+// pass index. A relaxation pass of stride s computes a tile when a tile within
+// ceil(2 s / kTile) tiles (what its outflow reads, and what its inflow's
+// outflow reads) was stamped at or after the last pass of stride s. A skipped
+// tile is exact: its inputs are those of that last pass of the same stride,
+// which moved no snow there, so its outflow is zero again (the outflow textures
+// still hold the zeros of the last pass that computed it: a tile that moved
+// snow is computed in the next pass) and its depth stays; both ping-pong depth
+// textures hold the same depth there (it was computed and unchanged, or
+// skipped, in the pass before). The largest move of a pass is zero in a skipped
+// tile, so the gather's per-tile maximum is exact too. A strided pass moves
+// only snow that single steps would move on the same depths
+// (stabilize_outflow.frag), so the last pass of stride 1 serves as that last
+// pass for every stride, when it came later: a tile stamped nowhere within
+// reach since then sends nothing now, at any stride. After set_depth and
+// add_snow (and the routing that follows, which uses the outflow textures as
+// scratch) the first pass computes all tiles with a surface, and so does a
+// strided pass before any pass of stride 1.
 // Tiles of 4 x 4 columns are llvmpipe's shading blocks; on the Kenney
 // building-small-a at 256 texels (246 passes) the relaxation took 27.2 s with
 // 16 x 16 tiles, 18.9 s with 8, 15.9 s with 4 and 23.5 s with 2.
