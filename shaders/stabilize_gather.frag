@@ -22,12 +22,14 @@ layout(binding = SNOW_STABILIZE_DEPTH_OUT, rg32f) uniform writeonly image2DArray
 // Active tiles: the tile of a column that changed is stamped with u_pass.
 layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform writeonly iimage2D u_changed;
 // Per tile, the largest move (float bits; moves are >= 0), with u_measure.
-layout(binding = SNOW_STABILIZE_TILE_MOVES, r32ui) uniform coherent uimage2D u_moves;
+layout(binding = SNOW_STABILIZE_TILE_MOVES, r32ui) uniform uimage2D u_moves;
 uniform int u_pass;     // index stamped on changed tiles
 uniform int u_tile;     // texels per tile side
 uniform int u_measure;  // 1: keep the largest move in u_moves
 
 const int kMaxLayers = 64;
+
+uint code_of(uvec2 packed_codes, int n) { return (packed_codes[n >> 2] >> (8 * (n & 3))) & 0xffu; }
 
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
@@ -48,7 +50,7 @@ void main() {
     for (int n = 0; n < 8; ++n) {
       float amount = n < 4 ? a[n] : b[n - 4];
       s[l] -= amount;
-      if (((own[n >> 2] >> (8 * (n & 3))) & 0xffu) == kCodeVoid) lost[l] += amount;
+      if (code_of(own, n) == kCodeVoid) lost[l] += amount;
     }
     changed = changed || any(notEqual(a, vec4(0.0))) || any(notEqual(b, vec4(0.0)));
     if (u_measure != 0) {
@@ -71,7 +73,7 @@ void main() {
     int from = int(texelFetch(u_column, m, 0).r);
     for (int lm = 0; lm < from; ++lm) {
       ivec3 t = ivec3(m, lm);
-      uint code = (texelFetch(u_code, t, 0)[n >> 2] >> (8 * (n & 3))) & 0xffu;
+      uint code = code_of(texelFetch(u_code, t, 0).rg, n);
       if (code < uint(surfaces)) {
         s[code] += n < 4 ? texelFetch(u_out_a, t, 0)[n] : texelFetch(u_out_b, t, 0)[n - 4];
       }

@@ -251,6 +251,9 @@ struct Stabilizer::Impl {
   }
   void select_tiles(const gl::Texture& stamps, int reach, int since, bool all);
   GLuint selected_tiles();
+  template <class Draw>
+  void with_tile_lists(Draw draw);
+  static void draw_tile_list(int list);
   void tiled_layers(const gl::Program& program, const std::vector<gl::Framebuffer>& fbos);
   void per_column(const gl::Program& program);
   GLuint count_fragments(const gl::Program& program);
@@ -525,20 +528,30 @@ GLuint Stabilizer::Impl::selected_tiles() {
   return n;
 }
 
+// Runs draw() with the tile lists bound for draw_tile_list.
+template <class Draw>
+void Stabilizer::Impl::with_tile_lists(Draw draw) {
+  glBindBuffer(GL_DRAW_INDIRECT_BUFFER, tile_list.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_TILE_LIST, tile_list.id());
+  glViewport(0, 0, tiles_x * kTile, tiles_y * kTile);
+  glEnable(GL_PROGRAM_POINT_SIZE);
+  draw();
+  glDisable(GL_PROGRAM_POINT_SIZE);
+  glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
+}
+
+// One point per tile of list `list` (a layer, or `layers`: the tiles with
+// any surface); the program's u_layer must name the same list.
+void Stabilizer::Impl::draw_tile_list(int list) {
+  glDrawArraysIndirect(GL_POINTS, reinterpret_cast<const void*>(sizeof(GLuint) * 4 * size_t(list)));
+}
+
 // As per_layer, drawing the listed tiles of each layer.
 void Stabilizer::Impl::tiled_layers(const gl::Program& program,
                                     const std::vector<gl::Framebuffer>& fbos) {
   program.use();
   glBindVertexArray(vao.id());
-  glBindBuffer(GL_DRAW_INDIRECT_BUFFER, tile_list.id());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_TILE_LIST, tile_list.id());
-  glViewport(0, 0, tiles_x * kTile, tiles_y * kTile);
-  glEnable(GL_PROGRAM_POINT_SIZE);
-  each_layer(program, fbos, [](int l) {
-    glDrawArraysIndirect(GL_POINTS, reinterpret_cast<const void*>(sizeof(GLuint) * 4 * size_t(l)));
-  });
-  glDisable(GL_PROGRAM_POINT_SIZE);
-  glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
+  with_tile_lists([&] { each_layer(program, fbos, [&](int l) { draw_tile_list(l); }); });
 }
 
 // One fragment per column with a surface, for all its layers at once (the
@@ -555,14 +568,7 @@ void Stabilizer::Impl::per_column(const gl::Program& program) {
   glScissor(r.x, r.y, r.z, r.w);
   if (tiled) {
     program.set("u_layer", layers);  // the list of tiles with any surface
-    glBindBuffer(GL_DRAW_INDIRECT_BUFFER, tile_list.id());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_TILE_LIST, tile_list.id());
-    glViewport(0, 0, tiles_x * kTile, tiles_y * kTile);
-    glEnable(GL_PROGRAM_POINT_SIZE);
-    glDrawArraysIndirect(GL_POINTS,
-                         reinterpret_cast<const void*>(sizeof(GLuint) * 4 * size_t(layers)));
-    glDisable(GL_PROGRAM_POINT_SIZE);
-    glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
+    with_tile_lists([&] { draw_tile_list(layers); });
   } else {
     glViewport(0, 0, width, height);
     glDrawArrays(GL_TRIANGLES, 0, 3);
