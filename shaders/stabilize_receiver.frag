@@ -4,12 +4,16 @@
 // one with the smallest H(landing) + distance * tan(repose) among those with
 // a lower H), or at the void when one neighbour is the void; others point at
 // themselves. H falls strictly along pointers, so they form a forest.
+// Stamps the tiles of the texels that point elsewhere (the routed ones), so
+// the jump and scatter passes can leave out the others.
 // Mirrors the receiver loop of reference::Stabilizer::route.
 #include "bindings.h"
 #include "column.glsl"
 
-
 layout(location = 0) out uint o_pointer;
+layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform writeonly iimage2D u_changed;
+uniform int u_pass;  // index stamped on tiles with a routed texel
+uniform int u_tile;  // texels per tile side
 
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
@@ -38,5 +42,6 @@ void main() {
       }
     }
   }
+  if (p != self_index) imageStore(u_changed, c / u_tile, ivec4(u_pass));
   o_pointer = p;
 }

@@ -213,7 +213,7 @@ struct Stabilizer::Impl {
   gl::Texture column;                  // R8UI per column: layers with a surface
   gl::Buffer tile_list;                // per layer a draw-indirect command, then its tiles
   gl::Buffer jump_changed;             // uint: a pointer-jumping pass moved a pointer on
-  gl::Program tile_select, outflow_tiled, gather_tiled, erode_tiled;
+  gl::Program tile_select, outflow_tiled, gather_tiled, erode_tiled, jump_tiled;
   double tiles_drawn = 0.0;      // tiles computed by relaxation passes (count_tiles)
   int pass_counter = 0;          // relaxation passes run since construction (their stamps)
   int erode_counter = 0;         // erosion passes run since construction (their stamps)
@@ -412,15 +412,17 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   outflow_tiled = gl::Program({"stabilize_tile.vert", "stabilize_outflow.frag"});
   gather_tiled = gl::Program({"stabilize_tile.vert", "stabilize_gather.frag"});
   erode_tiled = gl::Program({"stabilize_tile.vert", "stabilize_erode.frag"});
-  for (const gl::Program* p : {&outflow, &gather, &erode, &erode_check, &receiver, &jump, &scatter,
-                               &apply, &add, &sums, &outflow_tiled, &gather_tiled, &erode_tiled}) {
+  jump_tiled = gl::Program({"stabilize_tile.vert", "stabilize_jump.frag"});
+  for (const gl::Program* p :
+       {&outflow, &gather, &erode, &erode_check, &receiver, &jump, &scatter, &apply, &add, &sums,
+        &outflow_tiled, &gather_tiled, &erode_tiled, &jump_tiled}) {
     set_common(*p);
     p->set("u_stride", 1);
     p->set("u_tile", kTile);
   }
   tile_select.set("u_tiles", glm::ivec2(tiles_x, tiles_y));
   tile_select.set("u_layers", layers);
-  for (const gl::Program* p : {&outflow_tiled, &gather_tiled, &erode_tiled}) {
+  for (const gl::Program* p : {&outflow_tiled, &gather_tiled, &erode_tiled, &jump_tiled}) {
     p->set("u_viewport", glm::ivec2(tiles_x * kTile, tiles_y * kTile));
   }
   sums.set("u_block", kReduceBlock);
@@ -664,7 +666,20 @@ int Stabilizer::Impl::route() {
   const gl::Texture* pointer[2] = {e == 0 ? &code : &out_b_uint, &out_a_uint};
   const std::vector<gl::Framebuffer>* fbo_pointer[2] = {e == 0 ? &fbo_code : &fbo_out_b_uint,
                                                         &fbo_out_a_uint};
+  // The receiver pass stamps the tiles that hold a routed texel; the jump
+  // and scatter passes leave out the others, whose texels point at
+  // themselves.
+  const int routed = erode_counter++;
+  bind_changed(tile_erode);
+  receiver.set("u_pass", routed);
   per_layer(receiver, *fbo_pointer[0]);
+  glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT);
+  std::vector<GLint> stamps(size_t(tiles_x) * size_t(tiles_y));
+  glGetTextureImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT,
+                    GLsizei(stamps.size() * sizeof(GLint)), stamps.data());
+  const gl::Program& jump_program = tiled ? jump_tiled : jump;
+  jump_program.set("u_since", routed);
+  if (tiled) select_tiles(tile_erode, 0, routed, false);
   int p = 0;  // pointer[p] holds the pointers
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_JUMP_CHANGED, jump_changed.id());
   for (;;) {
@@ -673,7 +688,11 @@ int Stabilizer::Impl::route() {
     const GLuint zero = 0;
     glNamedBufferSubData(jump_changed.id(), 0, sizeof(zero), &zero);
     bind(SNOW_STABILIZE_POINTER, *pointer[p]);
-    per_layer(jump, *fbo_pointer[1 - p]);
+    if (tiled) {
+      tiled_layers(jump_tiled, *fbo_pointer[1 - p]);
+    } else {
+      per_layer(jump, *fbo_pointer[1 - p]);
+    }
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     GLuint changed = 0;
     glGetNamedBufferSubData(jump_changed.id(), 0, sizeof(changed), &changed);
@@ -695,13 +714,32 @@ int Stabilizer::Impl::route() {
   glEnable(GL_BLEND);
   glBlendEquation(GL_FUNC_ADD);
   glBlendFunc(GL_ONE, GL_ONE);
-  // One point per layer texel in the rows of its layer's rectangle (the
-  // texels outside have no surface and route nothing), in texel order.
+  // One point per layer texel of the stamped tiles in its layer's rectangle
+  // (the texels elsewhere route nothing), in texel order: runs along rows,
+  // joined across short gaps (a draw costs more than a few points on a
+  // software rasterizer).
+  constexpr GLint kJoinGap = 64;  // texels
+  std::vector<GLint> firsts;
+  std::vector<GLsizei> counts;
   for (int l = 0; l < layers; ++l) {
     const glm::ivec4 r = rect[size_t(l)];
-    if (r.z == 0) continue;
-    const size_t first = (size_t(l) * size_t(height) + size_t(r.y)) * size_t(width);
-    glDrawArrays(GL_POINTS, GLint(first), GLsizei(size_t(r.w) * size_t(width)));
+    for (int y = r.y; y < r.y + r.w; ++y) {
+      const GLint* row = &stamps[size_t(y / kTile) * size_t(tiles_x)];
+      for (int tx = r.x / kTile; tx * kTile < r.x + r.z; ++tx) {
+        if (row[tx] < routed) continue;
+        const int x0 = std::max(tx * kTile, r.x), x1 = std::min((tx + 1) * kTile, r.x + r.z);
+        const GLint first = GLint((size_t(l) * size_t(height) + size_t(y)) * size_t(width)) + x0;
+        if (!firsts.empty() && first - (firsts.back() + counts.back()) <= kJoinGap) {
+          counts.back() = first + (x1 - x0) - firsts.back();
+        } else {
+          firsts.push_back(first);
+          counts.push_back(x1 - x0);
+        }
+      }
+    }
+  }
+  if (!firsts.empty()) {
+    glMultiDrawArrays(GL_POINTS, firsts.data(), counts.data(), GLsizei(firsts.size()));
   }
   glDisable(GL_BLEND);
   bind(SNOW_STABILIZE_OUT_A, out_a);
