@@ -48,6 +48,9 @@
 #define SNOW_STABILIZE_DEPTH_OUT 1
 // uimage2D R32UI per tile: the largest move of a checked pass (float bits).
 #define SNOW_STABILIZE_TILE_MOVES 2
+// iimage2D R32I per tile, read only: the routing's stamps (a tile with a routed texel has
+// one >= u_since; stabilize_jump.frag, stabilize_apply.frag).
+#define SNOW_STABILIZE_TILE_ROUTED 3
 // SSBO: per layer and for the column passes a draw-indirect command (uint[4]),
 // then per layer and for the column passes its tiles.
 #define SNOW_STABILIZE_TILE_LIST 0

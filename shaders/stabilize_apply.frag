@@ -5,6 +5,10 @@
 #include "column.glsl"
 
 layout(binding = SNOW_STABILIZE_POINTER) uniform usampler2DArray u_pointer;
+// A texel without a surface, or in a tile with no routed texel, points at
+// itself (the receiver pass may have left its pointer unwritten).
+layout(binding = SNOW_STABILIZE_TILE_ROUTED, r32i) uniform readonly iimage2D u_routed;
+uniform int u_since;  // stamp of the receiver pass
 layout(binding = SNOW_STABILIZE_OUT_A) uniform sampler2DArray u_arrive;  // r: scattered sums
 
 layout(location = 0) out vec2 o_depth;
@@ -16,12 +20,16 @@ uniform int u_tile;  // texels per tile side
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
   ivec3 t = ivec3(c, u_layer);
-  uint p = texelFetch(u_pointer, t, 0).r;
+  vec4 cell = texelFetch(u_cells, t, 0);
+  uint self_index = texel_index(c, u_layer);
+  uint p = (int(cell.w) & kCellSurface) != 0 && imageLoad(u_routed, c / u_tile).r >= u_since
+               ? texelFetch(u_pointer, t, 0).r
+               : self_index;
   vec2 d = texelFetch(u_depth, t, 0).rg;
   float s = d.r;
   float lost = d.g;
-  if (p != texel_index(c, u_layer)) {
-    float e = (texelFetch(u_cells, t, 0).x + s) - texelFetch(u_stable, t, 0).r;
+  if (p != self_index) {
+    float e = (cell.x + s) - texelFetch(u_stable, t, 0).r;
     if (p == kPointerVoid) lost = lost + e;
     s = s - e;
   }

@@ -2,7 +2,10 @@
 // Routing, erosion pass: the highest snow surface each texel can keep,
 // H = max(ground, min(H, min over neighbours of H(landing) + distance *
 // tan(repose))); the void as a neighbour keeps nothing. With u_init, writes
-// the start value H = min(ground + depth, ceiling) instead.
+// the start value H = min(ground + depth, ceiling) instead, and stamps the
+// tiles where that is below ground + depth (snow pressed out under a
+// ceiling): with those, the stamps of the routing's passes cover every
+// texel it moves (the receiver pass draws only their tiles).
 // Mirrors the erosion loop of reference::Stabilizer::route.
 #include "bindings.h"
 #include "column.glsl"
@@ -19,8 +22,10 @@ void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
   ivec3 t = ivec3(c, u_layer);
   vec4 cell = texelFetch(u_cells, t, 0);
-  float he = free_top(cell, texelFetch(u_depth, t, 0).r);
+  float s = texelFetch(u_depth, t, 0).r;
+  float he = free_top(cell, s);
   if (u_init != 0) {
+    if (cell.x + s > he) imageStore(u_changed, c / u_tile, ivec4(u_pass));
     o_stable = he;
     return;
   }

@@ -13,7 +13,7 @@ layout(std430, binding = SNOW_STABILIZE_JUMP_CHANGED) buffer JumpChanged {
   uint u_changed;  // cleared to 0 before the pass
 };
 layout(location = 0) out uint o_pointer;
-layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform readonly iimage2D u_routed;
+layout(binding = SNOW_STABILIZE_TILE_ROUTED, r32i) uniform readonly iimage2D u_routed;
 uniform int u_since;  // stamp of the receiver pass: tiles with a routed texel
 uniform int u_tile;   // texels per tile side
 

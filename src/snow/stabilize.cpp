@@ -213,7 +213,7 @@ struct Stabilizer::Impl {
   gl::Texture column;                  // R8UI per column: layers with a surface
   gl::Buffer tile_list;                // per layer a draw-indirect command, then its tiles
   gl::Buffer jump_changed;             // uint: a pointer-jumping pass moved a pointer on
-  gl::Program tile_select, outflow_tiled, gather_tiled, erode_tiled, jump_tiled;
+  gl::Program tile_select, outflow_tiled, gather_tiled, erode_tiled, receiver_tiled, jump_tiled;
   double tiles_drawn = 0.0;      // tiles computed by relaxation passes (count_tiles)
   int pass_counter = 0;          // relaxation passes run since construction (their stamps)
   int erode_counter = 0;         // erosion passes run since construction (their stamps)
@@ -412,17 +412,19 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   outflow_tiled = gl::Program({"stabilize_tile.vert", "stabilize_outflow.frag"});
   gather_tiled = gl::Program({"stabilize_tile.vert", "stabilize_gather.frag"});
   erode_tiled = gl::Program({"stabilize_tile.vert", "stabilize_erode.frag"});
+  receiver_tiled = gl::Program({"stabilize_tile.vert", "stabilize_receiver.frag"});
   jump_tiled = gl::Program({"stabilize_tile.vert", "stabilize_jump.frag"});
   for (const gl::Program* p :
        {&outflow, &gather, &erode, &erode_check, &receiver, &jump, &scatter, &apply, &add, &sums,
-        &outflow_tiled, &gather_tiled, &erode_tiled, &jump_tiled}) {
+        &outflow_tiled, &gather_tiled, &erode_tiled, &receiver_tiled, &jump_tiled}) {
     set_common(*p);
     p->set("u_stride", 1);
     p->set("u_tile", kTile);
   }
   tile_select.set("u_tiles", glm::ivec2(tiles_x, tiles_y));
   tile_select.set("u_layers", layers);
-  for (const gl::Program* p : {&outflow_tiled, &gather_tiled, &erode_tiled, &jump_tiled}) {
+  for (const gl::Program* p :
+       {&outflow_tiled, &gather_tiled, &erode_tiled, &receiver_tiled, &jump_tiled}) {
     p->set("u_viewport", glm::ivec2(tiles_x * kTile, tiles_y * kTile));
   }
   sums.set("u_block", kReduceBlock);
@@ -632,12 +634,15 @@ int Stabilizer::Impl::route() {
   // Erosion until nothing changes; the kept height ends in stable_tex[e].
   const gl::Texture* stable_tex[2] = {&out_b, &code_float};
   const std::vector<gl::Framebuffer>* fbo_stable[2] = {&fbo_out_b, &fbo_code_float};
+  // The stamps of this routing's passes are `first` and up.
+  const int first = erode_counter++;
+  bind_changed(tile_erode);
   erode.set("u_init", 1);
+  erode.set("u_pass", first);
   per_layer(erode, *fbo_stable[0]);
   erode.set("u_init", 0);
   int e = 0;
   int passes = 0;
-  bind_changed(tile_erode);
   for (;;) {
     bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
     if (tiled) {
@@ -666,19 +671,25 @@ int Stabilizer::Impl::route() {
   const gl::Texture* pointer[2] = {e == 0 ? &code : &out_b_uint, &out_a_uint};
   const std::vector<gl::Framebuffer>* fbo_pointer[2] = {e == 0 ? &fbo_code : &fbo_out_b_uint,
                                                         &fbo_out_a_uint};
-  // The receiver pass stamps the tiles that hold a routed texel; the jump
-  // and scatter passes leave out the others, whose texels point at
-  // themselves.
+  // The receiver pass draws the tiles stamped since `first` (the others
+  // hold no texel to route) and stamps those that hold a routed texel; the
+  // later passes leave out the others, whose texels point at themselves.
   const int routed = erode_counter++;
-  bind_changed(tile_erode);
-  receiver.set("u_pass", routed);
-  per_layer(receiver, *fbo_pointer[0]);
+  if (tiled) {
+    select_tiles(tile_erode, 0, first, false);
+    receiver_tiled.set("u_pass", routed);
+    tiled_layers(receiver_tiled, *fbo_pointer[0]);
+  } else {
+    receiver.set("u_pass", routed);
+    per_layer(receiver, *fbo_pointer[0]);
+  }
   glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT);
+  glBindImageTexture(SNOW_STABILIZE_TILE_ROUTED, tile_erode.id(), 0, GL_FALSE, 0, GL_READ_ONLY,
+                     GL_R32I);
   std::vector<GLint> stamps(size_t(tiles_x) * size_t(tiles_y));
   glGetTextureImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT,
                     GLsizei(stamps.size() * sizeof(GLint)), stamps.data());
-  const gl::Program& jump_program = tiled ? jump_tiled : jump;
-  jump_program.set("u_since", routed);
+  (tiled ? jump_tiled : jump).set("u_since", routed);
   if (tiled) select_tiles(tile_erode, 0, routed, false);
   int p = 0;  // pointer[p] holds the pointers
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_JUMP_CHANGED, jump_changed.id());
@@ -728,11 +739,11 @@ int Stabilizer::Impl::route() {
       for (int tx = r.x / kTile; tx * kTile < r.x + r.z; ++tx) {
         if (row[tx] < routed) continue;
         const int x0 = std::max(tx * kTile, r.x), x1 = std::min((tx + 1) * kTile, r.x + r.z);
-        const GLint first = GLint((size_t(l) * size_t(height) + size_t(y)) * size_t(width)) + x0;
-        if (!firsts.empty() && first - (firsts.back() + counts.back()) <= kJoinGap) {
-          counts.back() = first + (x1 - x0) - firsts.back();
+        const GLint start = GLint((size_t(l) * size_t(height) + size_t(y)) * size_t(width)) + x0;
+        if (!firsts.empty() && start - (firsts.back() + counts.back()) <= kJoinGap) {
+          counts.back() = start + (x1 - x0) - firsts.back();
         } else {
-          firsts.push_back(first);
+          firsts.push_back(start);
           counts.push_back(x1 - x0);
         }
       }
@@ -745,6 +756,7 @@ int Stabilizer::Impl::route() {
   bind(SNOW_STABILIZE_OUT_A, out_a);
   bind_changed(tile_relax);
   apply.set("u_pass", pass_counter - 1);  // as a change of the last relaxation pass
+  apply.set("u_since", routed);
   per_layer(apply, fbo_depth[1 - cur]);
   cur = 1 - cur;
   gl::check_error("stabilize: routing");
