@@ -562,7 +562,6 @@ TEST(StabilizeGpu, RoutingLeavesASlabEdgeAtRest) {
   EXPECT_NEAR(gpu[maps.index(0, 16, 16)], 0.3f, 1e-6f);
 }
 
-
 TEST(StabilizeGpu, RoutingPressesSnowOutFromUnderACeiling) {
   REQUIRE_GL();
   // The shelf of LowCeilingCapsDepth, 0.1 m above the floor, with 0.3 m of
