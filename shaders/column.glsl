@@ -15,6 +15,9 @@ uniform vec2 u_distance; // metres to an edge neighbour, to a diagonal one
 uniform float u_rise;    // metres, kSurfaceContinuityTexels * texel
 uniform int u_stride;    // texels, stride of a relaxation pass
 uniform float u_min_move;  // metres, StabilizeSettings::min_move
+// Routing: 1 in the first erosion pass, which takes the kept heights at their
+// start value (kept_height) rather than from u_stable.
+uniform int u_start;
 
 const int kCellSurface = 1;
 const int kCellSolid = 2;
@@ -36,11 +39,21 @@ float dir_distance(int n) { return n < 4 ? u_distance.x : u_distance.y; }
 
 bool in_map(ivec2 c) { return all(greaterThanEqual(c, ivec2(0))) && all(lessThan(c, u_size)); }
 
+// The snow surface as far as it is free to move: ground + depth, kept
+// kCeilingClearance under the ceiling.
+float free_top(vec4 cell, float s) { return max(cell.x, min(cell.x + s, cell.y - kCeilingClearance)); }
+
+// Routing: the highest snow surface layer texel t (with cell `cell`) keeps,
+// from u_stable, or its start value free_top with u_start.
+float kept_height(ivec3 t, vec4 cell) {
+  return u_start != 0 ? free_top(cell, texelFetch(u_depth, t, 0).r) : texelFetch(u_stable, t, 0).r;
+}
+
 // snow::land_in_column: the layer of column c on which snow at height h,
 // resting on a support at height `support`, comes to rest, kLandBlocked or
 // kLandVoid. On a landing, also that layer's cell and snow top. The snow tops
-// are ground + depth, or with `kept` the heights the routing keeps (u_stable),
-// as if the snow that will leave had left.
+// are ground + depth, or with `kept` the heights the routing keeps
+// (kept_height), as if the snow that will leave had left.
 int landing(ivec2 c, float h, float support, bool kept, out vec4 land_cell, out float land_top) {
   land_cell = vec4(0.0);
   land_top = 0.0;
@@ -53,8 +66,7 @@ int landing(ivec2 c, float h, float support, bool kept, out vec4 land_cell, out 
                                                                                    : kLandVoid;
     }
     if (h >= cell.y) return kLandBlocked;
-    float top = kept ? texelFetch(u_stable, ivec3(c, l), 0).r
-                     : cell.x + texelFetch(u_depth, ivec3(c, l), 0).r;
+    float top = kept ? kept_height(ivec3(c, l), cell) : cell.x + texelFetch(u_depth, ivec3(c, l), 0).r;
     if (top <= h) {
       if ((flags & kCellSolid) != 0 || cell.y - support < u_rise) return kLandBlocked;
       land_cell = cell;
@@ -80,7 +92,3 @@ ivec3 texel_of_index(uint k) {
   uint w = uint(u_size.x), h = uint(u_size.y);
   return ivec3(int(k % w), int((k / w) % h), int(k / (w * h)));
 }
-
-// The snow surface as far as it is free to move: ground + depth, kept
-// kCeilingClearance under the ceiling.
-float free_top(vec4 cell, float s) { return max(cell.x, min(cell.x + s, cell.y - kCeilingClearance)); }

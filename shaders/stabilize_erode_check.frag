@@ -1,6 +1,7 @@
 #version 450 core
 // Routing: keeps (for an occlusion query) the texels whose kept height
-// changed in the last erosion pass; writes nothing.
+// changed in the last erosion pass (after the first pass, from its start
+// value, with u_start); writes nothing.
 #include "bindings.h"
 #include "column.glsl"
 
@@ -8,5 +9,7 @@ layout(binding = SNOW_STABILIZE_STABLE_OLD) uniform sampler2DArray u_stable_old;
 
 void main() {
   ivec3 t = ivec3(ivec2(gl_FragCoord.xy), u_layer);
-  if (texelFetch(u_stable, t, 0).r == texelFetch(u_stable_old, t, 0).r) discard;
+  float old = u_start != 0 ? free_top(texelFetch(u_cells, t, 0), texelFetch(u_depth, t, 0).r)
+                           : texelFetch(u_stable_old, t, 0).r;
+  if (texelFetch(u_stable, t, 0).r == old) discard;
 }

@@ -201,6 +201,7 @@ struct Stabilizer::Impl {
   gl::Texture tile_moves;  // R32UI per tile: largest move of a checked pass (float bits)
   std::vector<gl::Framebuffer> fbo_outflow, fbo_depth[2];
   std::vector<gl::Framebuffer> fbo_out_b, fbo_code_float, fbo_code, fbo_out_a_uint, fbo_out_b_uint;
+  std::vector<gl::Framebuffer> fbo_stable_both;  // code_float and out_b: the first erosion pass
   gl::Framebuffer fbo_scatter, fbo_reduce, fbo_empty;
   gl::VertexArray vao;
   gl::Query query;
@@ -379,6 +380,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     for (int x = 0; x < 2; ++x) fbo_depth[x].push_back(layer_fbo({&depth[x]}, l));
     fbo_out_b.push_back(layer_fbo({&out_b}, l));
     fbo_code_float.push_back(layer_fbo({&code_float}, l));
+    fbo_stable_both.push_back(layer_fbo({&code_float, &out_b}, l));
     fbo_code.push_back(layer_fbo({&code}, l));
     fbo_out_a_uint.push_back(layer_fbo({&out_a_uint}, l));
     fbo_out_b_uint.push_back(layer_fbo({&out_b_uint}, l));
@@ -634,26 +636,28 @@ int Stabilizer::Impl::route() {
   // Erosion until nothing changes; the kept height ends in stable_tex[e].
   const gl::Texture* stable_tex[2] = {&out_b, &code_float};
   const std::vector<gl::Framebuffer>* fbo_stable[2] = {&fbo_out_b, &fbo_code_float};
-  // The stamps of this routing's passes are `first` and up.
+  // The stamps of this routing's passes are `first` and up (`first`: snow
+  // pressed out under a ceiling, stamped by the first erosion pass).
   const int first = erode_counter++;
   bind_changed(tile_erode);
-  erode.set("u_init", 1);
-  erode.set("u_pass", first);
-  per_layer(erode, *fbo_stable[0]);
-  erode.set("u_init", 0);
   int e = 0;
   int passes = 0;
   for (;;) {
+    // The first pass starts from the depth and fills both textures.
+    const int start = passes == 0 ? 1 : 0;
+    const std::vector<gl::Framebuffer>& target = start ? fbo_stable_both : *fbo_stable[1 - e];
     bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
     if (tiled) {
       // All tiles first, then those next to a tile the previous pass changed.
       select_tiles(tile_erode, 1, erode_counter - 1, passes == 0);
       if (passes > 0 && selected_tiles() == 0) break;
       erode_tiled.set("u_pass", erode_counter);
-      tiled_layers(erode_tiled, *fbo_stable[1 - e]);
+      erode_tiled.set("u_start", start);
+      tiled_layers(erode_tiled, target);
     } else {
       erode.set("u_pass", erode_counter);
-      per_layer(erode, *fbo_stable[1 - e]);
+      erode.set("u_start", start);
+      per_layer(erode, target);
     }
     ++erode_counter;
     ++passes;
@@ -661,6 +665,7 @@ int Stabilizer::Impl::route() {
     if (!tiled) {
       bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
       bind(SNOW_STABILIZE_STABLE_OLD, *stable_tex[1 - e]);
+      erode_check.set("u_start", start);
       if (count_fragments(erode_check) == 0) break;
     }
     if (passes > 4 * (width + height) * layers + 16) {
