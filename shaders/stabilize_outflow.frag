@@ -133,6 +133,11 @@ void main() {
         for (int n = 0; n < 8; ++n) amount[n] = p[n] * scale;
       }
     }
+    // A direction that moves nothing has no landing: the gather adds only
+    // what moves, and a texel at rest writes what a skipped one holds.
+    for (int n = 0; n < 8; ++n) {
+      if (amount[n] == 0.0) code[n] = kCodeNone;
+    }
   }
   o_out_a = vec4(amount[0], amount[1], amount[2], amount[3]);
   o_out_b = vec4(amount[4], amount[5], amount[6], amount[7]);

@@ -240,6 +240,10 @@ void Stabilizer::outflow_pass(int stride) {
             for (int n = 0; n < 8; ++n) out[n] = p[n] * scale;
           }
         }
+        // A direction that moves nothing has no landing code.
+        for (int n = 0; n < 8; ++n) {
+          if (out[n] == 0.0f) code[n] = kCodeNone;
+        }
       }
     }
   }

@@ -44,7 +44,8 @@ class Stabilizer {
 
   // Single passes, for tests.
   /// Outflow: fills amount (8 per layer texel, metres) and code (8 per layer
-  /// texel: landing layer, kCodeNone or kCodeVoid) from the current depth.
+  /// texel: landing layer, kCodeNone or kCodeVoid; kCodeNone where nothing
+  /// moves) from the current depth.
   void outflow_pass(int stride = 1);
   /// Gather: depth -= own outflow, += neighbours' outflow landing here; lost
   /// += own outflow to kCodeVoid.
