@@ -272,6 +272,18 @@ TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
   ASSERT_EQ(fine.code, 0) << fine.output;
   EXPECT_NE(fine.output.find("texels deep"), std::string::npos) << fine.output;
   EXPECT_NE(fine.output.find("--max-side 110"), std::string::npos) << fine.output;
+
+  // Without --max-side the map side is automatic: the 1024 texels would make
+  // the snow 295 texels deep, so the run takes the 110 that make it 32 and
+  // says so instead of warning.
+  const RunResult automatic = run("snow " + q(dir / "small.glb") +
+                                  " --directions 8 --max-iterations 16 -o " + q(dir / "auto.obj"));
+  ASSERT_EQ(automatic.code, 0) << automatic.output;
+  EXPECT_NE(automatic.output.find("automatic side 110 texels"), std::string::npos)
+      << automatic.output;
+  EXPECT_NE(automatic.output.find("maps: 110 x 110 texels"), std::string::npos)
+      << automatic.output;
+  EXPECT_EQ(automatic.output.find("may take very long"), std::string::npos) << automatic.output;
 }
 
 // A run that meshes no snow says why: snow thinner than --min-thickness, or

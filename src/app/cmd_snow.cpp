@@ -58,21 +58,53 @@ void warn_if_out_of_scale(const Scene& scene, float fall_depth) {
   log_warn(line);
 }
 
-/// Warns when the fresh snow is many texels deep: piles about as wide as
-/// the snow is deep settle in passes growing with the square of that width,
-/// so such runs take very long; suggests the map side that makes the snow
-/// 32 texels deep.
+/// Fresh snow deeper than this many texels is slow to stabilize: piles
+/// about as wide as the snow is deep settle in passes growing with the
+/// square of that width (building-small-a, 0.3 m of snow: 32 texels deep
+/// 16 s, 290 deep at the default 1024 texels not done in minutes).
+constexpr float kDeepTexels = 64.0f;
+/// The depth in texels the automatic map side and the warning aim at.
+constexpr float kAimTexels = 32.0f;
+
+/// The map side (at least 16) that makes `fall_depth` kAimTexels texels deep
+/// on a grid whose longer side has `side` texels of `texel` metres.
+int side_for_depth(int side, float texel, float fall_depth) {
+  return std::max(16, int(float(side) * kAimTexels * texel / fall_depth));
+}
+
+/// --max-side 0 (automatic, the default): PeelSettings' 1024 texels, or where the fresh
+/// snow would lie more than kDeepTexels deep on those, the side that makes it
+/// kAimTexels deep (said in an info line; a given --max-side or --texel is
+/// kept, and warn_if_deep_in_texels warns instead).
+void choose_automatic_side(PeelSettings& peel, const Bounds& bounds, float fall_depth) {
+  if (peel.texel > 0.0f || peel.max_side != 0) return;
+  peel.max_side = PeelSettings{}.max_side;
+  const MapGrid grid = make_grid(bounds, peel);
+  if (!(fall_depth / grid.texel > kDeepTexels)) return;
+  const int side = std::max(grid.width, grid.height);
+  peel.max_side = side_for_depth(side, grid.texel, fall_depth);
+  char line[300];
+  std::snprintf(line, sizeof line,
+                "maps: automatic side %d texels, so the %.3g m of snow lies %.0f texels deep (%.0f "
+                "on %d; --max-side or --texel sets the resolution)",
+                peel.max_side, double(fall_depth), double(kAimTexels),
+                double(fall_depth / grid.texel), side);
+  log_info(line);
+}
+
+/// Warns when the fresh snow is more than kDeepTexels texels deep (such runs
+/// take very long); suggests the map side that makes it kAimTexels deep.
 void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth) {
   const float texels = fall_depth / maps.grid.texel;
-  if (!(texels > 64.0f)) return;
+  if (!(texels > kDeepTexels)) return;
   const int side = std::max(maps.grid.width, maps.grid.height);
-  const int suggested = std::max(16, int(float(side) * 32.0f / texels));
+  const int suggested = side_for_depth(side, maps.grid.texel, fall_depth);
   char line[300];
   std::snprintf(line, sizeof line,
                 "the snow is %.0f texels deep (%.3g m on %.3g m texels): stabilizing may take very "
-                "long; --max-side %d (or --texel %.3g) makes it 32 texels deep",
+                "long; --max-side %d (or --texel %.3g) makes it %.0f texels deep",
                 double(texels), double(fall_depth), double(maps.grid.texel), suggested,
-                double(fall_depth / 32.0f));
+                double(fall_depth / kAimTexels), double(kAimTexels));
   log_warn(line);
 }
 
@@ -274,6 +306,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   const Scene snow_scene = without_ignored(scene, s.ignore);
   const std::vector<uint8_t> receives = receiving_objects(snow_scene, s.no_snow_on);
   warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
+  choose_automatic_side(s.peel, snow_scene.bounds, s.accumulate.fall_depth);
 
   // Each GL stage runs in a context of its own, dropped when it is done:
   // Mesa keeps much of what a stage deleted allocated in the context (llvmpipe:
@@ -369,6 +402,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
 
 void register_snow(CLI::App& app, const GlobalOptions& global) {
   auto o = std::make_shared<SnowOptions>();
+  o->settings.peel.max_side = 0;  // automatic (choose_automatic_side); --max-side overrides
   CLI::App* cmd = app.add_subcommand(
       "snow", "Snow a glTF scene: compute where snow lands and rests, write it as meshes");
   // --config first: CLI11 applies options in the order they were added, so

@@ -36,7 +36,10 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   // Maps (peel).
   v("maps.texel", "--texel", "Map texel size in metres (0 = automatic from --max-side)",
     s.peel.texel);
-  v("maps.max_side", "--max-side", "Longest map side in texels when --texel is 0", s.peel.max_side);
+  v("maps.max_side", "--max-side",
+    "Longest map side in texels when --texel is 0 (snow: 0 = automatic, 1024, or where the snow "
+    "would lie over 64 texels deep on those, the side that makes it 32)",
+    s.peel.max_side);
   v("maps.layers", "--layers", "Surfaces kept per map column, top down (L)", s.peel.layers);
   v("maps.margin", "--margin", "Border around the scene in metres (negative = automatic)",
     s.peel.margin);

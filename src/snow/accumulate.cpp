@@ -25,6 +25,7 @@ StabilizeResult stabilize_step(Stabilizer& stabilizer, const StabilizeSettings& 
                                Report report) {
   StabilizeResult total;
   double first_residual = 0;
+  double reported = 0;  // the share never goes back (a residual may rise for a while)
   for (;;) {
     const int passes = std::min(kPassesPerReport, settings.max_iterations - total.iterations);
     const StabilizeResult r = stabilizer.iterate(passes);
@@ -45,7 +46,8 @@ StabilizeResult stabilize_step(Stabilizer& stabilizer, const StabilizeSettings& 
       const double gone = std::log(first_residual / std::max(double(r.residual), 1e-30));
       done = std::max(done, gone / span);
     }
-    report(std::clamp(done, 0.0, 0.99));
+    reported = std::max(reported, std::clamp(done, 0.0, 0.99));
+    report(reported);
   }
   return total;
 }
