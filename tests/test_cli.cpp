@@ -281,8 +281,7 @@ TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
   ASSERT_EQ(automatic.code, 0) << automatic.output;
   EXPECT_NE(automatic.output.find("automatic side 110 texels"), std::string::npos)
       << automatic.output;
-  EXPECT_NE(automatic.output.find("maps: 110 x 110 texels"), std::string::npos)
-      << automatic.output;
+  EXPECT_NE(automatic.output.find("maps: 110 x 110 texels"), std::string::npos) << automatic.output;
   EXPECT_EQ(automatic.output.find("may take very long"), std::string::npos) << automatic.output;
 }
 
