@@ -66,7 +66,8 @@ int landing(ivec2 c, float h, float support, bool kept, out vec4 land_cell, out 
                                                                                    : kLandVoid;
     }
     if (h >= cell.y) return kLandBlocked;
-    float top = kept ? kept_height(ivec3(c, l), cell) : cell.x + texelFetch(u_depth, ivec3(c, l), 0).r;
+    float top =
+        kept ? kept_height(ivec3(c, l), cell) : cell.x + texelFetch(u_depth, ivec3(c, l), 0).r;
     if (top <= h) {
       if ((flags & kCellSolid) != 0 || cell.y - support < u_rise) return kLandBlocked;
       land_cell = cell;

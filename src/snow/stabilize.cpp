@@ -502,7 +502,12 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
 // 16 x 16 tiles, 18.9 s with 8, 15.9 s with 4 and 23.5 s with 2.
 // Erosion passes compute the tiles within one tile of a tile the previous
 // erosion pass changed; no such tile ends the erosion (the same pass count as
-// the occlusion-query check of the full passes).
+// the occlusion-query check of the full passes). The routing's receiver pass
+// computes the tiles its erosion passes stamped (the first also stamps snow
+// pressed out under a ceiling: together every texel the routing moves), and
+// stamps the tiles holding a routed texel; the pointer-jumping passes and the
+// scatter draw only those, and the jump and apply passes take a texel of any
+// other tile to point at itself (its pointer may not have been written).
 void Stabilizer::Impl::select_tiles(const gl::Texture& stamps, int reach, int since, bool all) {
   // Per layer and for the column passes: one point per tile, no instances yet.
   std::vector<GLuint> commands(4 * size_t(layers + 1), 0);
