@@ -379,10 +379,10 @@ TEST(StabilizeReference, TableEdgesRoundOff) {
   EXPECT_NEAR(top_of(edge - 6), 0.3f, 0.02f);  // the floor further out is untouched
 }
 
-TEST(StabilizeReference, LowCeilingCapsDepth) {
-  // A shelf whose underside is 0.1 m above the floor, with 0.3 m of snow
-  // forced under it.
-  const SnowMaps maps = make_maps(48, 48, 0.05f, 4, [](float x, float z) {
+// A 2.4 m floor (48 texels of 5 cm) with a 0.8 m square shelf over its
+// middle (texel columns 16 to 31): top 0.15 m, underside 0.1 m above it.
+SnowMaps shelf_maps() {
+  return make_maps(48, 48, 0.05f, 4, [](float x, float z) {
     std::vector<Surface> s;
     if (x > 0.8f && x < 1.6f && z > 0.8f && z < 1.6f) {
       s.push_back({0.15f, kUp});
@@ -391,6 +391,12 @@ TEST(StabilizeReference, LowCeilingCapsDepth) {
     s.push_back({0.0f, kUp});
     return s;
   });
+}
+
+TEST(StabilizeReference, LowCeilingCapsDepth) {
+  // A shelf whose underside is 0.1 m above the floor, with 0.3 m of snow
+  // forced under it.
+  const SnowMaps maps = shelf_maps();
   std::vector<float> depth(maps.ground.size(), 0.0f);
   for (size_t k = 0; k < depth.size(); ++k) {
     if (!std::isnan(maps.ground[k]) && maps.ground[k] == 0.0f) depth[k] = 0.3f;
@@ -570,15 +576,7 @@ TEST(StabilizeGpu, RoutingPressesSnowOutFromUnderACeiling) {
   // though no erosion pass changes what the edge keeps (the snow beside it
   // is lower by less than the repose allows), and the shelf's edge is a
   // tile edge: the same with or without active tiles.
-  const SnowMaps maps = make_maps(48, 48, 0.05f, 4, [](float x, float z) {
-    std::vector<Surface> s;
-    if (x > 0.8f && x < 1.6f && z > 0.8f && z < 1.6f) {
-      s.push_back({0.15f, kUp});
-      s.push_back({0.1f, kDown});
-    }
-    s.push_back({0.0f, kUp});
-    return s;
-  });
+  const SnowMaps maps = shelf_maps();
   std::vector<float> start(maps.ground.size(), 0.0f);
   for (size_t k = 0; k < start.size(); ++k) {
     if (!std::isnan(maps.ground[k]) && maps.ground[k] == 0.0f) {
