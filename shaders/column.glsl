@@ -1,6 +1,6 @@
 // GLSL mirror of src/snow/column.h (the landing rule) on the stabilizer's
 // cells, plus the constants the stabilize_* passes share with
-// src/snow/stabilize.h and src/snow/reference/stabilize_ref.h.
+// src/snow/stabilize.h and src/snow/stabilize_cpu.h.
 // Needs bindings.h included first.
 
 layout(binding = SNOW_STABILIZE_CELLS) uniform sampler2DArray u_cells;  // ground, ceiling, tan, flags

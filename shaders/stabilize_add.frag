@@ -1,6 +1,6 @@
 #version 450 core
 // Adds snow: depth += add on texels with a surface where add > 0
-// (reference::Stabilizer::add_snow; the product amount * scale is made on the
+// (CpuStabilizer::add_snow; the product amount * scale is made on the
 // CPU so both sides add the same float).
 #include "bindings.h"
 #include "column.glsl"

@@ -1,6 +1,6 @@
 #version 450 core
 // Routing, apply: routed texels give up their excess (to the void: lost),
-// terminals receive the scattered sums. Mirrors reference::Stabilizer::route.
+// terminals receive the scattered sums. Mirrors CpuStabilizer::route.
 #include "bindings.h"
 #include "column.glsl"
 

@@ -7,7 +7,7 @@
 // start is below ground + depth (snow pressed out under a ceiling): with
 // those, the stamps of the routing's passes cover every texel it moves (the
 // receiver pass draws only their tiles).
-// Mirrors the erosion loop of reference::Stabilizer::route.
+// Mirrors the erosion loop of CpuStabilizer::route.
 #include "bindings.h"
 #include "column.glsl"
 

@@ -4,12 +4,12 @@
 // from the outflow pass's own textures (the same float values leave and
 // arrive). Each neighbour column's codes are read once for all the layers
 // here. Lost snow is added up at its source. Mirrors
-// reference::Stabilizer::gather_pass (per target layer: own outflow in
+// CpuStabilizer::gather_column (per target layer: own outflow in
 // direction order, then inflow in direction order, source layers upwards).
 // Writes the new depth with imageStore and stamps the tiles that changed
 // (active tiles, src/snow/stabilize.cpp). On convergence checks it also
 // keeps, per tile, the largest move (sum of a texel's 8 amounts, summed in
-// direction order as the reference does).
+// direction order as the CPU does).
 #include "bindings.h"
 #include "column.glsl"
 
@@ -66,7 +66,7 @@ void main() {
       largest = max(largest, move);
     }
   }
-  // Inflow, in direction order as the reference adds it.
+  // Inflow, in direction order as the CPU adds it.
   for (int n = 0; n < 8; ++n) {
     ivec2 m = c - u_stride * kDir[n];
     if (!in_map(m)) continue;

@@ -4,7 +4,7 @@
 // passes end when every chain has reached its end. A texel in a tile the
 // receiver pass did not stamp points at itself (the pointers there may be
 // stale when only the stamped tiles are drawn). Mirrors
-// reference::Stabilizer::route.
+// CpuStabilizer::route.
 #include "bindings.h"
 #include "column.glsl"
 

@@ -2,7 +2,7 @@
 // Stabilizer outflow pass (DESIGN.md "Stabilizer"): for each of the 8
 // directions, where snow leaving this texel lands u_stride columns away
 // (column.glsl, along a path of single steps for strided passes) and how
-// much goes there. Mirrors reference::Stabilizer::outflow_pass.
+// much goes there. Mirrors CpuStabilizer::outflow_texel.
 #include "bindings.h"
 #include "column.glsl"
 

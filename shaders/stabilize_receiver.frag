@@ -6,7 +6,7 @@
 // themselves. H falls strictly along pointers, so they form a forest.
 // Stamps the tiles of the texels that point elsewhere (the routed ones), so
 // the jump and scatter passes can leave out the others.
-// Mirrors the receiver loop of reference::Stabilizer::route.
+// Mirrors the receiver loop of CpuStabilizer::route.
 #include "bindings.h"
 #include "column.glsl"
 

@@ -2,7 +2,7 @@
 // Routing, scatter: one point per layer texel (gl_VertexID = texel index);
 // the excess of a routed texel (ground + depth - kept height) goes to its
 // terminal (the geometry shader picks the layer; additive blending in
-// primitive order sums it in texel order, as the reference does).
+// primitive order sums it in texel order, as the CPU does).
 #include "bindings.h"
 #include "column.glsl"
 

@@ -129,6 +129,14 @@ TEST(Cli, SnowWritesAllOutputsAndIsDeterministic) {
                           " -o " + q(dir / "d.glb"));
   ASSERT_EQ(d.code, 0) << d.output;
   EXPECT_EQ(read_all(dir / "a.glb"), read_all(dir / "d.glb"));
+  // The stabilizer on the GPU and on the CPU: the same snow, byte for byte.
+  for (const char* device : {"gpu", "cpu"}) {
+    const RunResult e = run("-v " + common + " --stabilizer " + device + " -o " +
+                            q(dir / (device + std::string(".glb"))));
+    ASSERT_EQ(e.code, 0) << e.output;
+    EXPECT_NE(e.output.find("device " + std::string(device)), std::string::npos) << e.output;
+    EXPECT_EQ(read_all(dir / "a.glb"), read_all(dir / (device + std::string(".glb")))) << device;
+  }
 }
 
 TEST(Cli, NoSnowOnAndIgnoreFilters) {
@@ -203,6 +211,11 @@ TEST(Cli, ExitCodesAndNoPartialOutputs) {
   EXPECT_EQ(bad_stride.code, 2);
   EXPECT_NE(bad_stride.output.find("max_stride"), std::string::npos) << bad_stride.output;
   EXPECT_EQ(bad_stride.output.find("peel"), std::string::npos) << bad_stride.output;
+  const RunResult bad_device =
+      run("snow " + q(kCourtyard) + " --stabilizer tpu -o " + q(out / "x.glb"));
+  EXPECT_EQ(bad_device.code, 2);
+  EXPECT_NE(bad_device.output.find("device must be auto, gpu or cpu, got 'tpu'"), std::string::npos)
+      << bad_device.output;
   write_all(dir / "bad_settings.json", R"({"maps": {"texle": 0.1}})");
   const RunResult bad_config = run("snow " + q(kCourtyard) + " --config " +
                                    q(dir / "bad_settings.json") + " -o " + q(out / "x.glb"));

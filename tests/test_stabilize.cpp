@@ -1,5 +1,5 @@
 // Tests of the stabilizer (src/snow/stabilize.h) and its CPU reference
-// (src/snow/reference/stabilize_ref.h): mass conservation, the repose slope
+// (src/snow/stabilize_cpu.h): mass conservation, the repose slope
 // after convergence, sliding off steep supports, falling through to lower
 // maps, and GPU against CPU.
 #include <gtest/gtest.h>
@@ -21,8 +21,8 @@
 #include "snow/maps.h"
 #include "snow/peel.h"
 #include "snow/reference/peel_ref.h"
-#include "snow/reference/stabilize_ref.h"
 #include "snow/stabilize.h"
+#include "snow/stabilize_cpu.h"
 
 namespace snow {
 namespace {
@@ -121,7 +121,7 @@ float largest_excess(const SnowMaps& maps, const std::vector<float>& depth,
         if (!maps.has_surface(l, i, j) || !(depth[k] > min_depth)) continue;
         const float h = std::min(maps.ground[k] + depth[k], maps.ceiling[k] - kCeilingClearance);
         for (int n = 0; n < 8; ++n) {
-          const int ni = i + reference::kDirI[n], nj = j + reference::kDirJ[n];
+          const int ni = i + kDirI[n], nj = j + kDirJ[n];
           const int land = landing(maps, depth.data(), ni, nj, h, maps.ground[k]);
           if (land == kLandVoid) return INFINITY;
           if (land < 0) continue;
@@ -308,7 +308,7 @@ TEST(StabilizeReference, MassIsConserved) {
   StabilizeSettings settings;
   settings.tolerance = 0.0f;  // run every pass
   settings.max_iterations = 600;
-  const StabilizeResult r = reference::stabilize(maps, depth, settings);
+  const StabilizeResult r = stabilize_cpu(maps, depth, settings);
   const double after = snow_volume(maps, depth);
   const double drift = std::abs(after + r.lost_volume - before) / before;
   std::printf("mass: before %.6f after %.6f lost %.6f routed %.6f drift %.2e (%d passes)\n", before,
@@ -324,7 +324,7 @@ TEST(StabilizeReference, ConvergedSnowIsAtRest) {
   const SnowMaps maps = bumpy_maps(64, 4);
   std::vector<float> depth = random_snow(maps, 0.5f, 11);
   StabilizeSettings settings;
-  const StabilizeResult r = reference::stabilize(maps, depth, settings);
+  const StabilizeResult r = stabilize_cpu(maps, depth, settings);
   ASSERT_TRUE(r.converged) << "residual " << r.residual;
   // The last pass may still bring up to about a tolerance of snow to a texel.
   const float excess = largest_excess(maps, depth, settings, 2.0f * settings.tolerance);
@@ -346,7 +346,7 @@ TEST(StabilizeReference, TableEdgesRoundOff) {
   const SnowMaps maps = make_maps(64, 64, texel, 4, table(1.6f, 1.6f, 0.5f, 0.75f, 0.05f));
   std::vector<float> depth = snow_on_top(maps, 0.3f);
   StabilizeSettings settings;
-  const StabilizeResult r = reference::stabilize(maps, depth, settings);
+  const StabilizeResult r = stabilize_cpu(maps, depth, settings);
   ASSERT_TRUE(r.converged);
   // Along the row through the table's centre.
   const int j = 32;
@@ -402,7 +402,7 @@ TEST(StabilizeReference, LowCeilingCapsDepth) {
     if (!std::isnan(maps.ground[k]) && maps.ground[k] == 0.0f) depth[k] = 0.3f;
   }
   const double before = snow_volume(maps, depth);
-  const StabilizeResult r = reference::stabilize(maps, depth, StabilizeSettings{});
+  const StabilizeResult r = stabilize_cpu(maps, depth, StabilizeSettings{});
   ASSERT_TRUE(r.converged);
   float deepest_under = 0.0f;
   for (int j = 0; j < 48; ++j) {
@@ -429,7 +429,7 @@ TEST(StabilizeReference, BowlFillsFromTheBottom) {
   });
   std::vector<float> depth = snow_on_top(maps, 0.3f);
   const double before = snow_volume(maps, depth);
-  const StabilizeResult r = reference::stabilize(maps, depth, StabilizeSettings{});
+  const StabilizeResult r = stabilize_cpu(maps, depth, StabilizeSettings{});
   ASSERT_TRUE(r.converged);
   EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);
   // The snow that fell into the bowl (pi r^2 0.3 m, 0.94 m^3) collects at
@@ -479,7 +479,7 @@ TEST(StabilizeReference, LeanToRoofs) {
       return l == 0 && maps.ground[maps.index(0, i, j)] > 0.5f;
     };
     const double roof_before = sum_where(maps, depth, on_roof);
-    const StabilizeResult r = reference::stabilize(maps, depth, StabilizeSettings{});
+    const StabilizeResult r = stabilize_cpu(maps, depth, StabilizeSettings{});
     const double roof_after = sum_where(maps, depth, on_roof);
     std::printf("%.0f deg lean-to: %d passes (+%d routing), roof %.3f -> %.4f m^3\n", pitch,
                 r.iterations, r.route_passes, roof_before, roof_after);
@@ -530,7 +530,7 @@ TEST(StabilizeGpu, MatchesReference) {
       settings.adaptive_stride = adaptive;
       settings.max_iterations = passes;
       std::vector<float> cpu = start, gpu = start;
-      const StabilizeResult rc = reference::stabilize(maps, cpu, settings);
+      const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
       const StabilizeResult rg = stabilize(maps, gpu, settings);
       SCOPED_TRACE(adaptive);
       SCOPED_TRACE(passes);
@@ -557,7 +557,7 @@ TEST(StabilizeGpu, RoutingLeavesASlabEdgeAtRest) {
   StabilizeSettings settings;
   settings.max_iterations = 0;  // routing only
   std::vector<float> cpu = start, gpu = start;
-  reference::stabilize(maps, cpu, settings);
+  stabilize_cpu(maps, cpu, settings);
   stabilize(maps, gpu, settings);
   expect_same(gpu, cpu, 1e-6f);
   const float excess = largest_excess(maps, gpu, settings, 1e-6f);
@@ -586,7 +586,7 @@ TEST(StabilizeGpu, RoutingPressesSnowOutFromUnderACeiling) {
   StabilizeSettings settings;
   settings.max_iterations = 0;  // routing only
   std::vector<float> cpu = start, tiled = start, full = start;
-  const StabilizeResult rc = reference::stabilize(maps, cpu, settings);
+  const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
   const StabilizeResult rt = stabilize(maps, tiled, settings);
   settings.active_tiles = false;
   const StabilizeResult rf = stabilize(maps, full, settings);
@@ -623,7 +623,7 @@ TEST(StabilizeGpu, MovesUnderMinMoveAreNotMade) {
     SCOPED_TRACE(min_move);
     settings.min_move = min_move;
     std::vector<float> cpu = start, gpu = start;
-    reference::stabilize(maps, cpu, settings);
+    stabilize_cpu(maps, cpu, settings);
     stabilize(maps, gpu, settings);
     expect_same(gpu, cpu, 1e-6f);
     if (min_move > 0.0f) {
@@ -880,9 +880,10 @@ TEST(StabilizeScenes, StairTreadsHoldSnow) {
 }
 
 // Active tiles skip only tiles whose passes would move nothing: the depth is
-// bit for bit that of full passes, on scenes and through time steps.
-TEST(StabilizeGpu, ActiveTilesAreExact) {
-  REQUIRE_GL();
+// bit for bit that of full passes, on scenes and through time steps. `run` is
+// stabilize or stabilize_cpu.
+template <class Run>
+void expect_active_tiles_exact(Run run) {
   HouseDims house;
   house.roof_pitch_deg = 60.0f;
   const std::vector<std::pair<const char*, Scene>> scenes = {
@@ -902,9 +903,9 @@ TEST(StabilizeGpu, ActiveTilesAreExact) {
       settings.count_tiles = true;
       settings.max_iterations = 150;
       std::vector<float> on = snow_on_top(maps, 0.3f), off = on;
-      const StabilizeResult r_on = stabilize(maps, on, settings);
+      const StabilizeResult r_on = run(maps, on, settings);
       settings.active_tiles = false;
-      const StabilizeResult r_off = stabilize(maps, off, settings);
+      const StabilizeResult r_off = run(maps, off, settings);
       std::printf(
           "%s, max_stride %d, adaptive %d: %d passes (+%d routing), tiles computed %.1f %%\n", name,
           max_stride, int(adaptive), r_on.iterations, r_on.route_passes, 100.0 * r_on.tile_share);
@@ -928,17 +929,28 @@ TEST(StabilizeGpu, ActiveTilesAreExact) {
   }
 }
 
-TEST(StabilizeGpu, ActiveTilesAreExactThroughTimeSteps) {
+TEST(StabilizeGpu, ActiveTilesAreExact) {
   REQUIRE_GL();
-  // Snow added in steps, a few passes per call (the live preview's use):
-  // resets, routing between passes and stride cycles cut by the calls.
-  const SnowMaps maps = bumpy_maps(84, 4);  // not whole tiles: the edge tiles are cut
+  expect_active_tiles_exact(
+      [](const SnowMaps& maps, std::vector<float>& depth, const StabilizeSettings& settings) {
+        return stabilize(maps, depth, settings);
+      });
+}
+
+TEST(StabilizeCpu, ActiveTilesAreExact) {
+  expect_active_tiles_exact(
+      [](const SnowMaps& maps, std::vector<float>& depth, const StabilizeSettings& settings) {
+        return stabilize_cpu(maps, depth, settings);
+      });
+}
+
+// Snow added in steps, a few passes per call (the live preview's use):
+// resets, routing between passes and stride cycles cut by the calls. `on` and
+// `off` are two stabilizers of one kind, with active tiles on and off.
+template <class AnyStabilizer>
+void expect_active_tiles_exact_through_time_steps(const SnowMaps& maps, AnyStabilizer& on,
+                                                  AnyStabilizer& off) {
   const std::vector<float> amount = random_snow(maps, 0.2f, 11);
-  StabilizeSettings on_settings;
-  on_settings.check_every = 5;
-  StabilizeSettings off_settings = on_settings;
-  off_settings.active_tiles = false;
-  Stabilizer on(maps, on_settings), off(maps, off_settings);
   for (int step = 0; step < 4; ++step) {
     on.add_snow(amount, 0.5f);
     off.add_snow(amount, 0.5f);
@@ -952,6 +964,27 @@ TEST(StabilizeGpu, ActiveTilesAreExactThroughTimeSteps) {
     expect_identical(on.depth(), off.depth());
   }
   EXPECT_EQ(on.lost_volume(), off.lost_volume());
+}
+
+StabilizeSettings time_step_settings(bool active_tiles) {
+  StabilizeSettings settings;
+  settings.check_every = 5;
+  settings.active_tiles = active_tiles;
+  return settings;
+}
+
+TEST(StabilizeGpu, ActiveTilesAreExactThroughTimeSteps) {
+  REQUIRE_GL();
+  const SnowMaps maps = bumpy_maps(84, 4);  // not whole tiles: the edge tiles are cut
+  Stabilizer on(maps, time_step_settings(true)), off(maps, time_step_settings(false));
+  expect_active_tiles_exact_through_time_steps(maps, on, off);
+}
+
+TEST(StabilizeCpu, ActiveTilesAndThreadsAreExactThroughTimeSteps) {
+  const SnowMaps maps = bumpy_maps(84, 4);  // not whole tiles: the edge tiles are cut
+  // Active tiles on 3 threads against full passes on one.
+  CpuStabilizer on(maps, time_step_settings(true), 3), off(maps, time_step_settings(false), 1);
+  expect_active_tiles_exact_through_time_steps(maps, on, off);
 }
 
 }  // namespace

@@ -7,7 +7,7 @@
 //                             [--layers L] [--depth METRES] [--max-stride S] [--passes P]
 //                             [--tiles on|off] [--count-tiles on|off]
 //                             [--max-iterations N] [--route on|off]
-//                             [--trace P]
+//                             [--trace P] [--backend gpu|cpu]
 // With --passes P, runs exactly P passes (tolerance 0) to time them;
 // otherwise runs to convergence (default settings). --tiles off computes
 // every texel in every pass (StabilizeSettings::active_tiles = false).
@@ -16,7 +16,8 @@
 // (StabilizeSettings::route_steep = false), to time passes on maps too large
 // to route with full passes. --trace P prints the residual, routed volume,
 // elapsed time and share of tiles computed (with --count-tiles on) every P
-// passes (stderr), to see where the passes go.
+// passes (stderr), to see where the passes go. --backend cpu runs the
+// CpuStabilizer (src/snow/stabilize_cpu.h) instead of the GPU passes.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -34,6 +35,7 @@
 #include "scene/load_gltf.h"
 #include "snow/peel.h"
 #include "snow/stabilize.h"
+#include "snow/stabilize_cpu.h"
 
 namespace {
 
@@ -48,6 +50,7 @@ int main(int argc, char** argv) {
   std::string scene_name = "courtyard";
   int side = 1024, layers = 4, passes = -1, trace = 0;
   float snow_depth = 0.3f;
+  std::string backend = "gpu";
   StabilizeSettings settings;
   for (int a = 1; a < argc; a += 2) {
     const std::string key = argv[a];
@@ -56,7 +59,8 @@ int main(int argc, char** argv) {
                    "usage: snowmodel_bench_stabilize [--scene courtyard|house60|house30|FILE.glb] "
                    "[--side N] [--layers L]\n  [--depth METRES] [--max-stride S] [--passes P] "
                    "[--tiles on|off] "
-                   "[--count-tiles on|off] [--max-iterations N]\n  [--route on|off] [--trace P]\n");
+                   "[--count-tiles on|off] [--max-iterations N]\n  [--route on|off] [--trace P] "
+                   "[--backend gpu|cpu]\n");
       return key == "-h" || key == "--help" ? 0 : 2;
     }
     const char* value = argv[a + 1];
@@ -80,6 +84,8 @@ int main(int argc, char** argv) {
       settings.route_steep = std::strcmp(value, "off") != 0;
     else if (key == "--trace")
       trace = std::atoi(value);
+    else if (key == "--backend")
+      backend = value;
     else if (key == "--count-tiles")
       settings.count_tiles = std::strcmp(value, "off") != 0;
     else {
@@ -118,49 +124,59 @@ int main(int argc, char** argv) {
       settings.tolerance = 0.0f;
       settings.max_iterations = passes;
     }
-    t0 = std::chrono::steady_clock::now();
-    Stabilizer stabilizer(maps, settings);
-    stabilizer.set_depth(depth);
-    const double setup_s = seconds_since(t0);
-    t0 = std::chrono::steady_clock::now();
-    const StabilizeResult route = stabilizer.iterate(0);  // routing only
-    const double route_s = seconds_since(t0);
-    t0 = std::chrono::steady_clock::now();
-    StabilizeResult r;
-    if (trace > 0) {
-      // The passes in chunks of `trace` (each chunk ends with a convergence
-      // check, as iterate() does), summed as one call would report them.
-      // Also where the depth changed most over the chunk: layer, texel,
-      // object, ground height, depth.
-      StabilizeResult sum;
-      std::vector<float> before = stabilizer.depth();
-      while (sum.iterations < settings.max_iterations && !sum.converged) {
-        r = stabilizer.iterate(std::min(trace, settings.max_iterations - sum.iterations));
-        sum.add(r);
-        const std::vector<float> after = stabilizer.depth();
-        size_t most = 0;
-        for (size_t k = 0; k < after.size(); ++k) {
-          if (std::abs(after[k] - before[k]) > std::abs(after[most] - before[most])) most = k;
+    double setup_s = 0, route_s = 0, total_s = 0;
+    StabilizeResult route, r;
+    auto run = [&](auto tag) {
+      using StabilizerType = typename decltype(tag)::type;
+      t0 = std::chrono::steady_clock::now();
+      StabilizerType stabilizer(maps, settings);
+      stabilizer.set_depth(depth);
+      setup_s = seconds_since(t0);
+      t0 = std::chrono::steady_clock::now();
+      route = stabilizer.iterate(0);  // routing only
+      route_s = seconds_since(t0);
+      t0 = std::chrono::steady_clock::now();
+      if (trace > 0) {
+        // The passes in chunks of `trace` (each chunk ends with a convergence
+        // check, as iterate() does), summed as one call would report them.
+        // Also where the depth changed most over the chunk: layer, texel,
+        // object, ground height, depth.
+        StabilizeResult sum;
+        std::vector<float> before = stabilizer.depth();
+        while (sum.iterations < settings.max_iterations && !sum.converged) {
+          r = stabilizer.iterate(std::min(trace, settings.max_iterations - sum.iterations));
+          sum.add(r);
+          const std::vector<float> after = stabilizer.depth();
+          size_t most = 0;
+          for (size_t k = 0; k < after.size(); ++k) {
+            if (std::abs(after[k] - before[k]) > std::abs(after[most] - before[most])) most = k;
+          }
+          const int l = int(most / maps.grid.texels());
+          const int i = int(most % maps.grid.texels()) % maps.grid.width;
+          const int j = int(most % maps.grid.texels()) / maps.grid.width;
+          const int32_t object = maps.object[most];
+          std::fprintf(
+              stderr,
+              "pass %d residual %.3e m routed %.4f m^3 (%d passes) %.1f s, tiles %.1f %%; largest "
+              "change %.2e m at layer %d (%d, %d) on %s, ground %.3f m, depth %.4f m\n",
+              sum.iterations, r.residual, r.routed_volume, r.route_passes, seconds_since(t0),
+              100.0 * r.tile_share, after[most] - before[most], l, i, j,
+              object >= 0 ? scene.objects[size_t(object)].name.c_str() : "-", maps.ground[most],
+              after[most]);
+          before = after;
         }
-        const int l = int(most / maps.grid.texels());
-        const int i = int(most % maps.grid.texels()) % maps.grid.width;
-        const int j = int(most % maps.grid.texels()) / maps.grid.width;
-        const int32_t object = maps.object[most];
-        std::fprintf(
-            stderr,
-            "pass %d residual %.3e m routed %.4f m^3 (%d passes) %.1f s, tiles %.1f %%; largest "
-            "change %.2e m at layer %d (%d, %d) on %s, ground %.3f m, depth %.4f m\n",
-            sum.iterations, r.residual, r.routed_volume, r.route_passes, seconds_since(t0),
-            100.0 * r.tile_share, after[most] - before[most], l, i, j,
-            object >= 0 ? scene.objects[size_t(object)].name.c_str() : "-", maps.ground[most],
-            after[most]);
-        before = after;
+        r = sum;
+      } else {
+        r = stabilizer.iterate(settings.max_iterations);
       }
-      r = sum;
-    } else {
-      r = stabilizer.iterate(settings.max_iterations);
-    }
-    const double total_s = seconds_since(t0);
+      total_s = seconds_since(t0);
+    };
+    if (backend == "gpu")
+      run(std::common_type<Stabilizer>{});
+    else if (backend == "cpu")
+      run(std::common_type<CpuStabilizer>{});
+    else
+      throw InputError("unknown backend " + backend + " (gpu or cpu)");
     std::printf(
         "renderer: %s\nscene %s, %d x %d texels (%.4f m), %d layers, max_stride %d, tiles %s\n"
         "peel %.2f s, upload %.2f s, routing %d passes %.2f s (%.3f m^3 routed)\n"

@@ -29,6 +29,7 @@ void from_json_value(const json& j, glm::vec2& v) {
   v = glm::vec2(j[0].get<float>(), j[1].get<float>());
 }
 void from_json_value(const json& j, bool& v) { v = j.get<bool>(); }
+void from_json_value(const json& j, std::string& v) { v = j.get<std::string>(); }
 void from_json_value(const json& j, std::vector<std::string>& v) {
   v = j.get<std::vector<std::string>>();
 }

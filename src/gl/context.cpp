@@ -91,6 +91,14 @@ std::string Context::description() const {
          gl_string(GL_VERSION);
 }
 
+bool renderer_is_software() {
+  const std::string renderer = gl_string(GL_RENDERER);
+  for (const char* name : {"llvmpipe", "softpipe", "swrast", "Software Rasterizer"}) {
+    if (renderer.find(name) != std::string::npos) return true;
+  }
+  return false;
+}
+
 namespace detail {
 
 void load_functions(ProcAddressFn loader, Backend backend) {

@@ -49,6 +49,10 @@ class Context {
   Context() = default;
 };
 
+/// True when the current context renders in software (Mesa's llvmpipe,
+/// softpipe or swrast): its "GPU" passes run on the CPU cores.
+bool renderer_is_software();
+
 /// Creates a context and makes it current. With Backend::Auto (and no
 /// SNOWMODEL_GL_BACKEND) tries the headless backends in order. Throws
 /// GLError whose message lists each backend tried and why it failed.

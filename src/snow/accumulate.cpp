@@ -10,6 +10,8 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "gl/context.h"
+#include "snow/stabilize_cpu.h"
 
 namespace snow {
 namespace {
@@ -20,8 +22,8 @@ constexpr int kPassesPerReport = 64;
 
 /// Stabilizer::run() in chunks of passes, reporting the share done, in
 /// [0, 1), after each.
-template <class Report>
-StabilizeResult stabilize_step(Stabilizer& stabilizer, const StabilizeSettings& settings,
+template <class AnyStabilizer, class Report>
+StabilizeResult stabilize_step(AnyStabilizer& stabilizer, const StabilizeSettings& settings,
                                Report report) {
   StabilizeResult total;
   double first_residual = 0;
@@ -91,36 +93,48 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   if (!(settings.snow_on_snow_every > 0 && settings.steps > settings.snow_on_snow_every)) {
     shadows.reset();
   }
-  Stabilizer stabilizer(maps, stabilize);
+  const bool on_cpu =
+      stabilize.device == "cpu" || (stabilize.device == "auto" && gl::renderer_is_software());
+  log_debug(std::string("stabilize: passes on the ") + (on_cpu ? "CPU" : "GPU") + " (device " +
+            stabilize.device + ")");
+  // The steps over either stabilizer (same passes, same results).
+  auto run_steps = [&](auto& stabilizer) {
+    const float per_step = settings.fall_depth / float(settings.steps);
+    const double texel_area = double(maps.grid.texel) * double(maps.grid.texel);
+    Progress progress("snowfall", settings.steps);
+    for (int step = 0; step < settings.steps; ++step) {
+      const bool update =
+          settings.snow_on_snow_every > 0 && step > 0 && step % settings.snow_on_snow_every == 0;
+      if (update) {
+        const std::vector<float> lying = stabilizer.depth();
+        result.coverage = shadows->compute(maps, coverage, &lying);
+        mask_coverage(maps, receives, result.coverage);
+        ++result.coverage_updates;
+      }
+      stabilizer.add_snow(result.coverage, per_step);
+      double added = 0;
+      for (size_t k = 0; k < result.coverage.size(); ++k) {
+        if (!std::isnan(maps.ground[k])) added += double(result.coverage[k] * per_step);
+      }
+      result.fallen_volume += added * texel_area;
+      result.last = stabilize_step(stabilizer, stabilize,
+                                   [&](double done) { progress.update(double(step) + done); });
+      result.iterations += result.last.iterations;
+      progress.update(step + 1);
+    }
+    progress.finish();
 
-  const float per_step = settings.fall_depth / float(settings.steps);
-  const double texel_area = double(maps.grid.texel) * double(maps.grid.texel);
-  Progress progress("snowfall", settings.steps);
-  for (int step = 0; step < settings.steps; ++step) {
-    const bool update =
-        settings.snow_on_snow_every > 0 && step > 0 && step % settings.snow_on_snow_every == 0;
-    if (update) {
-      const std::vector<float> lying = stabilizer.depth();
-      result.coverage = shadows->compute(maps, coverage, &lying);
-      mask_coverage(maps, receives, result.coverage);
-      ++result.coverage_updates;
-    }
-    stabilizer.add_snow(result.coverage, per_step);
-    double added = 0;
-    for (size_t k = 0; k < result.coverage.size(); ++k) {
-      if (!std::isnan(maps.ground[k])) added += double(result.coverage[k] * per_step);
-    }
-    result.fallen_volume += added * texel_area;
-    result.last = stabilize_step(stabilizer, stabilize,
-                                 [&](double done) { progress.update(double(step) + done); });
-    result.iterations += result.last.iterations;
-    progress.update(step + 1);
+    result.depth = stabilizer.depth();
+    result.lost_volume = stabilizer.lost_volume();
+    result.volume = snow_volume(maps, result.depth);
+  };
+  if (on_cpu) {
+    CpuStabilizer stabilizer(maps, stabilize);
+    run_steps(stabilizer);
+  } else {
+    Stabilizer stabilizer(maps, stabilize);
+    run_steps(stabilizer);
   }
-  progress.finish();
-
-  result.depth = stabilizer.depth();
-  result.lost_volume = stabilizer.lost_volume();
-  result.volume = snow_volume(maps, result.depth);
   return result;
 }
 

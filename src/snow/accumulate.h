@@ -37,10 +37,11 @@ struct SnowResult {
 void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
                    std::vector<float>& coverage);
 
-/// Runs the snowfall on the GPU: coverage once (or every
+/// Runs the snowfall: coverage once (or every
 /// snow_on_snow_every steps with the lying snow included), then per step
 /// add fall_depth/steps * coverage and stabilize (Stabilizer::iterate in
-/// chunks, as Stabilizer::run, for progress reports). Objects
+/// chunks, as Stabilizer::run, for progress reports; on the GPU, or on the
+/// CPU as stabilize.device says). Objects
 /// with receives[object] == 0 get no fresh snow (snow sliding onto them
 /// still rests there). Reports progress. Needs a current GL context. Throws
 /// InputError for bad settings, GLError for GL trouble.

@@ -4,7 +4,7 @@
 // distance-transform erosion and pointer jumping). One draw per map layer and
 // pass (the gather pass: one draw for all layers, one fragment per column,
 // written through an image), ping-pong between two depth texture arrays; the
-// CPU twin is reference/stabilize_ref.
+// CPU twin is CpuStabilizer (stabilize_cpu.h).
 #include "snow/stabilize.h"
 
 #include <algorithm>
@@ -47,6 +47,9 @@ void check_stabilize_settings(const StabilizeSettings& s) {
   }
   if (s.max_iterations < 0) bad("max_iterations must be >= 0");
   if (s.check_every < 1) bad("check_every must be >= 1");
+  if (s.device != "auto" && s.device != "gpu" && s.device != "cpu") {
+    bad("device must be auto, gpu or cpu, got '" + s.device + "'");
+  }
   if (s.max_stride < 1 || s.max_stride > 64 || (s.max_stride & (s.max_stride - 1)) != 0) {
     bad("max_stride must be a power of two in 1..64, got " + std::to_string(s.max_stride));
   }

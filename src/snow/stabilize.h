@@ -5,7 +5,7 @@
 // repose relaxation of Fearing 2000, section 5, on Tokoi's snow amount maps).
 //
 // Two kinds of passes, on the GPU as fragment passes over the layer texture
-// arrays and on the CPU in snow::reference with the same float math:
+// arrays and on the CPU in snow::CpuStabilizer with the same float math:
 //  - relaxation: an outflow pass (per layer texel: for each of the 8
 //    neighbour columns, the landing layer by snow::landing (column.h) at the
 //    snow surface height, and the amount moved there: half the largest
@@ -43,9 +43,13 @@
 // and stride (for strided passes: or of stride 1, if later), in the layers
 // that have a surface there
 // (settings.active_tiles); a skipped tile would repeat a pass that moved
-// nothing there, so the result is bit for bit that of full passes.
+// nothing there, so the result is bit for bit that of full passes. The CPU
+// stabilizer skips tiles by the same rule (stabilize_cpu.h), and the batch
+// job runs it where the GL renderer is a software rasterizer
+// (settings.device).
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -83,6 +87,13 @@ struct StabilizeSettings {
                                    // 4 x 4-column tiles that can still change (bit-identical
                                    // results; off: every texel every pass, for comparisons;
                                    // also off where GL points cannot be 4 pixels wide)
+  std::string device = "auto";     // where the batch job's passes run: "gpu" (fragment passes),
+                                   // "cpu" (snow::CpuStabilizer: the same passes on all cores,
+                                   // bit for bit), or "auto": the CPU where the GL renderer is
+                                   // a software rasterizer, which runs the GPU passes on the
+                                   // same cores, slower (llvmpipe, building-small-a with the
+                                   // defaults: whole run 8.2 s on the GPU passes, 3.4 s), else
+                                   // the GPU. The live preview always uses the GPU
   bool count_tiles = false;        // GPU: count the active tiles (a small readback per pass)
                                    // into StabilizeResult::tile_share, for benchmarks
 };
@@ -96,10 +107,10 @@ struct StabilizeResult {
   double lost_volume = 0.0;    // m^3 that left the scene during the call (off the map or into
                                // the void below the lowest surface)
   double volume = 0.0;         // m^3 of snow lying on the maps after the call
-  double route_seconds = 0.0;  // s, wall time of the routing (GPU only; 0 in the reference)
+  double route_seconds = 0.0;  // s, wall time of the routing (both stabilizers)
   double tile_share = 0.0;     // share (0..1) of the tiles times layers the relaxation passes
-                               // computed: 1 with active_tiles off, 0 unless count_tiles
-                               // (GPU only)
+                               // computed (the CPU's tiles are 8 x 8 columns, all layers):
+                               // 1 with active_tiles off, 0 unless count_tiles
 
   /// Folds in the result of a later call on the same stabilizer, as one
   /// call running both would report: counts, times and moved volumes add up;
@@ -109,7 +120,7 @@ struct StabilizeResult {
 };
 
 /// Per layer texel inputs of the passes, shared by the GPU upload and the CPU
-/// reference (maps' layout): x = ground (m; 0 where no surface), y = ceiling
+/// stabilizer (maps' layout): x = ground (m; 0 where no surface), y = ceiling
 /// (m; 3e38 for open sky), z = tan(repose angle + jitter; 0 where no
 /// surface), w = flags
 /// (kCellSurface | kCellSolid | kCellDown, stored as a float).
@@ -148,7 +159,7 @@ std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSett
 /// cycle through that stride, its half, ..., 1. Snow set or added starts
 /// over with single steps. With settings.adaptive_stride off, the passes
 /// cycle from max_stride from the first. The GPU stabilizer and the
-/// reference share this.
+/// CPU stabilizer share this.
 class StrideSchedule {
  public:
   explicit StrideSchedule(const StabilizeSettings& settings)

@@ -1,0 +1,628 @@
+// The stabilizer passes on the CPU (DESIGN.md "Stabilizer"; angle of
+// repose relaxation after Fearing 2000, section 5; steep routing as
+// steepest-descent flow routing over a terrain). Every per-texel function
+// here mirrors one fragment shader of shaders/stabilize_*.frag statement by
+// statement, so that the GPU and the CPU agree to the bit.
+//
+// Active tiles: a pass computes a tile (kTile x kTile columns, all layers)
+// only when a tile within the pass's reach (the stride, in tiles) changed
+// since the tile's last pass of the same kind and stride moved nothing there;
+// a skipped tile would repeat that pass's result (no move), so the results
+// are those of full passes. Uncomputed tiles keep zero amounts and no codes:
+// a tile whose outflow moved snow is changed by its gather, so its next
+// outflow is computed.
+#include "snow/stabilize_cpu.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string>
+
+#include "core/error.h"
+#include "core/parallel.h"
+#include "snow/column.h"
+
+namespace snow {
+namespace {
+
+constexpr int kTile = 8;  // columns per side of a tile
+
+int cell_flags(const glm::vec4& cell) { return int(cell.w); }
+
+// The snow surface as far as it is free to move: ground + depth, kept
+// kCeilingClearance under the ceiling (column.glsl free_top).
+float free_top(const glm::vec4& cell, float s) {
+  return std::max(cell.x, std::min(cell.x + s, cell.y - kCeilingClearance));
+}
+
+int log2_of(int stride) {
+  int b = 0;
+  while ((2 << b) <= stride) ++b;
+  return b;
+}
+
+}  // namespace
+
+CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& settings,
+                             unsigned threads)
+    : settings_(settings),
+      threads_(threads),
+      width_(maps.grid.width),
+      height_(maps.grid.height),
+      layers_(maps.layers),
+      texel_(maps.grid.texel),
+      cells_(stabilize_cells(maps, settings)) {
+  rise_ = kSurfaceContinuityTexels * texel_;
+  distance_[0] = distance_[1] = distance_[2] = distance_[3] = texel_;
+  distance_[4] = distance_[5] = distance_[6] = distance_[7] =
+      float(double(texel_) * std::sqrt(2.0));
+  const size_t n = cells_.size();
+  depth_.assign(n, 0.0f);
+  lost_.assign(n, 0.0f);
+  amount_.reset(new float[8 * n]);
+  code_.reset(new uint8_t[8 * n]);
+
+  const size_t columns = size_t(width_) * size_t(height_);
+  column_layers_.assign(columns, 0);
+  for (size_t c = 0; c < columns; ++c) {
+    int l = 0;
+    while (l < layers_ && (cell_flags(cells_[size_t(l) * columns + c]) & kCellSurface)) ++l;
+    column_layers_[c] = uint8_t(l);
+  }
+  tiles_x_ = (width_ + kTile - 1) / kTile;
+  tiles_y_ = (height_ + kTile - 1) / kTile;
+  const size_t tiles = size_t(tiles_x_) * size_t(tiles_y_);
+  for (size_t t = 0; t < tiles; ++t) {
+    const Tile b = tile(int(t));
+    bool any = false;
+    for (int j = b.j0; j < b.j1 && !any; ++j) {
+      for (int i = b.i0; i < b.i1 && !any; ++i) any = column_layers_[size_t(j) * width_ + i] > 0;
+    }
+    if (any) surface_tiles_.push_back(int(t));
+  }
+  changed_.assign(tiles, 0);
+  for (auto& q : quiet_) q.assign(tiles, -1);
+  sent_.assign(tiles, 0);
+  flag_.assign(tiles, 0);
+}
+
+CpuStabilizer::Tile CpuStabilizer::tile(int t) const {
+  const int ti = t % tiles_x_, tj = t / tiles_x_;
+  return {ti * kTile, tj * kTile, std::min(width_, (ti + 1) * kTile),
+          std::min(height_, (tj + 1) * kTile)};
+}
+
+void CpuStabilizer::touch_all() { std::fill(changed_.begin(), changed_.end(), pass_); }
+
+template <class Want>
+const std::vector<int>& CpuStabilizer::select_tiles(int reach, Want want) {
+  if (!settings_.active_tiles) return surface_tiles_;
+  selected_.clear();
+  for (int t : surface_tiles_) {
+    const int ti = t % tiles_x_, tj = t / tiles_x_;
+    bool any = false;
+    for (int b = std::max(0, tj - reach); b <= std::min(tiles_y_ - 1, tj + reach) && !any; ++b) {
+      for (int a = std::max(0, ti - reach); a <= std::min(tiles_x_ - 1, ti + reach) && !any; ++a)
+        any = want(t, b * tiles_x_ + a);
+    }
+    if (any) selected_.push_back(t);
+  }
+  return selected_;
+}
+
+template <class Fn>
+void CpuStabilizer::for_tiles(const std::vector<int>& tiles, Fn fn) {
+  // A thread start costs about as much as a few tiles: small passes stay on one.
+  const unsigned threads = tiles.size() < 16 ? 1u : threads_;
+  parallel_for(
+      tiles.size(), [&](size_t slot) { fn(tiles[slot], slot); }, threads);
+}
+
+void CpuStabilizer::set_depth(const std::vector<float>& depth) {
+  if (depth.size() != cells_.size()) {
+    throw InputError("stabilize: depth has " + std::to_string(depth.size()) +
+                     " entries, the maps have " + std::to_string(cells_.size()) + " layer texels");
+  }
+  for (size_t k = 0; k < cells_.size(); ++k) {
+    const float d = depth[k];
+    depth_[k] = (cell_flags(cells_[k]) & kCellSurface) && d > 0.0f ? d : 0.0f;
+  }
+  std::fill(lost_.begin(), lost_.end(), 0.0f);
+  touch_all();
+  route_pending_ = true;
+  schedule_.restart();
+}
+
+void CpuStabilizer::add_snow(const std::vector<float>& amount, float scale) {
+  if (amount.size() != cells_.size()) {
+    throw InputError("stabilize: snow amount has " + std::to_string(amount.size()) +
+                     " entries, the maps have " + std::to_string(cells_.size()) + " layer texels");
+  }
+  // Mirrors shaders/stabilize_add.frag.
+  for (size_t k = 0; k < cells_.size(); ++k) {
+    const float add = amount[k] * scale;
+    if ((cell_flags(cells_[k]) & kCellSurface) && add > 0.0f) depth_[k] = depth_[k] + add;
+  }
+  touch_all();
+  route_pending_ = true;
+  schedule_.restart();
+}
+
+double CpuStabilizer::lost_volume() const {
+  double sum = 0.0;
+  for (float v : lost_) sum += double(v);
+  return sum * double(texel_) * double(texel_);
+}
+
+// Mirrors shaders/column.glsl: snow::land_in_column on the cells, with the
+// snow tops ground + depth, or with `kept` the routing's kept heights.
+int CpuStabilizer::land(int i, int j, float h, float support, float rise, bool kept) const {
+  if (i < 0 || j < 0 || i >= width_ || j >= height_) return kLandVoid;
+  for (int l = 0; l < layers_; ++l) {
+    const size_t k = index(l, i, j);
+    const glm::vec4& cell = cells_[k];
+    const int flags = cell_flags(cell);
+    if ((flags & kCellSurface) == 0) {
+      return l > 0 && (cell_flags(cells_[index(l - 1, i, j)]) & kCellDown) == 0 ? kLandBlocked
+                                                                                : kLandVoid;
+    }
+    if (h >= cell.y) return kLandBlocked;
+    const float top = kept ? stable_[k] : cell.x + depth_[k];
+    if (top <= h) {
+      if ((flags & kCellSolid) != 0 || cell.y - support < rise) return kLandBlocked;
+      return l;
+    }
+    if (h >= cell.x) return kLandBlocked;
+  }
+  return kLandBlocked;
+}
+
+// Mirrors gap_at in shaders/stabilize_outflow.frag: the layer of column
+// (i, j) whose gap (ground up to ceiling, not a solid's inside) contains
+// height h, kLandBlocked or kLandVoid.
+int CpuStabilizer::gap_at(int i, int j, float h) const {
+  if (i < 0 || j < 0 || i >= width_ || j >= height_) return kLandVoid;
+  for (int l = 0; l < layers_; ++l) {
+    const glm::vec4& cell = cells_[index(l, i, j)];
+    const int flags = cell_flags(cell);
+    if ((flags & kCellSurface) == 0) {
+      return l > 0 && (cell_flags(cells_[index(l - 1, i, j)]) & kCellDown) == 0 ? kLandBlocked
+                                                                                : kLandVoid;
+    }
+    if (h >= cell.y) return kLandBlocked;
+    if (h >= cell.x) return (flags & kCellSolid) != 0 ? kLandBlocked : l;
+  }
+  return kLandBlocked;
+}
+
+// Mirrors shaders/stabilize_outflow.frag.
+float CpuStabilizer::outflow_texel(int l, int i, int j, int stride) {
+  const size_t k = index(l, i, j);
+  float* out = &amount_[8 * k];
+  uint8_t* code = &code_[8 * k];
+  for (int n = 0; n < 8; ++n) {
+    out[n] = 0.0f;
+    code[n] = kCodeNone;
+  }
+  const glm::vec4 cell = cells_[k];
+  const float s = depth_[k];
+  if ((cell_flags(cell) & kCellSurface) == 0 || !(s > 0.0f)) return 0.0f;
+  const float h = cell.x + s;
+  const float he = free_top(cell, s);  // snow above the ceiling is pressed out
+  const float over = h - he;
+  float w[8];
+  float wsum = 0.0f, wmax = 0.0f;
+  int voids = 0;
+  float wmax1 = 0.0f;  // strided passes: the largest excess of a single step
+  int voids1 = 0;      // and the single steps into the void
+  for (int n = 0; n < 8; ++n) {
+    w[n] = 0.0f;
+    // A strided pass moves snow `stride` columns at once along a path of
+    // single steps that fine passes could take: each step lands by the
+    // landing rule and goes down by at most the continuity rise (no
+    // fall over an edge, never into the void). The threshold is the sum
+    // of the path texels' repose slopes, so a state at rest for single
+    // steps is at rest for strided ones.
+    int ni = i, nj = j;
+    int land_l = 0;
+    float path_h = he, path_g = cell.x, path_tan = 0.0f;
+    float step_tan = cell.z;
+    for (int m = 1; m <= stride; ++m) {
+      ni = i + m * kDirI[n];
+      nj = j + m * kDirJ[n];
+      land_l = land(ni, nj, path_h, path_g, rise_);
+      path_tan += step_tan;
+      if (stride == 1) break;
+      if (m == 1 && land_l == kLandVoid) ++voids1;
+      if (land_l < 0) break;
+      const size_t km = index(land_l, ni, nj);
+      const float top = cells_[km].x + depth_[km];
+      if (m == 1) wmax1 = std::max(wmax1, he - top - distance_[n] * path_tan);
+      if (path_h - top > rise_) {
+        land_l = kLandBlocked;
+        break;
+      }
+      path_h = top;
+      path_g = cells_[km].x;
+      step_tan = cells_[km].z;
+    }
+    if (stride > 1 && land_l == kLandVoid) land_l = kLandBlocked;
+    if (land_l == kLandVoid) {
+      code[n] = kCodeVoid;
+      ++voids;
+    } else if (land_l >= 0) {
+      code[n] = uint8_t(land_l);
+      const size_t kt = index(land_l, ni, nj);
+      const float ht = cells_[kt].x + depth_[kt];
+      const float e = he - ht - distance_[n] * path_tan;
+      w[n] = std::max(e, 0.0f);
+      wsum += w[n];
+      wmax = std::max(wmax, w[n]);
+    }
+  }
+  // A strided pass moves only snow that a single step moves (the
+  // stride-1 rule below on the first steps): snow at rest for single
+  // steps stays, which the GPU passes' active tiles rely on.
+  const bool single_moves =
+      voids1 > 0 ||
+      (wmax1 > 0.0f && std::min(s, std::max(0.5f * wmax1, over)) >= settings_.min_move);
+  if (stride > 1 && !single_moves) wmax = 0.0f;
+  if (voids > 0) {
+    // An edge of the world: everything falls off, shared by the void directions.
+    const float share = s / float(voids);
+    float left = s;
+    int seen = 0;
+    for (int n = 0; n < 8; ++n) {
+      if (code[n] != kCodeVoid) continue;
+      ++seen;
+      out[n] = seen == voids ? left : share;
+      left -= share;
+    }
+  } else if (wmax > 0.0f) {
+    // Half the largest excess moves, split over the receivers by their
+    // excess: a receiver rises by at most half its excess, so the pair
+    // never overshoots and piles end at the repose slope.
+    // Moves under min_move are not made (rounding noise).
+    float total = std::min(s, std::max(0.5f * wmax, over));
+    if (total < settings_.min_move) total = 0.0f;
+    for (int n = 0; n < 8; ++n) out[n] = total * (w[n] / wsum);
+  } else if (over > 0.0f && stride == 1) {
+    // Snow deeper than its gap with nowhere downhill to go is squeezed
+    // out sideways into the gaps of the neighbouring columns at that
+    // height, as far as they have room (the void takes everything).
+    float p[8];
+    float psum = 0.0f;
+    for (int n = 0; n < 8; ++n) {
+      p[n] = 0.0f;
+      code[n] = kCodeNone;
+      const int ni = i + kDirI[n], nj = j + kDirJ[n];
+      const int gap = gap_at(ni, nj, he);
+      if (gap == kLandVoid) {
+        code[n] = kCodeVoid;
+        p[n] = over;
+      } else if (gap >= 0) {
+        code[n] = uint8_t(gap);
+        const size_t kt = index(gap, ni, nj);
+        const float room = (cells_[kt].y - kCeilingClearance) - (cells_[kt].x + depth_[kt]);
+        p[n] = std::min(std::max(0.5f * (over + room), 0.0f), over);
+      }
+      psum += p[n];
+    }
+    if (psum > 0.0f) {
+      const float scale = std::min(1.0f, over / psum);
+      for (int n = 0; n < 8; ++n) out[n] = p[n] * scale;
+    }
+  }
+  // A direction that moves nothing has no landing code.
+  for (int n = 0; n < 8; ++n) {
+    if (out[n] == 0.0f) code[n] = kCodeNone;
+  }
+  float sum = 0.0f;
+  for (int n = 0; n < 8; ++n) sum += out[n];
+  return sum;
+}
+
+void CpuStabilizer::outflow_pass(int stride) {
+  ++pass_;
+  last_stride_ = stride;
+  std::vector<int>& quiet = quiet_[log2_of(stride)];
+  const int reach = (stride + kTile - 1) / kTile;
+  const int pass = pass_;
+  // Inputs: the depth within `stride` columns.
+  const std::vector<int>& tiles = select_tiles(reach, [&](int t, int near) {
+    return quiet[size_t(t)] < 0 || changed_[size_t(near)] >= quiet[size_t(t)];
+  });
+  tile_work_ += double(tiles.size());
+  std::fill(sent_.begin(), sent_.end(), 0);
+  slot_max_.assign(tiles.size(), 0.0f);
+  for_tiles(tiles, [&](int t, size_t slot) {
+    const Tile b = tile(t);
+    float largest = 0.0f;
+    for (int j = b.j0; j < b.j1; ++j) {
+      for (int i = b.i0; i < b.i1; ++i) {
+        const int col_layers = column_layers_[size_t(j) * width_ + i];
+        for (int l = 0; l < col_layers; ++l)
+          largest = std::max(largest, outflow_texel(l, i, j, stride));
+      }
+    }
+    slot_max_[slot] = largest;
+    sent_[size_t(t)] = largest > 0.0f;
+    quiet[size_t(t)] = largest > 0.0f ? -1 : pass;
+  });
+  residual_ = 0.0f;
+  for (float m : slot_max_) residual_ = std::max(residual_, m);
+}
+
+// Mirrors shaders/stabilize_gather.frag, which also works per column: each
+// neighbour column's landing codes are read once for all layers, and every
+// layer texel adds what it receives in the same order as one at a time.
+bool CpuStabilizer::gather_column(int i, int j, int stride) {
+  const int col_layers = column_layers_[size_t(j) * width_ + i];
+  float s[64];
+  bool changed = false;
+  for (int l = 0; l < col_layers; ++l) {
+    const size_t k = index(l, i, j);
+    s[l] = depth_[k];
+    float lost = lost_[k];
+    for (int n = 0; n < 8; ++n) {
+      const float a = amount_[8 * k + n];
+      s[l] -= a;
+      if (code_[8 * k + n] == kCodeVoid) lost += a;
+    }
+    lost_[k] = lost;
+  }
+  for (int n = 0; n < 8; ++n) {
+    const int mi = i - stride * kDirI[n], mj = j - stride * kDirJ[n];
+    if (mi < 0 || mj < 0 || mi >= width_ || mj >= height_) continue;
+    const int source_layers = column_layers_[size_t(mj) * width_ + mi];
+    for (int lm = 0; lm < source_layers; ++lm) {
+      const size_t km = index(lm, mi, mj);
+      const uint8_t code = code_[8 * km + n];
+      if (code < col_layers) s[code] += amount_[8 * km + n];
+    }
+  }
+  for (int l = 0; l < col_layers; ++l) {
+    float& d = depth_[index(l, i, j)];
+    changed |= s[l] != d;
+    d = s[l];
+  }
+  return changed;
+}
+
+void CpuStabilizer::gather_pass(int stride) {
+  const int reach = (stride + kTile - 1) / kTile;
+  // Inputs: the amounts within `stride` columns (the depth read is the
+  // texel's own, so the pass works in place).
+  const std::vector<int>& tiles =
+      select_tiles(reach, [&](int, int near) { return sent_[size_t(near)] != 0; });
+  const int pass = pass_;
+  for_tiles(tiles, [&](int t, size_t) {
+    const Tile b = tile(t);
+    bool changed = sent_[size_t(t)] != 0;
+    for (int j = b.j0; j < b.j1; ++j) {
+      for (int i = b.i0; i < b.i1; ++i) {
+        changed |= gather_column(i, j, stride);
+      }
+    }
+    if (changed) changed_[size_t(t)] = pass;
+  });
+}
+
+// Mirrors shaders/stabilize_erode.frag: H = max(ground, min(H, min over
+// neighbours of H(landing) + distance * tan(repose))).
+float CpuStabilizer::erode_texel(int l, int i, int j) const {
+  const size_t k = index(l, i, j);
+  const glm::vec4 cell = cells_[k];
+  float hs = stable_[k];
+  if (hs > cell.x) {
+    const float he = free_top(cell, depth_[k]);
+    for (int n = 0; n < 8; ++n) {
+      const int ni = i + kDirI[n], nj = j + kDirJ[n];
+      const int land_l = land(ni, nj, he, cell.x, rise_, true);
+      if (land_l == kLandVoid) {
+        hs = cell.x;
+      } else if (land_l >= 0) {
+        hs = std::min(hs, stable_[index(land_l, ni, nj)] + distance_[n] * cell.z);
+      }
+    }
+    hs = std::max(hs, cell.x);
+  }
+  return hs;
+}
+
+int CpuStabilizer::route(double* routed_volume) {
+  const size_t count = cells_.size();
+  const size_t tiles = changed_.size();
+  // Erosion passes (shaders/stabilize_erode.frag): the highest snow surface
+  // each texel can keep, from H = min(ground + depth, ceiling), until
+  // nothing changes (shaders/stabilize_erode_check.frag). A pass computes
+  // the tiles next to one that changed in the pass before (the first: all)
+  // into `next`, then copies them back, so each pass reads the last one's
+  // heights only.
+  stable_.assign(count, 0.0f);
+  for (size_t k = 0; k < count; ++k) stable_[k] = free_top(cells_[k], depth_[k]);
+  std::vector<float> next(count);
+  std::vector<uint8_t> moved(tiles, 1), moved_now(tiles, 0);
+  int passes = 0;
+  for (;;) {
+    const std::vector<int>& active =
+        select_tiles(1, [&](int, int near) { return moved[size_t(near)] != 0; });
+    std::fill(moved_now.begin(), moved_now.end(), 0);
+    for_tiles(active, [&](int t, size_t) {
+      const Tile b = tile(t);
+      bool changed = false;
+      for (int j = b.j0; j < b.j1; ++j) {
+        for (int i = b.i0; i < b.i1; ++i) {
+          const int col_layers = column_layers_[size_t(j) * width_ + i];
+          for (int l = 0; l < col_layers; ++l) {
+            const size_t k = index(l, i, j);
+            next[k] = erode_texel(l, i, j);
+            changed |= next[k] != stable_[k];
+          }
+        }
+      }
+      moved_now[size_t(t)] = changed;
+    });
+    for_tiles(active, [&](int t, size_t) {
+      if (!moved_now[size_t(t)]) return;
+      const Tile b = tile(t);
+      for (int j = b.j0; j < b.j1; ++j) {
+        for (int i = b.i0; i < b.i1; ++i) {
+          const int col_layers = column_layers_[size_t(j) * width_ + i];
+          for (int l = 0; l < col_layers; ++l) stable_[index(l, i, j)] = next[index(l, i, j)];
+        }
+      }
+    });
+    ++passes;
+    moved.swap(moved_now);
+    if (std::find(moved.begin(), moved.end(), 1) == moved.end()) break;
+  }
+  next = {};
+  // Receiver pass (shaders/stabilize_receiver.frag): a texel holding more
+  // than it can keep sends the excess towards the neighbour that limits it
+  // (the void when one neighbour is the void); H falls strictly along these
+  // pointers, so they form a forest whose roots (terminals) point to
+  // themselves. The routed texels are listed in texel order.
+  std::vector<uint32_t> pointer(count);
+  for (size_t k = 0; k < count; ++k) pointer[k] = uint32_t(k);
+  std::vector<std::vector<uint32_t>> routed_rows(size_t(layers_) * size_t(height_));
+  parallel_for(
+      routed_rows.size(),
+      [&](size_t row) {
+        const int l = int(row / size_t(height_)), j = int(row % size_t(height_));
+        for (int i = 0; i < width_; ++i) {
+          if (column_layers_[size_t(j) * width_ + i] <= l) continue;
+          const size_t k = index(l, i, j);
+          const glm::vec4 cell = cells_[k];
+          uint32_t p = uint32_t(k);
+          const float hs = stable_[k];
+          if (cell.x + depth_[k] > hs) {
+            const float he = free_top(cell, depth_[k]);
+            float best = hs;
+            for (int n = 0; n < 8; ++n) {
+              const int ni = i + kDirI[n], nj = j + kDirJ[n];
+              const int land_l = land(ni, nj, he, cell.x, rise_, true);
+              if (land_l == kLandVoid) {
+                p = kPointerVoid;
+                break;
+              }
+              if (land_l < 0) continue;
+              const size_t kt = index(land_l, ni, nj);
+              const float via = stable_[kt] + distance_[n] * cell.z;
+              if (stable_[kt] < hs && (p == uint32_t(k) || via < best)) {
+                best = via;
+                p = uint32_t(kt);
+              }
+            }
+          }
+          pointer[k] = p;
+          if (p != uint32_t(k)) routed_rows[row].push_back(uint32_t(k));
+        }
+      },
+      threads_);
+  std::vector<uint32_t> routed;
+  for (const auto& row : routed_rows) routed.insert(routed.end(), row.begin(), row.end());
+  routed_rows = {};
+  // Jump passes (shaders/stabilize_jump.frag) until every pointer reaches a
+  // terminal (the GPU runs one more, which moves no pointer on and does not
+  // count). Only routed texels point elsewhere than at themselves.
+  auto unfinished = [&]() {
+    for (uint32_t k : routed) {
+      const uint32_t p = pointer[k];
+      if (p != kPointerVoid && pointer[p] != p) return true;
+    }
+    return false;
+  };
+  int jumps = 0;
+  std::vector<uint32_t> jumped(routed.size());
+  while (unfinished()) {
+    for (size_t r = 0; r < routed.size(); ++r) {
+      const uint32_t p = pointer[routed[r]];
+      jumped[r] = p == kPointerVoid ? p : pointer[p];
+    }
+    for (size_t r = 0; r < routed.size(); ++r) pointer[routed[r]] = jumped[r];
+    ++jumps;
+  }
+  // Scatter (shaders/stabilize_scatter.*: one point per routed texel, added
+  // in texel order into its terminal) and apply (stabilize_apply.frag).
+  // Terminals are never routed, so the excess is read before any change.
+  std::vector<float> arrive(count, 0.0f);
+  std::vector<uint32_t> terminals;
+  double moved_volume = 0.0;
+  for (uint32_t k : routed) {
+    const float e = (cells_[k].x + depth_[k]) - stable_[k];
+    const uint32_t p = pointer[k];
+    if (p != kPointerVoid) {
+      if (arrive[p] == 0.0f) terminals.push_back(p);
+      arrive[p] += e;
+    }
+  }
+  for (uint32_t k : routed) {
+    const float e = (cells_[k].x + depth_[k]) - stable_[k];
+    moved_volume += double(e);
+    if (pointer[k] == kPointerVoid) lost_[k] = lost_[k] + e;
+    depth_[k] = (depth_[k] - e) + arrive[k];
+  }
+  for (uint32_t p : terminals) depth_[p] = depth_[p] + arrive[p];
+  *routed_volume += moved_volume * double(texel_) * double(texel_);
+  stable_ = {};
+  route_pending_ = false;
+  touch_all();
+  return passes + jumps;
+}
+
+StabilizeResult CpuStabilizer::iterate(int passes) {
+  StabilizeResult result;
+  const double lost_before = lost_volume();
+  if (route_pending_) {
+    const auto t0 = std::chrono::steady_clock::now();
+    if (settings_.route_steep) result.route_passes = route(&result.routed_volume);
+    route_pending_ = false;
+    result.route_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  tile_work_ = 0.0;
+  int last_check = 0;
+  for (int pass = 1; pass <= passes; ++pass) {
+    const int stride = schedule_.next();
+    outflow_pass(stride);
+    gather_pass(stride);
+    ++result.iterations;
+    if ((stride == 1 && pass - last_check >= settings_.check_every) || pass == passes) {
+      last_check = pass;
+      result.residual = residual_;
+      schedule_.checked(stride, result.residual);
+      if (result.residual < settings_.tolerance) {
+        result.converged = true;
+        break;
+      }
+    }
+  }
+  if (settings_.count_tiles && result.iterations > 0 && !surface_tiles_.empty()) {
+    result.tile_share = tile_work_ / (double(result.iterations) * double(surface_tiles_.size()));
+  }
+  result.lost_volume = lost_volume() - lost_before;
+  result.volume = snow_volume_of(depth_);
+  return result;
+}
+
+double CpuStabilizer::snow_volume_of(const std::vector<float>& depth) const {
+  double sum = 0.0;
+  for (size_t k = 0; k < depth.size(); ++k) {
+    if (cell_flags(cells_[k]) & kCellSurface) sum += double(depth[k]);
+  }
+  return sum * double(texel_) * double(texel_);
+}
+
+StabilizeResult stabilize_cpu(const SnowMaps& maps, std::vector<float>& depth,
+                              const StabilizeSettings& settings, int max_iterations_override) {
+  CpuStabilizer stabilizer(maps, settings);
+  stabilizer.set_depth(depth);
+  StabilizeResult result = stabilizer.iterate(
+      max_iterations_override >= 0 ? max_iterations_override : settings.max_iterations);
+  depth = stabilizer.depth();
+  for (float& d : depth) d = std::max(d, 0.0f);
+  return result;
+}
+
+}  // namespace snow

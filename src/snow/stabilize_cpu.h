@@ -1,0 +1,140 @@
+#pragma once
+// The stabilizer passes (snow/stabilize.h) on the CPU: the same outflow,
+// gather, erosion, receiver, jump, scatter and apply passes as the GPU
+// fragment passes, in the same order and with the same float math, on the
+// cells of snow::stabilize_cells, so the two agree bit for bit.
+//
+// Two uses:
+//  - the reference that the GPU passes are tested against (with
+//    settings.active_tiles off it computes every layer texel in every pass,
+//    as the passes are specified);
+//  - the batch job's stabilizer on a software rasterizer (StabilizeDevice),
+//    where the "GPU" passes run on the same CPU cores anyway: here the passes
+//    run natively on all cores, over 8 x 8-column tiles, and skip the tiles
+//    whose inputs did not change since they last moved nothing, which
+//    llvmpipe's fragment passes cannot do (a fragment that does nothing
+//    costs it nearly what one that works does). Same results as full passes,
+//    bit for bit.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "snow/maps.h"
+#include "snow/stabilize.h"
+
+namespace snow {
+
+/// Landing codes of the outflow pass besides a layer index (0..63).
+constexpr uint8_t kCodeNone = 254;  // no flow in that direction
+constexpr uint8_t kCodeVoid = 255;  // flow off the map or into the void below: lost
+/// Receiver pointers of the routing passes besides a texel index.
+constexpr uint32_t kPointerVoid = 0xffffffffu;
+
+/// Neighbour direction n (0..7): column offset (kDirI[n], kDirJ[n]); 0..3 are
+/// the edge neighbours (distance texel), 4..7 the diagonal ones (texel*sqrt2).
+constexpr int kDirI[8] = {1, -1, 0, 0, 1, -1, 1, -1};
+constexpr int kDirJ[8] = {0, 0, 1, -1, 1, 1, -1, -1};
+
+/// The CPU twin of snow::Stabilizer: same contract, same passes, same float
+/// math.
+class CpuStabilizer {
+ public:
+  /// Throws InputError like snow::Stabilizer. `threads`: worker threads of
+  /// the passes (0 = default_threads()); the results do not depend on it.
+  CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& settings, unsigned threads = 0);
+
+  void set_depth(const std::vector<float>& depth);
+  void add_snow(const std::vector<float>& amount, float scale);
+  /// Pending routing, then up to `passes` relaxation passes (early stop as
+  /// on the GPU). volume and lost_volume are exact (double) sums;
+  /// route_seconds is the routing's wall time; tile_share, with
+  /// settings.count_tiles, the share of tiles times layers computed.
+  StabilizeResult iterate(int passes);
+  StabilizeResult run() { return iterate(settings_.max_iterations); }
+
+  const std::vector<float>& depth() const { return depth_; }
+  double lost_volume() const;
+  const std::vector<glm::vec4>& cells() const { return cells_; }
+
+ private:
+  struct Tile {
+    int i0, j0, i1, j1;  // columns [i0, i1) x [j0, j1)
+  };
+  /// Outflow: amount (8 per layer texel, metres) and code (8 per layer
+  /// texel: landing layer, kCodeNone or kCodeVoid; kCodeNone where nothing
+  /// moves) from the current depth; residual_ = the largest move.
+  void outflow_pass(int stride);
+  /// Gather: depth -= own outflow, += neighbours' outflow landing here; lost
+  /// += own outflow to kCodeVoid. `stride` is the last outflow's.
+  void gather_pass(int stride);
+  /// Routing (erosion until stable, receiver, jumps until every pointer
+  /// reaches a terminal, scatter, apply); returns the erosion plus jump passes
+  /// run. Adds the routed volume (m^3) to *routed_volume.
+  int route(double* routed_volume);
+  int land(int i, int j, float h, float support, float rise, bool kept = false) const;
+  int gap_at(int i, int j, float h) const;
+  /// Outflow of one layer texel; returns the sum of its amounts.
+  float outflow_texel(int l, int i, int j, int stride);
+  /// Gather of the layer texels of one column; true when a depth changed.
+  bool gather_column(int i, int j, int stride);
+  /// Erosion of one layer texel: its next kept height from stable_.
+  float erode_texel(int l, int i, int j) const;
+  /// Tiles to compute: every tile with a surface, or (active tiles) those
+  /// with a tile within `reach` tiles for which want(tile) holds.
+  template <class Want>
+  const std::vector<int>& select_tiles(int reach, Want want);
+  /// Runs fn(tile index, slot) over `tiles` on the worker threads.
+  template <class Fn>
+  void for_tiles(const std::vector<int>& tiles, Fn fn);
+  Tile tile(int t) const;
+  void touch_all();
+  double snow_volume_of(const std::vector<float>& depth) const;
+  size_t index(int l, int i, int j) const {
+    return (size_t(l) * size_t(height_) + size_t(j)) * size_t(width_) + size_t(i);
+  }
+
+  StabilizeSettings settings_;
+  StrideSchedule schedule_{settings_};
+  unsigned threads_ = 0;
+  int width_ = 0, height_ = 0, layers_ = 0;
+  float texel_ = 0.0f;
+  float distance_[8] = {};  // metres, per direction
+  float rise_ = 0.0f;       // metres, kSurfaceContinuityTexels * texel
+  std::vector<glm::vec4> cells_;
+  std::vector<uint8_t> column_layers_;  // surfaces per column (layers are packed from the top)
+  std::vector<float> depth_;
+  std::vector<float> lost_;  // metres lost per layer texel (accumulated at the source)
+  // Outflow of the layer texels with a surface (written by the first pass
+  // before any read; left uninitialized, so the pages of layers that are
+  // mostly empty are never touched).
+  std::unique_ptr<float[]> amount_;  // 8 per layer texel, metres
+  std::unique_ptr<uint8_t[]> code_;  // 8 per layer texel
+  std::vector<float> stable_;        // metres, highest snow surface each texel can keep (routing)
+  float residual_ = 0.0f;
+  bool route_pending_ = false;
+
+  // Tiles of kTile x kTile columns, all layers.
+  int tiles_x_ = 0, tiles_y_ = 0;
+  std::vector<int> surface_tiles_;  // the tiles with a surface
+  int pass_ = 0;                    // outflow passes so far
+  std::vector<int> changed_;        // per tile: the pass whose gather last changed its depth
+                                    // (or pass_ at set_depth, add_snow and routing)
+  std::vector<int> quiet_[7];       // per log2(stride) and tile: the pass whose outflow of that
+                                    // stride last moved nothing there (-1: none since)
+  std::vector<uint8_t> sent_;       // per tile: the last outflow moved snow from it
+  std::vector<uint8_t> flag_;       // per tile: scratch of select_tiles
+  std::vector<int> selected_;       // scratch of select_tiles
+  std::vector<float> slot_max_;     // per selected tile: largest move (outflow)
+  int last_stride_ = 1;
+  double tile_work_ = 0.0;  // tiles times layers computed by the relaxation (count_tiles)
+};
+
+/// One-off CPU stabilize (same contract as snow::stabilize): a CpuStabilizer
+/// run for max_iterations (or max_iterations_override when >= 0) passes at
+/// most. Negative rounding residues are cleared in the output.
+StabilizeResult stabilize_cpu(const SnowMaps& maps, std::vector<float>& depth,
+                              const StabilizeSettings& settings, int max_iterations_override = -1);
+
+}  // namespace snow
