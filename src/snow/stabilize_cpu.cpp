@@ -8,9 +8,11 @@
 // only when a tile within the pass's reach (the stride, in tiles) changed
 // since the tile's last pass of the same kind and stride moved nothing there;
 // a skipped tile would repeat that pass's result (no move), so the results
-// are those of full passes. Uncomputed tiles keep zero amounts and no codes:
-// a tile whose outflow moved snow is changed by its gather, so its next
-// outflow is computed.
+// are those of full passes. Each stride keeps its set of such (dirty) tiles,
+// and each pass lists the tiles it computes, so a pass costs what it
+// computes, not the map's size. Uncomputed tiles keep zero amounts and no
+// codes: a tile whose outflow moved snow stays dirty and is changed by its
+// gather, so its next outflow is computed.
 #include "snow/stabilize_cpu.h"
 
 #include <algorithm>
@@ -24,8 +26,6 @@
 
 namespace snow {
 namespace {
-
-constexpr int kTile = 8;  // columns per side of a tile
 
 int cell_flags(const glm::vec4& cell) { return int(cell.w); }
 
@@ -80,10 +80,13 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
     }
     if (any) surface_tiles_.push_back(int(t));
   }
+  has_surface_.assign(tiles, 0);
+  for (int t : surface_tiles_) has_surface_[size_t(t)] = 1;
+  levels_ = log2_of(settings_.max_stride) + 1;
+  for (int level = 0; level < levels_; ++level) dirty_[level].reset(tiles);
+  sent_.reset(tiles);
+  near_.reset(tiles);
   changed_.assign(tiles, 0);
-  for (auto& q : quiet_) q.assign(tiles, -1);
-  sent_.assign(tiles, 0);
-  flag_.assign(tiles, 0);
 }
 
 CpuStabilizer::Tile CpuStabilizer::tile(int t) const {
@@ -92,22 +95,35 @@ CpuStabilizer::Tile CpuStabilizer::tile(int t) const {
           std::min(height_, (tj + 1) * kTile)};
 }
 
-void CpuStabilizer::touch_all() { std::fill(changed_.begin(), changed_.end(), pass_); }
+void CpuStabilizer::TileSet::reset(size_t tiles) {
+  in.assign(tiles, 0);
+  list.clear();
+}
 
-template <class Want>
-const std::vector<int>& CpuStabilizer::select_tiles(int reach, Want want) {
-  if (!settings_.active_tiles) return surface_tiles_;
-  selected_.clear();
-  for (int t : surface_tiles_) {
-    const int ti = t % tiles_x_, tj = t / tiles_x_;
-    bool any = false;
-    for (int b = std::max(0, tj - reach); b <= std::min(tiles_y_ - 1, tj + reach) && !any; ++b) {
-      for (int a = std::max(0, ti - reach); a <= std::min(tiles_x_ - 1, ti + reach) && !any; ++a)
-        any = want(t, b * tiles_x_ + a);
+void CpuStabilizer::TileSet::clear() {
+  for (int t : list) in[size_t(t)] = 0;
+  list.clear();
+}
+
+void CpuStabilizer::add_near(TileSet& set, int t, int reach) const {
+  const int ti = t % tiles_x_, tj = t / tiles_x_;
+  for (int b = std::max(0, tj - reach); b <= std::min(tiles_y_ - 1, tj + reach); ++b) {
+    for (int a = std::max(0, ti - reach); a <= std::min(tiles_x_ - 1, ti + reach); ++a) {
+      const int u = b * tiles_x_ + a;
+      if (has_surface_[size_t(u)]) set.add(u);
     }
-    if (any) selected_.push_back(t);
   }
-  return selected_;
+}
+
+void CpuStabilizer::touch_all() {
+  for (int level = 0; level < levels_; ++level) {
+    dirty_[level].clear();
+    for (int t : surface_tiles_) dirty_[level].add(t);
+  }
+}
+
+void CpuStabilizer::touch(int t) {
+  for (int level = 0; level < levels_; ++level) add_near(dirty_[level], t, reach(1 << level));
 }
 
 template <class Fn>
@@ -156,7 +172,7 @@ double CpuStabilizer::lost_volume() const {
 
 // Mirrors shaders/column.glsl: snow::land_in_column on the cells, with the
 // snow tops ground + depth, or with `kept` the routing's kept heights.
-int CpuStabilizer::land(int i, int j, float h, float support, float rise, bool kept) const {
+inline int CpuStabilizer::land(int i, int j, float h, float support, float rise, bool kept) const {
   if (i < 0 || j < 0 || i >= width_ || j >= height_) return kLandVoid;
   for (int l = 0; l < layers_; ++l) {
     const size_t k = index(l, i, j);
@@ -323,17 +339,14 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride) {
 }
 
 void CpuStabilizer::outflow_pass(int stride) {
-  ++pass_;
-  last_stride_ = stride;
-  std::vector<int>& quiet = quiet_[log2_of(stride)];
-  const int reach = (stride + kTile - 1) / kTile;
-  const int pass = pass_;
-  // Inputs: the depth within `stride` columns.
-  const std::vector<int>& tiles = select_tiles(reach, [&](int t, int near) {
-    return quiet[size_t(t)] < 0 || changed_[size_t(near)] >= quiet[size_t(t)];
-  });
+  // Inputs: the depth within `stride` columns. The tiles: those dirty for
+  // this stride (a tile within reach changed since the tile's last outflow
+  // of this stride moved nothing there, or it moved something).
+  TileSet& dirty = dirty_[log2_of(stride)];
+  const bool active = settings_.active_tiles;
+  work_ = active ? dirty.list : surface_tiles_;
+  const std::vector<int>& tiles = work_;
   tile_work_ += double(tiles.size());
-  std::fill(sent_.begin(), sent_.end(), 0);
   slot_max_.assign(tiles.size(), 0.0f);
   for_tiles(tiles, [&](int t, size_t slot) {
     const Tile b = tile(t);
@@ -346,11 +359,20 @@ void CpuStabilizer::outflow_pass(int stride) {
       }
     }
     slot_max_[slot] = largest;
-    sent_[size_t(t)] = largest > 0.0f;
-    quiet[size_t(t)] = largest > 0.0f ? -1 : pass;
   });
   residual_ = 0.0f;
-  for (float m : slot_max_) residual_ = std::max(residual_, m);
+  sent_.clear();
+  if (active) dirty.list.clear();
+  for (size_t slot = 0; slot < tiles.size(); ++slot) {
+    const int t = tiles[slot];
+    residual_ = std::max(residual_, slot_max_[slot]);
+    if (slot_max_[slot] > 0.0f) {
+      sent_.add(t);
+      if (active) dirty.list.push_back(t);  // it moves snow: computed again next time
+    } else if (active) {
+      dirty.in[size_t(t)] = 0;
+    }
+  }
 }
 
 // Mirrors shaders/stabilize_gather.frag, which also works per column: each
@@ -390,22 +412,28 @@ bool CpuStabilizer::gather_column(int i, int j, int stride) {
 }
 
 void CpuStabilizer::gather_pass(int stride) {
-  const int reach = (stride + kTile - 1) / kTile;
   // Inputs: the amounts within `stride` columns (the depth read is the
-  // texel's own, so the pass works in place).
-  const std::vector<int>& tiles =
-      select_tiles(reach, [&](int, int near) { return sent_[size_t(near)] != 0; });
-  const int pass = pass_;
+  // texel's own, so the pass works in place): the tiles near one that sent.
+  const bool active = settings_.active_tiles;
+  if (active) {
+    for (int t : sent_.list) add_near(near_, t, reach(stride));
+  }
+  const std::vector<int>& tiles = active ? near_.list : surface_tiles_;
   for_tiles(tiles, [&](int t, size_t) {
     const Tile b = tile(t);
-    bool changed = sent_[size_t(t)] != 0;
+    bool changed = sent_.in[size_t(t)] != 0;
     for (int j = b.j0; j < b.j1; ++j) {
-      for (int i = b.i0; i < b.i1; ++i) {
-        changed |= gather_column(i, j, stride);
-      }
+      for (int i = b.i0; i < b.i1; ++i) changed |= gather_column(i, j, stride);
     }
-    if (changed) changed_[size_t(t)] = pass;
+    changed_[size_t(t)] = changed;
   });
+  // A changed tile's neighbours within each stride's reach are dirty.
+  if (active) {
+    for (int t : tiles) {
+      if (changed_[size_t(t)]) touch(t);
+    }
+    near_.clear();
+  }
 }
 
 // Mirrors shaders/stabilize_erode.frag: H = max(ground, min(H, min over
@@ -432,7 +460,6 @@ float CpuStabilizer::erode_texel(int l, int i, int j) const {
 
 int CpuStabilizer::route(double* routed_volume) {
   const size_t count = cells_.size();
-  const size_t tiles = changed_.size();
   // Erosion passes (shaders/stabilize_erode.frag): the highest snow surface
   // each texel can keep, from H = min(ground + depth, ceiling), until
   // nothing changes (shaders/stabilize_erode_check.frag). A pass computes
@@ -442,12 +469,16 @@ int CpuStabilizer::route(double* routed_volume) {
   stable_.assign(count, 0.0f);
   for (size_t k = 0; k < count; ++k) stable_[k] = free_top(cells_[k], depth_[k]);
   std::vector<float> next(count);
-  std::vector<uint8_t> moved(tiles, 1), moved_now(tiles, 0);
+  // The tiles that changed in the last pass (the first: every tile).
+  std::vector<int> moved = surface_tiles_;
   int passes = 0;
   for (;;) {
-    const std::vector<int>& active =
-        select_tiles(1, [&](int, int near) { return moved[size_t(near)] != 0; });
-    std::fill(moved_now.begin(), moved_now.end(), 0);
+    if (settings_.active_tiles) {
+      for (int t : moved) add_near(near_, t, 1);
+    }
+    work_ = settings_.active_tiles ? near_.list : surface_tiles_;
+    near_.clear();
+    const std::vector<int>& active = work_;
     for_tiles(active, [&](int t, size_t) {
       const Tile b = tile(t);
       bool changed = false;
@@ -461,10 +492,10 @@ int CpuStabilizer::route(double* routed_volume) {
           }
         }
       }
-      moved_now[size_t(t)] = changed;
+      changed_[size_t(t)] = changed;
     });
     for_tiles(active, [&](int t, size_t) {
-      if (!moved_now[size_t(t)]) return;
+      if (!changed_[size_t(t)]) return;
       const Tile b = tile(t);
       for (int j = b.j0; j < b.j1; ++j) {
         for (int i = b.i0; i < b.i1; ++i) {
@@ -474,8 +505,11 @@ int CpuStabilizer::route(double* routed_volume) {
       }
     });
     ++passes;
-    moved.swap(moved_now);
-    if (std::find(moved.begin(), moved.end(), 1) == moved.end()) break;
+    moved.clear();
+    for (int t : active) {
+      if (changed_[size_t(t)]) moved.push_back(t);
+    }
+    if (moved.empty()) break;
   }
   next = {};
   // Receiver pass (shaders/stabilize_receiver.frag): a texel holding more

@@ -56,7 +56,6 @@ class CpuStabilizer {
 
   const std::vector<float>& depth() const { return depth_; }
   double lost_volume() const;
-  const std::vector<glm::vec4>& cells() const { return cells_; }
 
  private:
   struct Tile {
@@ -73,7 +72,8 @@ class CpuStabilizer {
   /// reaches a terminal, scatter, apply); returns the erosion plus jump passes
   /// run. Adds the routed volume (m^3) to *routed_volume.
   int route(double* routed_volume);
-  int land(int i, int j, float h, float support, float rise, bool kept = false) const;
+  [[gnu::always_inline]] int land(int i, int j, float h, float support, float rise,
+                                  bool kept = false) const;
   int gap_at(int i, int j, float h) const;
   /// Outflow of one layer texel; returns the sum of its amounts.
   float outflow_texel(int l, int i, int j, int stride);
@@ -81,15 +81,32 @@ class CpuStabilizer {
   bool gather_column(int i, int j, int stride);
   /// Erosion of one layer texel: its next kept height from stable_.
   float erode_texel(int l, int i, int j) const;
-  /// Tiles to compute: every tile with a surface, or (active tiles) those
-  /// with a tile within `reach` tiles for which want(tile) holds.
-  template <class Want>
-  const std::vector<int>& select_tiles(int reach, Want want);
+  /// A set of tiles: a flag per tile and the list of those set.
+  struct TileSet {
+    std::vector<uint8_t> in;
+    std::vector<int> list;
+    void reset(size_t tiles);
+    void add(int t) {
+      if (!in[size_t(t)]) {
+        in[size_t(t)] = 1;
+        list.push_back(t);
+      }
+    }
+    void clear();
+  };
+  /// Adds the tiles with a surface within `reach` tiles of tile t.
+  void add_near(TileSet& set, int t, int reach) const;
+  /// Tiles within this many of a tile hold the columns a pass of `stride`
+  /// reads.
+  static int reach(int stride) { return (stride + kTile - 1) / kTile; }
   /// Runs fn(tile index, slot) over `tiles` on the worker threads.
   template <class Fn>
   void for_tiles(const std::vector<int>& tiles, Fn fn);
   Tile tile(int t) const;
+  /// Every tile dirty for every stride (snow set, added or routed).
   void touch_all();
+  /// Tile t changed: the tiles within each stride's reach are dirty for it.
+  void touch(int t);
   double snow_volume_of(const std::vector<float>& depth) const;
   size_t index(int l, int i, int j) const {
     return (size_t(l) * size_t(height_) + size_t(j)) * size_t(width_) + size_t(i);
@@ -116,19 +133,20 @@ class CpuStabilizer {
   bool route_pending_ = false;
 
   // Tiles of kTile x kTile columns, all layers.
+  static constexpr int kTile = 8;
   int tiles_x_ = 0, tiles_y_ = 0;
-  std::vector<int> surface_tiles_;  // the tiles with a surface
-  int pass_ = 0;                    // outflow passes so far
-  std::vector<int> changed_;        // per tile: the pass whose gather last changed its depth
-                                    // (or pass_ at set_depth, add_snow and routing)
-  std::vector<int> quiet_[7];       // per log2(stride) and tile: the pass whose outflow of that
-                                    // stride last moved nothing there (-1: none since)
-  std::vector<uint8_t> sent_;       // per tile: the last outflow moved snow from it
-  std::vector<uint8_t> flag_;       // per tile: scratch of select_tiles
-  std::vector<int> selected_;       // scratch of select_tiles
-  std::vector<float> slot_max_;     // per selected tile: largest move (outflow)
-  int last_stride_ = 1;
-  double tile_work_ = 0.0;  // tiles times layers computed by the relaxation (count_tiles)
+  std::vector<int> surface_tiles_;    // the tiles with a surface
+  std::vector<uint8_t> has_surface_;  // per tile
+  int levels_ = 1;                    // strides 1, 2, ..., max_stride
+  TileSet dirty_[7];  // per log2(stride): the tiles whose next outflow of that stride may move
+                      // snow (a tile within reach changed since its last one moved nothing
+                      // there, or that one moved snow)
+  TileSet sent_;      // the tiles whose last outflow moved snow
+  TileSet near_;      // scratch: the tiles a gather or erosion pass computes
+  std::vector<uint8_t> changed_;  // per tile: its last gather or erosion pass changed it
+  std::vector<int> work_;         // the tiles a pass computes
+  std::vector<float> slot_max_;   // per tile of work_: largest move (outflow)
+  double tile_work_ = 0.0;        // tiles times layers computed by the relaxation (count_tiles)
 };
 
 /// One-off CPU stabilize (same contract as snow::stabilize): a CpuStabilizer
