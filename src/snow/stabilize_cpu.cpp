@@ -64,6 +64,7 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
 
   const size_t columns = size_t(width_) * size_t(height_);
   column_layers_.assign(columns, 0);
+  column_sent_.assign(columns, 0);
   for (size_t c = 0; c < columns; ++c) {
     int l = 0;
     while (l < layers_ && (cell_flags(cells_[size_t(l) * columns + c]) & kCellSurface)) ++l;
@@ -353,9 +354,12 @@ void CpuStabilizer::outflow_pass(int stride) {
     float largest = 0.0f;
     for (int j = b.j0; j < b.j1; ++j) {
       for (int i = b.i0; i < b.i1; ++i) {
-        const int col_layers = column_layers_[size_t(j) * width_ + i];
-        for (int l = 0; l < col_layers; ++l)
-          largest = std::max(largest, outflow_texel(l, i, j, stride));
+        const size_t c = size_t(j) * width_ + i;
+        float column_largest = 0.0f;
+        for (int l = 0; l < column_layers_[c]; ++l)
+          column_largest = std::max(column_largest, outflow_texel(l, i, j, stride));
+        column_sent_[c] = column_largest > 0.0f;
+        largest = std::max(largest, column_largest);
       }
     }
     slot_max_[slot] = largest;
@@ -378,25 +382,32 @@ void CpuStabilizer::outflow_pass(int stride) {
 // Mirrors shaders/stabilize_gather.frag, which also works per column: each
 // neighbour column's landing codes are read once for all layers, and every
 // layer texel adds what it receives in the same order as one at a time.
+// Columns that sent nothing are skipped: their amounts are all zero, and
+// subtracting or adding zeros changes no depth.
 bool CpuStabilizer::gather_column(int i, int j, int stride) {
-  const int col_layers = column_layers_[size_t(j) * width_ + i];
+  const size_t c = size_t(j) * width_ + i;
+  const int col_layers = column_layers_[c];
   float s[64];
   bool changed = false;
-  for (int l = 0; l < col_layers; ++l) {
-    const size_t k = index(l, i, j);
-    s[l] = depth_[k];
-    float lost = lost_[k];
-    for (int n = 0; n < 8; ++n) {
-      const float a = amount_[8 * k + n];
-      s[l] -= a;
-      if (code_[8 * k + n] == kCodeVoid) lost += a;
+  for (int l = 0; l < col_layers; ++l) s[l] = depth_[index(l, i, j)];
+  if (column_sent_[c]) {
+    for (int l = 0; l < col_layers; ++l) {
+      const size_t k = index(l, i, j);
+      float lost = lost_[k];
+      for (int n = 0; n < 8; ++n) {
+        const float a = amount_[8 * k + n];
+        s[l] -= a;
+        if (code_[8 * k + n] == kCodeVoid) lost += a;
+      }
+      lost_[k] = lost;
     }
-    lost_[k] = lost;
   }
   for (int n = 0; n < 8; ++n) {
     const int mi = i - stride * kDirI[n], mj = j - stride * kDirJ[n];
     if (mi < 0 || mj < 0 || mi >= width_ || mj >= height_) continue;
-    const int source_layers = column_layers_[size_t(mj) * width_ + mi];
+    const size_t cm = size_t(mj) * width_ + mi;
+    if (!column_sent_[cm]) continue;
+    const int source_layers = column_layers_[cm];
     for (int lm = 0; lm < source_layers; ++lm) {
       const size_t km = index(lm, mi, mj);
       const uint8_t code = code_[8 * km + n];

@@ -121,6 +121,7 @@ class CpuStabilizer {
   float rise_ = 0.0f;       // metres, kSurfaceContinuityTexels * texel
   std::vector<glm::vec4> cells_;
   std::vector<uint8_t> column_layers_;  // surfaces per column (layers are packed from the top)
+  std::vector<uint8_t> column_sent_;    // per column: its last outflow moved snow
   std::vector<float> depth_;
   std::vector<float> lost_;  // metres lost per layer texel (accumulated at the source)
   // Outflow of the layer texels with a surface (written by the first pass
