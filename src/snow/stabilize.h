@@ -109,7 +109,7 @@ struct StabilizeResult {
   double volume = 0.0;         // m^3 of snow lying on the maps after the call
   double route_seconds = 0.0;  // s, wall time of the routing (both stabilizers)
   double tile_share = 0.0;     // share (0..1) of the tiles times layers the relaxation passes
-                               // computed (the CPU's tiles are 8 x 8 columns, all layers):
+                               // computed (the CPU's tiles are 4 x 4 columns, all layers):
                                // 1 with active_tiles off, 0 unless count_tiles
 
   /// Folds in the result of a later call on the same stabilizer, as one

@@ -129,10 +129,18 @@ void CpuStabilizer::touch(int t) {
 
 template <class Fn>
 void CpuStabilizer::for_tiles(const std::vector<int>& tiles, Fn fn) {
-  // A thread start costs about as much as a few tiles: small passes stay on one.
-  const unsigned threads = tiles.size() < 16 ? 1u : threads_;
+  // Tiles are handed out in chunks (a hand-out costs about what a small tile
+  // does), and a thread start about what a few chunks do: small passes stay
+  // on one thread.
+  constexpr size_t kChunk = 16;
+  const size_t chunks = (tiles.size() + kChunk - 1) / kChunk;
   parallel_for(
-      tiles.size(), [&](size_t slot) { fn(tiles[slot], slot); }, threads);
+      chunks,
+      [&](size_t chunk) {
+        const size_t end = std::min(tiles.size(), (chunk + 1) * kChunk);
+        for (size_t slot = chunk * kChunk; slot < end; ++slot) fn(tiles[slot], slot);
+      },
+      chunks < 4 ? 1u : threads_);
 }
 
 void CpuStabilizer::set_depth(const std::vector<float>& depth) {

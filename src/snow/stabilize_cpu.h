@@ -10,7 +10,7 @@
 //    as the passes are specified);
 //  - the batch job's stabilizer on a software rasterizer (StabilizeDevice),
 //    where the "GPU" passes run on the same CPU cores anyway: here the passes
-//    run natively on all cores, over 8 x 8-column tiles, and skip the tiles
+//    run natively on all cores, over 4 x 4-column tiles, and skip the tiles
 //    whose inputs did not change since they last moved nothing, which
 //    llvmpipe's fragment passes cannot do (a fragment that does nothing
 //    costs it nearly what one that works does). Same results as full passes,
@@ -134,7 +134,7 @@ class CpuStabilizer {
   bool route_pending_ = false;
 
   // Tiles of kTile x kTile columns, all layers.
-  static constexpr int kTile = 8;
+  static constexpr int kTile = 4;
   int tiles_x_ = 0, tiles_y_ = 0;
   std::vector<int> surface_tiles_;    // the tiles with a surface
   std::vector<uint8_t> has_surface_;  // per tile
