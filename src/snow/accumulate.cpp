@@ -93,10 +93,8 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   if (!(settings.snow_on_snow_every > 0 && settings.steps > settings.snow_on_snow_every)) {
     shadows.reset();
   }
-  const bool on_cpu =
+  const bool on_cpu = result.stabilized_on_cpu =
       stabilize.device == "cpu" || (stabilize.device == "auto" && gl::renderer_is_software());
-  log_debug(std::string("stabilize: passes on the ") + (on_cpu ? "CPU" : "GPU") + " (device " +
-            stabilize.device + ")");
   // The steps over either stabilizer (same passes, same results).
   auto run_steps = [&](auto& stabilizer) {
     const float per_step = settings.fall_depth / float(settings.steps);

@@ -21,14 +21,15 @@ struct AccumulateSettings {
 };
 
 struct SnowResult {
-  std::vector<float> depth;     // metres per layer texel (maps' layout)
-  std::vector<float> coverage;  // the last coverage used, [0,1] (maps' layout)
-  StabilizeResult last;         // stabilizer result of the last step
-  int iterations = 0;           // stabilizer passes over all steps, count
-  int coverage_updates = 0;     // coverage computations (1 + snow-on-snow updates), count
-  double fallen_volume = 0.0;   // m^3 of snow added
-  double lost_volume = 0.0;     // m^3 that left the maps (off the domain)
-  double volume = 0.0;          // m^3 lying at the end; fallen = volume + lost (up to rounding)
+  std::vector<float> depth;        // metres per layer texel (maps' layout)
+  std::vector<float> coverage;     // the last coverage used, [0,1] (maps' layout)
+  StabilizeResult last;            // stabilizer result of the last step
+  int iterations = 0;              // stabilizer passes over all steps, count
+  int coverage_updates = 0;        // coverage computations (1 + snow-on-snow updates), count
+  bool stabilized_on_cpu = false;  // the stabilizer ran on the CPU (StabilizeSettings::device)
+  double fallen_volume = 0.0;      // m^3 of snow added
+  double lost_volume = 0.0;        // m^3 that left the maps (off the domain)
+  double volume = 0.0;             // m^3 lying at the end; fallen = volume + lost (up to rounding)
 };
 
 /// Multiplies coverage by 0 on every layer texel whose object does not
