@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <new>
 #include <string>
 
 #include "core/error.h"
@@ -50,17 +51,23 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
       width_(maps.grid.width),
       height_(maps.grid.height),
       layers_(maps.layers),
-      texel_(maps.grid.texel),
-      cells_(stabilize_cells(maps, settings)) {
+      texel_(maps.grid.texel) {
   rise_ = kSurfaceContinuityTexels * texel_;
   distance_[0] = distance_[1] = distance_[2] = distance_[3] = texel_;
   distance_[4] = distance_[5] = distance_[6] = distance_[7] =
       float(double(texel_) * std::sqrt(2.0));
-  const size_t n = cells_.size();
-  depth_.assign(n, 0.0f);
-  lost_.assign(n, 0.0f);
-  amount_.reset(new float[8 * n]);
-  code_.reset(new uint8_t[8 * n]);
+  try {
+    cells_ = stabilize_cells(maps, settings);
+    const size_t n = cells_.size();
+    depth_.assign(n, 0.0f);
+    lost_.assign(n, 0.0f);
+    amount_.reset(new float[8 * n]);
+    code_.reset(new uint8_t[8 * n]);
+  } catch (const std::bad_alloc&) {
+    throw InputError("stabilize: out of memory for maps of " + std::to_string(width_) + " x " +
+                     std::to_string(height_) + " texels x " + std::to_string(layers_) +
+                     " layers (64 B per layer texel); use a coarser texel size");
+  }
 
   const size_t columns = size_t(width_) * size_t(height_);
   column_layers_.assign(columns, 0);
