@@ -92,7 +92,7 @@ struct StabilizeSettings {
                                    // bit for bit), or "auto": the CPU where the GL renderer is
                                    // a software rasterizer, which runs the GPU passes on the
                                    // same cores, slower (llvmpipe, building-small-a with the
-                                   // defaults: whole run 8.2 s on the GPU passes, 3.4 s), else
+                                   // defaults: whole run 8.6 s on the GPU passes, 2.1 s), else
                                    // the GPU. The live preview always uses the GPU
   bool count_tiles = false;        // GPU: count the active tiles (a small readback per pass)
                                    // into StabilizeResult::tile_share, for benchmarks
