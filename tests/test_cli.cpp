@@ -94,6 +94,12 @@ TEST(Cli, InfoPrintsSceneSummary) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("OpenGL:"), std::string::npos);
   EXPECT_NE(r.output.find("triangles: 956"), std::string::npos) << r.output;
+  // Where the batch job's stabilizer runs by default: on llvmpipe, the CPU.
+  const bool software = r.output.find("llvmpipe") != std::string::npos;
+  EXPECT_NE(r.output.find(software ? "Stabilizer (--stabilizer auto): CPU passes"
+                                   : "Stabilizer (--stabilizer auto): GPU passes"),
+            std::string::npos)
+      << r.output;
 }
 
 TEST(Cli, InfoJson) {

@@ -23,6 +23,9 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
       auto context = make_headless_context(global);
       std::printf("OpenGL: %s (%s)\n", context->description().c_str(),
                   gl::to_string(context->backend()).c_str());
+      std::printf(
+          "Stabilizer (--stabilizer auto): %s\n",
+          gl::renderer_is_software() ? "CPU passes (the GL renderer is software)" : "GPU passes");
     }
     if (options->scene.empty()) return;
     const Scene scene = load_scene(options->scene);
