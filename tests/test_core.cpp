@@ -1,9 +1,11 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "core/error.h"
@@ -70,15 +72,28 @@ TEST(ParallelFor, CallsEveryIndexOnce) {
 }
 
 TEST(ParallelFor, RethrowsTheFirstErrorAfterAllThreadsStop) {
-  std::atomic<int> calls{0};
-  EXPECT_THROW(snow::parallel_for(
-                   100000,
-                   [&](size_t i) {
-                     ++calls;
-                     if (i == 10) throw std::runtime_error("index 10");
-                   },
-                   4),
-               std::runtime_error);
-  // The remaining indices are skipped once one call has thrown.
-  EXPECT_LT(calls.load(), 100000);
+  for (unsigned threads : {1u, 4u}) {
+    std::atomic<int> calls{0};
+    std::atomic<bool> thrown{false};
+    EXPECT_THROW(snow::parallel_for(
+                     100000,
+                     [&](size_t i) {
+                       ++calls;
+                       if (i == 10) {
+                         thrown = true;
+                         throw std::runtime_error("index 10");
+                       }
+                       // Later indices wait for the throw (the thread holding
+                       // index 10 may be descheduled for all the others), then
+                       // leave the thrower time to reach its handler.
+                       if (i > 10) {
+                         while (!thrown) std::this_thread::yield();
+                         std::this_thread::sleep_for(std::chrono::milliseconds(1));
+                       }
+                     },
+                     threads),
+                 std::runtime_error);
+    // The remaining indices are skipped once one call has thrown.
+    EXPECT_LT(calls.load(), 1000) << threads;
+  }
 }
