@@ -12,11 +12,13 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <glm/glm.hpp>
 
 #include "core/error.h"
 #include "gl/context.h"
+#include "gl/gl.h"
 #include "live/live_sim.h"
 #include "live/orbit.h"
 #include "live/snow_view.h"
@@ -119,6 +121,44 @@ TEST(SnowView, AutoStrideKeepsTheDrawnGridSmall) {
   EXPECT_EQ(live::auto_stride(4096, 100), 6);
 }
 
+// The live snowfall with the stabilizer on the GPU and on the CPU: the same
+// snow frame by frame, and the CPU's depth uploaded into the texture the
+// snow is drawn from.
+TEST(LiveSim, CpuAndGpuStabilizersGiveTheSameSnow) {
+  auto context = gl::create_context();
+  const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
+  live::LiveSettings settings;
+  settings.peel.max_side = 64;
+  settings.peel.layers = 4;
+  settings.coverage.directions = 16;
+  settings.total_depth = 0.2f;
+  settings.fall_rate = 1.5f;
+  settings.passes_per_frame = 8;
+  settings.stabilize.device = "gpu";
+  live::LiveSim gpu(scene, settings);
+  settings.stabilize.device = "cpu";
+  live::LiveSim cpu(scene, settings);
+  EXPECT_FALSE(gpu.stabilizes_on_cpu());
+  EXPECT_TRUE(cpu.stabilizes_on_cpu());
+  for (int f = 0; f < 10; ++f) {
+    gpu.step();
+    cpu.step();
+    SCOPED_TRACE(f);
+    ASSERT_EQ(gpu.depth(), cpu.depth());
+  }
+  EXPECT_EQ(gpu.lost_volume(), cpu.lost_volume());
+  const std::vector<float> depth = cpu.depth();
+  std::vector<float> drawn(depth.size(), -1.0f);
+  glGetTextureImage(cpu.depth_texture(), 0, GL_RED, GL_FLOAT, GLsizei(drawn.size() * sizeof(float)),
+                    drawn.data());
+  EXPECT_EQ(drawn, depth);
+  // Switching the device keeps the snow.
+  settings.stabilize.device = "gpu";
+  cpu.apply(settings);
+  EXPECT_FALSE(cpu.stabilizes_on_cpu());
+  EXPECT_EQ(cpu.depth(), depth);
+}
+
 // The live snowfall on a table (headless context): snow accumulates frame
 // by frame, mass is conserved (lying + lost = fallen), none lies under the
 // table, and the panel's changes (repose, coverage, re-peel) keep a
@@ -139,7 +179,7 @@ TEST(LiveSim, TableSnowfallConservesMassAndShelters) {
   EXPECT_EQ(sim.frame(), 12);
   EXPECT_FLOAT_EQ(sim.fallen_depth(), 0.2f);
   const std::vector<float> depth = sim.depth();
-  const double lying = snow_volume(maps, depth), lost = sim.stabilizer().lost_volume();
+  const double lying = snow_volume(maps, depth), lost = sim.lost_volume();
   EXPECT_GT(sim.fallen_volume(), 0.5 * 16 * 0.2);
   EXPECT_NEAR(lying + lost, sim.fallen_volume(), 1e-3 * sim.fallen_volume());
   // Under the table's middle: the floor (lowest layer with a surface) is bare;

@@ -9,8 +9,10 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "gl/context.h"
 #include "gl/gl.h"
 #include "snow/accumulate.h"
+#include "snow/stabilize_cpu.h"
 
 namespace snow::live {
 namespace {
@@ -37,7 +39,7 @@ bool same(const StabilizeSettings& a, const StabilizeSettings& b) {
          a.tolerance == b.tolerance && a.min_move == b.min_move &&
          a.max_iterations == b.max_iterations && a.check_every == b.check_every &&
          a.max_stride == b.max_stride && a.adaptive_stride == b.adaptive_stride &&
-         a.route_steep == b.route_steep && a.seed == b.seed;
+         a.route_steep == b.route_steep && a.seed == b.seed && a.device == b.device;
 }
 
 void check(const LiveSettings& s) {
@@ -72,9 +74,8 @@ LiveSim::~LiveSim() = default;
 void LiveSim::peel() {
   const auto start = Clock::now();
   SnowMaps maps = peel_layers(scene_, settings_.peel);
-  auto stabilizer = std::make_unique<Stabilizer>(maps, settings_.stabilize);
+  make_stabilizer(maps, nullptr);
   maps_ = std::move(maps);
-  stabilizer_ = std::move(stabilizer);
   timings_.peel = seconds_since(start);
   ++maps_version_;
   compute_coverage(nullptr);
@@ -83,6 +84,43 @@ void LiveSim::peel() {
   frame_ = 0;
   last_ = StabilizeResult();
 }
+
+void LiveSim::make_stabilizer(const SnowMaps& maps, const std::vector<float>* depth) {
+  const StabilizeSettings& s = settings_.stabilize;
+  if (s.device == "cpu" || (s.device == "auto" && gl::renderer_is_software())) {
+    auto cpu = std::make_unique<CpuStabilizer>(maps, s);
+    cpu->set_depth(depth ? *depth : std::vector<float>(maps.ground.size(), 0.0f));
+    gl::Texture texture = gl::create_texture_2d_array(GL_R32F, maps.grid.width, maps.grid.height,
+                                                      maps.layers, "live snow depth");
+    cpu_ = std::move(cpu);
+    cpu_depth_ = std::move(texture);
+    gpu_.reset();
+    upload_depth();
+  } else {
+    auto gpu = std::make_unique<Stabilizer>(maps, s);
+    if (depth) gpu->set_depth(*depth);
+    gpu_ = std::move(gpu);
+    cpu_.reset();
+    cpu_depth_ = gl::Texture();
+  }
+}
+
+void LiveSim::upload_depth() {
+  if (!cpu_) return;
+  int width = 0, height = 0, layers = 0;
+  glGetTextureLevelParameteriv(cpu_depth_.id(), 0, GL_TEXTURE_WIDTH, &width);
+  glGetTextureLevelParameteriv(cpu_depth_.id(), 0, GL_TEXTURE_HEIGHT, &height);
+  glGetTextureLevelParameteriv(cpu_depth_.id(), 0, GL_TEXTURE_DEPTH, &layers);
+  glTextureSubImage3D(cpu_depth_.id(), 0, 0, 0, 0, width, height, layers, GL_RED, GL_FLOAT,
+                      cpu_->depth().data());
+  gl::check_error("live snow depth upload");
+}
+
+unsigned LiveSim::depth_texture() const { return cpu_ ? cpu_depth_.id() : gpu_->depth_texture(); }
+
+std::vector<float> LiveSim::depth() const { return cpu_ ? cpu_->depth() : gpu_->depth(); }
+
+double LiveSim::lost_volume() const { return cpu_ ? cpu_->lost_volume() : gpu_->lost_volume(); }
 
 void LiveSim::compute_coverage(const std::vector<float>* lying) {
   const auto start = Clock::now();
@@ -103,7 +141,7 @@ void LiveSim::step() {
   timings_.coverage = 0;
   const int every = settings_.snow_on_snow_every;
   if (every > 0 && frame_ > 0 && frame_ % every == 0 && fallen_depth_ < settings_.total_depth) {
-    const std::vector<float> lying = stabilizer_->depth();
+    const std::vector<float> lying = depth();
     compute_coverage(&lying);
   }
   auto start = Clock::now();
@@ -113,14 +151,23 @@ void LiveSim::step() {
                       settings_.total_depth - fallen_depth_)
            : 0.0f;
   if (amount > 0.0f) {
-    stabilizer_->add_snow(coverage_, amount);
+    if (cpu_) {
+      cpu_->add_snow(coverage_, amount);
+    } else {
+      gpu_->add_snow(coverage_, amount);
+    }
     fallen_depth_ += amount;
     fallen_volume_ += double(amount) * coverage_area_;
   }
   timings_.add = seconds_since(start);
   start = Clock::now();
   if (amount > 0.0f || !last_.converged) {
-    last_ = stabilizer_->iterate(settings_.passes_per_frame);
+    if (cpu_) {
+      last_ = cpu_->iterate(settings_.passes_per_frame);
+      upload_depth();
+    } else {
+      last_ = gpu_->iterate(settings_.passes_per_frame);
+    }
   }  // else: nothing fell and the snow is at rest; passes would move nothing
   timings_.stabilize = seconds_since(start);
   log_debug("live frame " + std::to_string(frame_) + ": add " + std::to_string(timings_.add) +
@@ -131,7 +178,13 @@ void LiveSim::step() {
 }
 
 void LiveSim::reset() {
-  stabilizer_->set_depth(std::vector<float>(maps_.ground.size(), 0.0f));
+  const std::vector<float> none(maps_.ground.size(), 0.0f);
+  if (cpu_) {
+    cpu_->set_depth(none);
+    upload_depth();
+  } else {
+    gpu_->set_depth(none);
+  }
   fallen_depth_ = 0;
   fallen_volume_ = 0;
   frame_ = 0;
@@ -149,15 +202,13 @@ void LiveSim::apply(const LiveSettings& settings) {
       return;
     }
     if (!same(old.stabilize, settings.stabilize)) {
-      const std::vector<float> lying = stabilizer_->depth();
-      auto stabilizer = std::make_unique<Stabilizer>(maps_, settings_.stabilize);
-      stabilizer->set_depth(lying);
-      stabilizer_ = std::move(stabilizer);
+      const std::vector<float> lying = depth();
+      make_stabilizer(maps_, &lying);
       last_.converged = false;
     }
     if (!same(old.coverage, settings.coverage)) {
       if (settings_.snow_on_snow_every > 0) {
-        const std::vector<float> lying = stabilizer_->depth();
+        const std::vector<float> lying = depth();
         compute_coverage(&lying);
       } else {
         compute_coverage(nullptr);

@@ -1,6 +1,7 @@
 #pragma once
 // The live snowfall of the preview window: the batch stages (peel_layers,
-// CoverageRenderer, Stabilizer) with their state kept between frames. Each
+// CoverageRenderer, Stabilizer or CpuStabilizer) with their state kept
+// between frames. Each
 // frame adds fresh snow in proportion to the coverage and runs a few
 // stabilizer passes, so snow piles up, slides off roofs and drops to the
 // ground while the viewer draws it (DESIGN.md, "live accumulation
@@ -9,18 +10,25 @@
 #include <memory>
 #include <vector>
 
+#include "gl/objects.h"
 #include "scene/scene.h"
 #include "snow/coverage.h"
 #include "snow/maps.h"
 #include "snow/peel.h"
 #include "snow/stabilize.h"
 
+namespace snow {
+class CpuStabilizer;
+}
+
 namespace snow::live {
 
 struct LiveSettings {
   PeelSettings peel;            // maps (texel size, layers); a change re-peels and resets the snow
   CoverageSettings coverage;    // fall directions; a change recomputes the coverage
-  StabilizeSettings stabilize;  // repose; a change rebuilds the stabilizer, keeping the snow
+  StabilizeSettings stabilize;  // repose; a change rebuilds the stabilizer, keeping the snow.
+                                // device: as in the batch job (auto: the CPU passes where
+                                // GL is software, their depth uploaded for drawing)
   float total_depth = 0.3f;     // metres of fresh snow on open flat ground; snowfall stops there
   float fall_rate = 0.05f;      // metres of fresh snow per simulated second on open flat ground
   float frame_time = 1.0f / 30.0f;  // simulated seconds per frame (fixed: same frames, same snow)
@@ -71,11 +79,17 @@ class LiveSim {
   const LiveSettings& settings() const { return settings_; }
   const SnowMaps& maps() const { return maps_; }
   const std::vector<float>& coverage() const { return coverage_; }
-  const Stabilizer& stabilizer() const { return *stabilizer_; }
-  /// Depth texture of the stabilizer (see Stabilizer::depth_texture).
-  unsigned depth_texture() const { return stabilizer_->depth_texture(); }
+  /// The snow depth as a GL_TEXTURE_2D_ARRAY, one layer per map layer, r =
+  /// depth in metres (the GPU stabilizer's own texture, or the CPU
+  /// stabilizer's depth uploaded after each change); valid until the next
+  /// step, reset or apply.
+  unsigned depth_texture() const;
   /// Current snow depth (metres per layer texel; a full readback).
-  std::vector<float> depth() const { return stabilizer_->depth(); }
+  std::vector<float> depth() const;
+  /// m^3 of snow that left the maps since the last reset or re-peel.
+  double lost_volume() const;
+  /// The stabilizer runs on the CPU (settings.stabilize.device).
+  bool stabilizes_on_cpu() const { return cpu_ != nullptr; }
   const StabilizeResult& last_result() const { return last_; }
   const LiveTimings& timings() const { return timings_; }
 
@@ -89,13 +103,20 @@ class LiveSim {
  private:
   void peel();
   void compute_coverage(const std::vector<float>* lying);
+  /// Replaces the stabilizer by one for `maps` and settings_.stabilize
+  /// holding `depth` (null: no snow); keeps the old one when it throws.
+  void make_stabilizer(const SnowMaps& maps, const std::vector<float>* depth);
+  /// The CPU stabilizer's depth into cpu_depth_ (nothing for the GPU's).
+  void upload_depth();
 
   const Scene& scene_;
   LiveSettings settings_;
   std::vector<uint8_t> receives_;
   SnowMaps maps_;
   std::unique_ptr<CoverageRenderer> shadows_;
-  std::unique_ptr<Stabilizer> stabilizer_;
+  std::unique_ptr<Stabilizer> gpu_;     // one of these two is set
+  std::unique_ptr<CpuStabilizer> cpu_;  //
+  gl::Texture cpu_depth_;               // R32F array: cpu_'s depth, for drawing
   std::vector<float> coverage_;
   double coverage_area_ = 0;  // sum of coverage * texel area (m^2): volume per metre of fall
   StabilizeResult last_;

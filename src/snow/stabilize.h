@@ -93,7 +93,7 @@ struct StabilizeSettings {
                                    // a software rasterizer, which runs the GPU passes on the
                                    // same cores, slower (llvmpipe, building-small-a with the
                                    // defaults: whole run 8.6 s on the GPU passes, 2.1 s), else
-                                   // the GPU. The live preview always uses the GPU
+                                   // the GPU. The live preview chooses the same way
   bool count_tiles = false;        // GPU: count the active tiles (a small readback per pass)
                                    // into StabilizeResult::tile_share, for benchmarks
 };
