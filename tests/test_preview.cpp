@@ -121,19 +121,26 @@ TEST(SnowView, AutoStrideKeepsTheDrawnGridSmall) {
   EXPECT_EQ(live::auto_stride(4096, 100), 6);
 }
 
-// The live snowfall with the stabilizer on the GPU and on the CPU: the same
-// snow frame by frame, and the CPU's depth uploaded into the texture the
-// snow is drawn from.
-TEST(LiveSim, CpuAndGpuStabilizersGiveTheSameSnow) {
-  auto context = gl::create_context();
-  const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
+// Live snowfall on the table scene's small maps: 0.2 m in 4 frames (0.05 m
+// per frame).
+live::LiveSettings table_live_settings(int passes_per_frame) {
   live::LiveSettings settings;
   settings.peel.max_side = 64;
   settings.peel.layers = 4;
   settings.coverage.directions = 16;
   settings.total_depth = 0.2f;
   settings.fall_rate = 1.5f;
-  settings.passes_per_frame = 8;
+  settings.passes_per_frame = passes_per_frame;
+  return settings;
+}
+
+// The live snowfall with the stabilizer on the GPU and on the CPU: the same
+// snow frame by frame, and the CPU's depth uploaded into the texture the
+// snow is drawn from.
+TEST(LiveSim, CpuAndGpuStabilizersGiveTheSameSnow) {
+  auto context = gl::create_context();
+  const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
+  live::LiveSettings settings = table_live_settings(8);
   settings.stabilize.device = "gpu";
   live::LiveSim gpu(scene, settings);
   settings.stabilize.device = "cpu";
@@ -166,13 +173,7 @@ TEST(LiveSim, CpuAndGpuStabilizersGiveTheSameSnow) {
 TEST(LiveSim, TableSnowfallConservesMassAndShelters) {
   auto context = gl::create_context();
   const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
-  live::LiveSettings settings;
-  settings.peel.max_side = 64;
-  settings.peel.layers = 4;
-  settings.coverage.directions = 16;
-  settings.total_depth = 0.2f;
-  settings.fall_rate = 1.5f;  // 0.05 m per frame: all of it in 4 frames
-  settings.passes_per_frame = 32;
+  const live::LiveSettings settings = table_live_settings(32);
   live::LiveSim sim(scene, settings);
   const SnowMaps& maps = sim.maps();
   for (int f = 0; f < 12; ++f) sim.step();
