@@ -95,7 +95,7 @@ void LiveSim::make_stabilizer(const SnowMaps& maps, const std::vector<float>* de
     cpu_ = std::move(cpu);
     cpu_depth_ = std::move(texture);
     gpu_.reset();
-    upload_depth();
+    upload_depth(maps);
   } else {
     auto gpu = std::make_unique<Stabilizer>(maps, s);
     if (depth) gpu->set_depth(*depth);
@@ -105,14 +105,10 @@ void LiveSim::make_stabilizer(const SnowMaps& maps, const std::vector<float>* de
   }
 }
 
-void LiveSim::upload_depth() {
+void LiveSim::upload_depth(const SnowMaps& maps) {
   if (!cpu_) return;
-  int width = 0, height = 0, layers = 0;
-  glGetTextureLevelParameteriv(cpu_depth_.id(), 0, GL_TEXTURE_WIDTH, &width);
-  glGetTextureLevelParameteriv(cpu_depth_.id(), 0, GL_TEXTURE_HEIGHT, &height);
-  glGetTextureLevelParameteriv(cpu_depth_.id(), 0, GL_TEXTURE_DEPTH, &layers);
-  glTextureSubImage3D(cpu_depth_.id(), 0, 0, 0, 0, width, height, layers, GL_RED, GL_FLOAT,
-                      cpu_->depth().data());
+  glTextureSubImage3D(cpu_depth_.id(), 0, 0, 0, 0, maps.grid.width, maps.grid.height, maps.layers,
+                      GL_RED, GL_FLOAT, cpu_->depth().data());
   gl::check_error("live snow depth upload");
 }
 
@@ -164,7 +160,7 @@ void LiveSim::step() {
   if (amount > 0.0f || !last_.converged) {
     if (cpu_) {
       last_ = cpu_->iterate(settings_.passes_per_frame);
-      upload_depth();
+      upload_depth(maps_);
     } else {
       last_ = gpu_->iterate(settings_.passes_per_frame);
     }
@@ -181,7 +177,7 @@ void LiveSim::reset() {
   const std::vector<float> none(maps_.ground.size(), 0.0f);
   if (cpu_) {
     cpu_->set_depth(none);
-    upload_depth();
+    upload_depth(maps_);
   } else {
     gpu_->set_depth(none);
   }

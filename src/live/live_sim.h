@@ -106,8 +106,9 @@ class LiveSim {
   /// Replaces the stabilizer by one for `maps` and settings_.stabilize
   /// holding `depth` (null: no snow); keeps the old one when it throws.
   void make_stabilizer(const SnowMaps& maps, const std::vector<float>* depth);
-  /// The CPU stabilizer's depth into cpu_depth_ (nothing for the GPU's).
-  void upload_depth();
+  /// The CPU stabilizer's depth (on `maps`) into cpu_depth_ (nothing for
+  /// the GPU's).
+  void upload_depth(const SnowMaps& maps);
 
   const Scene& scene_;
   LiveSettings settings_;

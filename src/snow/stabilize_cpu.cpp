@@ -28,6 +28,12 @@
 namespace snow {
 namespace {
 
+/// Landing codes of the outflow pass besides a layer index (0..63).
+constexpr uint8_t kCodeNone = 254;  // no flow in that direction
+constexpr uint8_t kCodeVoid = 255;  // flow off the map or into the void below: lost
+/// Receiver pointers of the routing passes besides a texel index.
+constexpr uint32_t kPointerVoid = 0xffffffffu;
+
 int cell_flags(const glm::vec4& cell) { return int(cell.w); }
 
 // The snow surface as far as it is free to move: ground + depth, kept

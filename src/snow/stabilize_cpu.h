@@ -8,7 +8,8 @@
 //  - the reference that the GPU passes are tested against (with
 //    settings.active_tiles off it computes every layer texel in every pass,
 //    as the passes are specified);
-//  - the batch job's stabilizer on a software rasterizer (StabilizeDevice),
+//  - the stabilizer of the batch job and the live preview on a software
+//    rasterizer (StabilizeSettings::device),
 //    where the "GPU" passes run on the same CPU cores anyway: here the passes
 //    run natively on all cores, over 4 x 4-column tiles, and skip the tiles
 //    whose inputs did not change since they last moved nothing, which
@@ -25,12 +26,6 @@
 #include "snow/stabilize.h"
 
 namespace snow {
-
-/// Landing codes of the outflow pass besides a layer index (0..63).
-constexpr uint8_t kCodeNone = 254;  // no flow in that direction
-constexpr uint8_t kCodeVoid = 255;  // flow off the map or into the void below: lost
-/// Receiver pointers of the routing passes besides a texel index.
-constexpr uint32_t kPointerVoid = 0xffffffffu;
 
 /// Neighbour direction n (0..7): column offset (kDirI[n], kDirJ[n]); 0..3 are
 /// the edge neighbours (distance texel), 4..7 the diagonal ones (texel*sqrt2).
@@ -147,7 +142,7 @@ class CpuStabilizer {
   std::vector<uint8_t> changed_;  // per tile: its last gather or erosion pass changed it
   std::vector<int> work_;         // the tiles a pass computes
   std::vector<float> slot_max_;   // per tile of work_: largest move (outflow)
-  double tile_work_ = 0.0;        // tiles times layers computed by the relaxation (count_tiles)
+  double tile_work_ = 0.0;        // tiles computed by the relaxation passes (count_tiles)
 };
 
 /// One-off CPU stabilize (same contract as snow::stabilize): a CpuStabilizer
