@@ -102,6 +102,31 @@ TEST(Cli, InfoPrintsSceneSummary) {
       << r.output;
 }
 
+TEST(Cli, InfoSaysWhetherTheHeapHasHugePages) {
+  // snowmodel re-executes itself with glibc.malloc.hugetlb=1 added to
+  // GLIBC_TUNABLES (core/huge_pages.h), unless the user named that tunable.
+  const auto info = [](const std::string& env) {
+    return snow::test::run_command(env + " " + std::string(SNOWMODEL_EXE) + " info");
+  };
+  const RunResult unset = info("env -u GLIBC_TUNABLES");
+  ASSERT_EQ(unset.code, 0) << unset.output;
+  if (unset.output.find("this glibc has no") != std::string::npos) GTEST_SKIP() << unset.output;
+  EXPECT_NE(unset.output.find("Huge pages for the heap: "), std::string::npos) << unset.output;
+  EXPECT_NE(unset.output.find("GLIBC_TUNABLES glibc.malloc.hugetlb=1)"), std::string::npos)
+      << unset.output;
+  // Other tunables are kept, and the hugetlb one added.
+  const RunResult other = info("GLIBC_TUNABLES=glibc.malloc.check=0");
+  ASSERT_EQ(other.code, 0) << other.output;
+  EXPECT_NE(other.output.find("GLIBC_TUNABLES glibc.malloc.hugetlb=1)"), std::string::npos)
+      << other.output;
+  // The user's own choice wins.
+  const RunResult off = info("GLIBC_TUNABLES=glibc.malloc.hugetlb=0");
+  ASSERT_EQ(off.code, 0) << off.output;
+  EXPECT_NE(off.output.find("Huge pages for the heap: off (GLIBC_TUNABLES glibc.malloc.hugetlb=0)"),
+            std::string::npos)
+      << off.output;
+}
+
 TEST(Cli, InfoJson) {
   const RunResult r = run("info --json " + q(kCourtyard));
   ASSERT_EQ(r.code, 0) << r.output;

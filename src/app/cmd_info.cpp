@@ -2,6 +2,7 @@
 #include <cstdio>
 
 #include "app/commands.h"
+#include "core/huge_pages.h"
 #include "scene/load_gltf.h"
 
 namespace snow::app {
@@ -26,6 +27,7 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
       std::printf(
           "Stabilizer (--stabilizer auto): %s\n",
           gl::renderer_is_software() ? "CPU passes (the GL renderer is software)" : "GPU passes");
+      std::printf("Huge pages for the heap: %s\n", huge_pages_status().c_str());
     }
     if (options->scene.empty()) return;
     const Scene scene = load_scene(options->scene);

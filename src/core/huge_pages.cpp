@@ -1,0 +1,93 @@
+#include "core/huge_pages.h"
+
+#include <unistd.h>
+
+#include <cstdlib>
+#include <fstream>
+
+namespace snow {
+namespace {
+
+constexpr const char* kTunable = "glibc.malloc.hugetlb";
+
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+constexpr bool kGlibcHasTunable = true;
+#else
+constexpr bool kGlibcHasTunable = false;
+#endif
+
+// AddressSanitizer brings its own allocator, which ignores glibc's tunables.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kSanitizerHeap = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+constexpr bool kSanitizerHeap = true;
+#else
+constexpr bool kSanitizerHeap = false;
+#endif
+#else
+constexpr bool kSanitizerHeap = false;
+#endif
+
+// The value of glibc.malloc.hugetlb in GLIBC_TUNABLES ("" when not named).
+std::string tunable_value() {
+  const char* env = std::getenv("GLIBC_TUNABLES");
+  if (env == nullptr) return "";
+  const std::string tunables = env;
+  const std::string key = std::string(kTunable) + "=";
+  // Entries are separated by ':'; the last one naming the tunable wins.
+  std::string value;
+  size_t start = 0;
+  while (start <= tunables.size()) {
+    size_t end = tunables.find(':', start);
+    if (end == std::string::npos) end = tunables.size();
+    const std::string entry = tunables.substr(start, end - start);
+    if (entry.compare(0, key.size(), key) == 0) value = entry.substr(key.size());
+    start = end + 1;
+  }
+  return value;
+}
+
+}  // namespace
+
+void use_huge_pages(char** argv) {
+  if (!kGlibcHasTunable || argv == nullptr || argv[0] == nullptr) return;
+  if (!tunable_value().empty()) return;  // set by the user, or by the re-execution
+  const char* env = std::getenv("GLIBC_TUNABLES");
+  const bool had = env != nullptr;
+  const std::string before = had ? env : "";
+  const std::string tunables = (before.empty() ? "" : before + ":") + std::string(kTunable) + "=1";
+  if (setenv("GLIBC_TUNABLES", tunables.c_str(), 1) != 0) return;
+  execv("/proc/self/exe", argv);
+  // No /proc or no permission: go on with the usual pages, and leave the
+  // variable as it was for any child process.
+  if (had) {
+    setenv("GLIBC_TUNABLES", before.c_str(), 1);
+  } else {
+    unsetenv("GLIBC_TUNABLES");
+  }
+}
+
+std::string huge_pages_status() {
+  if (!kGlibcHasTunable) return "off (this glibc has no glibc.malloc.hugetlb)";
+  const std::string value = tunable_value();
+  if (value != "1" && value != "2") {
+    return "off (GLIBC_TUNABLES " + std::string(kTunable) + "=" +
+           (value.empty() ? "unset" : value) + ")";
+  }
+  if (kSanitizerHeap) {
+    return "off (AddressSanitizer's allocator ignores GLIBC_TUNABLES " + std::string(kTunable) +
+           "=" + value + ")";
+  }
+  // Transparent huge pages: "always [madvise] never", the choice in brackets.
+  std::string mode;
+  std::ifstream thp("/sys/kernel/mm/transparent_hugepage/enabled");
+  if (std::getline(thp, mode)) {
+    const size_t open = mode.find('['), close = mode.find(']');
+    if (open != std::string::npos && close > open) mode = mode.substr(open + 1, close - open - 1);
+  }
+  if (mode == "never") return "off (the kernel's transparent huge pages are disabled)";
+  return "on (GLIBC_TUNABLES " + std::string(kTunable) + "=" + value + ")";
+}
+
+}  // namespace snow
