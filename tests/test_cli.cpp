@@ -119,6 +119,11 @@ TEST(Cli, InfoSaysWhetherTheHeapHasHugePages) {
   ASSERT_EQ(other.code, 0) << other.output;
   EXPECT_NE(other.output.find("GLIBC_TUNABLES glibc.malloc.hugetlb=1)"), std::string::npos)
       << other.output;
+  // At most one re-execution: the marker it sets stops another.
+  const RunResult once = info("env -u GLIBC_TUNABLES SNOWMODEL_HUGE_PAGES_REEXEC=1");
+  ASSERT_EQ(once.code, 0) << once.output;
+  EXPECT_NE(once.output.find("GLIBC_TUNABLES glibc.malloc.hugetlb=unset)"), std::string::npos)
+      << once.output;
   // The user's own choice wins.
   const RunResult off = info("GLIBC_TUNABLES=glibc.malloc.hugetlb=0");
   ASSERT_EQ(off.code, 0) << off.output;

@@ -1,5 +1,6 @@
 #include "core/huge_pages.h"
 
+#include <sys/auxv.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -9,6 +10,7 @@ namespace snow {
 namespace {
 
 constexpr const char* kTunable = "glibc.malloc.hugetlb";
+constexpr const char* kReexecMarker = "SNOWMODEL_HUGE_PAGES_REEXEC";
 
 #if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
 constexpr bool kGlibcHasTunable = true;
@@ -51,16 +53,24 @@ std::string tunable_value() {
 }  // namespace
 
 void use_huge_pages(char** argv) {
+  // Set only across the re-execution, so it happens at most once even where
+  // glibc drops GLIBC_TUNABLES from the environment (setuid programs).
+  if (std::getenv(kReexecMarker) != nullptr) {
+    unsetenv(kReexecMarker);
+    return;
+  }
   if (!kGlibcHasTunable || argv == nullptr || argv[0] == nullptr) return;
-  if (!tunable_value().empty()) return;  // set by the user, or by the re-execution
+  if (getauxval(AT_SECURE) != 0) return;  // glibc ignores tunables there
+  if (!tunable_value().empty()) return;   // the user's choice
   const char* env = std::getenv("GLIBC_TUNABLES");
   const bool had = env != nullptr;
   const std::string before = had ? env : "";
   const std::string tunables = (before.empty() ? "" : before + ":") + std::string(kTunable) + "=1";
   if (setenv("GLIBC_TUNABLES", tunables.c_str(), 1) != 0) return;
-  execv("/proc/self/exe", argv);
+  if (setenv(kReexecMarker, "1", 1) == 0) execv("/proc/self/exe", argv);
   // No /proc or no permission: go on with the usual pages, and leave the
-  // variable as it was for any child process.
+  // environment as it was for any child process.
+  unsetenv(kReexecMarker);
   if (had) {
     setenv("GLIBC_TUNABLES", before.c_str(), 1);
   } else {

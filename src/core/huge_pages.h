@@ -19,7 +19,9 @@ namespace snow {
 /// to it and re-executes /proc/self/exe with the same arguments. Returns only
 /// when there is nothing to do or the re-execution failed (then the program
 /// goes on with the usual pages). Does nothing where glibc has no such
-/// tunable.
+/// tunable or ignores tunables (setuid). Re-executes at most once: the new
+/// process finds the marker SNOWMODEL_HUGE_PAGES_REEXEC=1 in its environment
+/// and removes it.
 void use_huge_pages(char** argv);
 
 /// One line for `snowmodel info`: whether this process asked glibc for huge
