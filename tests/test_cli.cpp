@@ -106,7 +106,7 @@ TEST(Cli, InfoSaysWhetherTheHeapHasHugePages) {
   // snowmodel re-executes itself with glibc.malloc.hugetlb=1 added to
   // GLIBC_TUNABLES (core/huge_pages.h), unless the user named that tunable.
   const auto info = [](const std::string& env) {
-    return snow::test::run_command(env + " " + std::string(SNOWMODEL_EXE) + " info");
+    return snow::test::run_command(env + " " + std::string(SNOWMODEL_EXE) + " info --no-gl");
   };
   const RunResult unset = info("env -u GLIBC_TUNABLES");
   ASSERT_EQ(unset.code, 0) << unset.output;

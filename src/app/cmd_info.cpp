@@ -27,8 +27,8 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
       std::printf(
           "Stabilizer (--stabilizer auto): %s\n",
           gl::renderer_is_software() ? "CPU passes (the GL renderer is software)" : "GPU passes");
-      std::printf("Huge pages for the heap: %s\n", huge_pages_status().c_str());
     }
+    if (!options->json) std::printf("Huge pages for the heap: %s\n", huge_pages_status().c_str());
     if (options->scene.empty()) return;
     const Scene scene = load_scene(options->scene);
     std::printf("%s\n", options->json ? scene_summary_json(scene).c_str()
