@@ -9,7 +9,6 @@
 
 #include "core/error.h"
 #include "core/log.h"
-#include "gl/context.h"
 #include "gl/gl.h"
 #include "snow/accumulate.h"
 #include "snow/stabilize_cpu.h"
@@ -87,7 +86,7 @@ void LiveSim::peel() {
 
 void LiveSim::make_stabilizer(const SnowMaps& maps, const std::vector<float>* depth) {
   const StabilizeSettings& s = settings_.stabilize;
-  if (s.device == "cpu" || (s.device == "auto" && gl::renderer_is_software())) {
+  if (snow::stabilizes_on_cpu(s)) {
     auto cpu = std::make_unique<CpuStabilizer>(maps, s);
     cpu->set_depth(depth ? *depth : std::vector<float>(maps.ground.size(), 0.0f));
     gl::Texture texture = gl::create_texture_2d_array(GL_R32F, maps.grid.width, maps.grid.height,

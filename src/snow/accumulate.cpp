@@ -10,7 +10,6 @@
 
 #include "core/error.h"
 #include "core/log.h"
-#include "gl/context.h"
 #include "snow/stabilize_cpu.h"
 
 namespace snow {
@@ -93,8 +92,7 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   if (!(settings.snow_on_snow_every > 0 && settings.steps > settings.snow_on_snow_every)) {
     shadows.reset();
   }
-  const bool on_cpu = result.stabilized_on_cpu =
-      stabilize.device == "cpu" || (stabilize.device == "auto" && gl::renderer_is_software());
+  const bool on_cpu = result.stabilized_on_cpu = stabilizes_on_cpu(stabilize);
   // The steps over either stabilizer (same passes, same results).
   auto run_steps = [&](auto& stabilizer) {
     const float per_step = settings.fall_depth / float(settings.steps);

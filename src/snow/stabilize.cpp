@@ -15,6 +15,7 @@
 
 #include "core/error.h"
 #include "core/parallel.h"
+#include "gl/context.h"
 #include "gl/gl.h"
 #include "gl/objects.h"
 #include "gl/program.h"
@@ -980,6 +981,10 @@ unsigned Stabilizer::depth_texture() const { return impl_->depth[impl_->cur].id(
 const MapGrid& Stabilizer::grid() const { return impl_->grid; }
 int Stabilizer::layers() const { return impl_->layers; }
 const StabilizeSettings& Stabilizer::settings() const { return impl_->settings; }
+
+bool stabilizes_on_cpu(const StabilizeSettings& settings) {
+  return settings.device == "cpu" || (settings.device == "auto" && gl::renderer_is_software());
+}
 
 StabilizeResult stabilize(const SnowMaps& maps, std::vector<float>& depth,
                           const StabilizeSettings& settings) {

@@ -188,6 +188,11 @@ class StrideSchedule {
 /// surface times texel^2, in double.
 double snow_volume(const SnowMaps& maps, const std::vector<float>& depth);
 
+/// Where settings.device puts the passes: true for the CPU ("cpu", or "auto"
+/// where the current GL renderer is software), false for the GPU. Needs a
+/// current GL context when the device is "auto".
+bool stabilizes_on_cpu(const StabilizeSettings& settings);
+
 /// Stabilizes `depth` (metres per layer texel, maps' layout; NaN, negative
 /// or depth on texels without a surface is treated as 0 and cleared) in
 /// place on the GPU: routing, then relaxation passes until the largest
