@@ -23,6 +23,12 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
+// fn(stabilizer) on whichever of the two exists (same contract, same passes).
+template <class Fn>
+auto on_either(CpuStabilizer* cpu, Stabilizer* gpu, Fn fn) {
+  return cpu ? fn(*cpu) : fn(*gpu);
+}
+
 bool same(const PeelSettings& a, const PeelSettings& b) {
   return a.texel == b.texel && a.max_side == b.max_side && a.layers == b.layers &&
          a.margin == b.margin && a.merge_distance == b.merge_distance;
@@ -146,23 +152,16 @@ void LiveSim::step() {
                       settings_.total_depth - fallen_depth_)
            : 0.0f;
   if (amount > 0.0f) {
-    if (cpu_) {
-      cpu_->add_snow(coverage_, amount);
-    } else {
-      gpu_->add_snow(coverage_, amount);
-    }
+    on_either(cpu_.get(), gpu_.get(), [&](auto& s) { s.add_snow(coverage_, amount); });
     fallen_depth_ += amount;
     fallen_volume_ += double(amount) * coverage_area_;
   }
   timings_.add = seconds_since(start);
   start = Clock::now();
   if (amount > 0.0f || !last_.converged) {
-    if (cpu_) {
-      last_ = cpu_->iterate(settings_.passes_per_frame);
-      upload_depth(maps_);
-    } else {
-      last_ = gpu_->iterate(settings_.passes_per_frame);
-    }
+    last_ = on_either(cpu_.get(), gpu_.get(),
+                      [&](auto& s) { return s.iterate(settings_.passes_per_frame); });
+    upload_depth(maps_);
   }  // else: nothing fell and the snow is at rest; passes would move nothing
   timings_.stabilize = seconds_since(start);
   log_debug("live frame " + std::to_string(frame_) + ": add " + std::to_string(timings_.add) +
@@ -174,12 +173,8 @@ void LiveSim::step() {
 
 void LiveSim::reset() {
   const std::vector<float> none(maps_.ground.size(), 0.0f);
-  if (cpu_) {
-    cpu_->set_depth(none);
-    upload_depth(maps_);
-  } else {
-    gpu_->set_depth(none);
-  }
+  on_either(cpu_.get(), gpu_.get(), [&](auto& s) { s.set_depth(none); });
+  upload_depth(maps_);
   fallen_depth_ = 0;
   fallen_volume_ = 0;
   frame_ = 0;
