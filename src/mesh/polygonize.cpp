@@ -323,6 +323,17 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const std::vector<fl
   auto snowy = [&](size_t k) { return depth[k] > min_thickness; };
   auto top = [&](size_t k) { return maps.ground[k] + depth[k]; };
 
+  // Columns holding one surface under the open sky (most of a terrain or a
+  // floor): there the landing rule reduces to "the other snow top lies no
+  // higher" both ways, which the search below takes without walking columns.
+  std::vector<uint8_t> single(per_layer, 0);
+  parallel_for(size_t(h), [&](size_t j) {
+    for (size_t c = j * size_t(w); c < (j + 1) * size_t(w); ++c) {
+      single[c] = !std::isnan(maps.ground[c]) && std::isinf(maps.ceiling[c]) &&
+                  maps.ceiling[c] > 0.0f &&
+                  (maps.layers == 1 || std::isnan(maps.ground[c + per_layer]));
+    }
+  });
   std::vector<int32_t> label(n, -1);
   std::vector<int32_t> column_stamp(per_layer, -1);
   std::vector<PatchTexels> patches;
@@ -356,6 +367,11 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const std::vector<fl
         auto consider = [&](size_t b) {
           if (label[b] < 0 && snowy(b) && column_stamp[col] != id) claim(b);
         };
+        if (ca.l == 0 && single[a] && single[col]) {
+          // Both rules below on two such columns: b's top within max_step of a's.
+          if (std::abs(top(col) - ha) <= max_step) consider(col);
+          continue;
+        }
         // Snow leaving a lands on b (b lies at most max_step lower) ...
         const int lb = landing_layer(maps, depth.data(), ni, nj, ha);
         if (lb >= 0) {
