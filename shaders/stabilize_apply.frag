@@ -10,6 +10,8 @@ layout(binding = SNOW_STABILIZE_POINTER) uniform usampler2DArray u_pointer;
 layout(binding = SNOW_STABILIZE_TILE_ROUTED, r32i) uniform readonly iimage2D u_routed;
 uniform int u_since;  // stamp of the receiver pass
 layout(binding = SNOW_STABILIZE_OUT_A) uniform sampler2DArray u_arrive;  // r: scattered sums
+// 0: the terminals' sums are poured as piles afterwards (snow/deposit.h).
+uniform int u_add_arrive;
 
 layout(location = 0) out vec2 o_depth;
 // Active tiles: the tile of a texel that changed is stamped with u_pass.
@@ -33,7 +35,7 @@ void main() {
     if (p == kPointerVoid) lost = lost + e;
     s = s - e;
   }
-  vec2 o = vec2(s + texelFetch(u_arrive, t, 0).r, lost);
+  vec2 o = vec2(u_add_arrive != 0 ? s + texelFetch(u_arrive, t, 0).r : s, lost);
   if (any(notEqual(floatBitsToUint(o), floatBitsToUint(d)))) {
     imageStore(u_changed, c / u_tile, ivec4(u_pass));
   }

@@ -89,6 +89,10 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     s.stabilize.device);
   v("snow.route_steep", "--route-steep",
     "Route snow off supports steeper than repose in one go (true/false)", s.stabilize.route_steep);
+  v("snow.deposit_piles", "--deposit-piles",
+    "Lay routed snow as a pile at the angle of repose where it comes to rest, not on one texel "
+    "(true/false)",
+    s.stabilize.deposit_piles);
   // Meshes.
   v("mesh.min_thickness", "--min-thickness", "Snow thinner than this is no snow, metres",
     s.polygonize.min_thickness);

@@ -21,6 +21,7 @@
 #include "gl/program.h"
 #include "shaders/bindings.h"
 #include "snow/column.h"
+#include "snow/deposit.h"
 
 namespace snow {
 namespace {
@@ -126,35 +127,59 @@ void StrideSchedule::checked(int stride, float residual) {
   since_ = 0;
 }
 
-std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSettings& settings) {
-  check_stabilize_settings(settings);
-  check_maps(maps);
-  std::vector<glm::vec4> cells(size_t(maps.layers) * maps.grid.texels());
-  // Rows on all cores (a tangent per texel).
+namespace {
+
+// The cell of layer texel k = (l, i, j), which has a finite ground.
+glm::vec4 surface_cell(const SnowMaps& maps, const StabilizeSettings& settings, int l, int i,
+                       int j) {
+  const size_t k = maps.index(l, i, j);
+  const float g = maps.ground[k];
+  glm::vec4 cell;
+  const double angle = double(texel_repose_deg(settings, l, i, j)) * M_PI / 180.0;
+  cell.z = float(std::tan(angle));
+  int flags = kCellSurface;
+  if (gap_is_solid(maps, l, i, j)) flags |= kCellSolid;
+  if (maps.normal[k].y < 0.0f) flags |= kCellDown;
+  cell.x = g;
+  // +inf (open sky) -> 3e38; a ceiling below the ground (inconsistent
+  // maps) -> no gap.
+  cell.y = std::min(maps.ceiling[k], kCellOpenSky);
+  if (std::isnan(maps.ceiling[k])) cell.y = kCellOpenSky;
+  cell.y = std::max(cell.y, g);
+  cell.w = float(flags);
+  return cell;
+}
+
+// Calls fn(k, cell) for every layer texel
+// with a surface, rows on all cores (a tangent per texel).
+template <class Fn>
+void for_surface_cells(const SnowMaps& maps, const StabilizeSettings& settings, Fn fn) {
   const size_t rows = size_t(maps.layers) * size_t(maps.grid.height);
   parallel_for(rows, [&](size_t row) {
     const int l = int(row / size_t(maps.grid.height)), j = int(row % size_t(maps.grid.height));
     for (int i = 0; i < maps.grid.width; ++i) {
       const size_t k = maps.index(l, i, j);
-      glm::vec4 cell(0.0f, kCellOpenSky, 0.0f, 0.0f);
-      const float g = maps.ground[k];
-      if (std::isfinite(g)) {
-        const double angle = double(texel_repose_deg(settings, l, i, j)) * M_PI / 180.0;
-        cell.z = float(std::tan(angle));
-        int flags = kCellSurface;
-        if (gap_is_solid(maps, l, i, j)) flags |= kCellSolid;
-        if (maps.normal[k].y < 0.0f) flags |= kCellDown;
-        cell.x = g;
-        // +inf (open sky) -> 3e38; a ceiling below the ground (inconsistent
-        // maps) -> no gap.
-        cell.y = std::min(maps.ceiling[k], kCellOpenSky);
-        if (std::isnan(maps.ceiling[k])) cell.y = kCellOpenSky;
-        cell.y = std::max(cell.y, g);
-        cell.w = float(flags);
-      }
-      cells[k] = cell;
+      if (std::isfinite(maps.ground[k])) fn(k, surface_cell(maps, settings, l, i, j));
     }
   });
+}
+
+}  // namespace
+
+std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSettings& settings) {
+  check_stabilize_settings(settings);
+  check_maps(maps);
+  std::vector<glm::vec4> cells(maps.ground.size(), glm::vec4(0.0f, kCellOpenSky, 0.0f, 0.0f));
+  for_surface_cells(maps, settings, [&](size_t k, const glm::vec4& cell) { cells[k] = cell; });
+  return cells;
+}
+
+ZeroedArray<glm::vec4> stabilize_surface_cells(const SnowMaps& maps,
+                                               const StabilizeSettings& settings) {
+  check_stabilize_settings(settings);
+  check_maps(maps);
+  ZeroedArray<glm::vec4> cells(maps.ground.size());
+  for_surface_cells(maps, settings, [&](size_t k, const glm::vec4& cell) { cells[k] = cell; });
   return cells;
 }
 
@@ -192,9 +217,10 @@ struct Stabilizer::Impl {
   int reduce_width = 0, reduce_height = 0;
   glm::vec2 distance{0.0f};
   bool route_pending = false;
-  bool lost_is_zero = true;      // no pass ran since construction or set_depth
-  int cur = 0;                   // depth[cur] holds the current snow
-  std::vector<uint8_t> surface;  // per layer texel: has a surface
+  bool lost_is_zero = true;          // no pass ran since construction or set_depth
+  int cur = 0;                       // depth[cur] holds the current snow
+  std::vector<uint8_t> surface;      // per layer texel: has a surface
+  std::vector<glm::vec4> cell_data;  // stabilize_cells, for the piles (settings.deposit_piles)
   std::vector<glm::ivec4> rect;  // per layer: x, y, width, height of its surfaces (0 size: none)
 
   gl::Texture cells, depth[2], out_a, out_b, code, reduce;
@@ -288,7 +314,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
                   " layers exceed GL_MAX_ARRAY_TEXTURE_LAYERS " + std::to_string(max_layers));
   }
   {  // the CPU copy of the cells is freed before the pass textures are allocated
-    const std::vector<glm::vec4> cell_data = stabilize_cells(maps, s);
+    cell_data = stabilize_cells(maps, s);
     surface.resize(cell_data.size());
     for (size_t k = 0; k < cell_data.size(); ++k) {
       surface[k] = (int(cell_data[k].w) & kCellSurface) != 0 ? 1 : 0;
@@ -325,6 +351,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     cells = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize cells");
     glTextureSubImage3D(cells.id(), 0, 0, 0, 0, width, height, layers, GL_RGBA, GL_FLOAT,
                         cell_data.data());
+    if (!(s.route_steep && s.deposit_piles)) cell_data = {};
   }
   for (int x = 0; x < 2; ++x) {
     depth[x] = gl::create_texture_2d_array(GL_RG32F, width, height, layers, "stabilize depth");
@@ -771,8 +798,27 @@ int Stabilizer::Impl::route() {
   bind_changed(tile_relax);
   apply.set("u_pass", pass_counter - 1);  // as a change of the last relaxation pass
   apply.set("u_since", routed);
+  apply.set("u_add_arrive", settings.deposit_piles ? 0 : 1);
   per_layer(apply, fbo_depth[1 - cur]);
   cur = 1 - cur;
+  if (settings.deposit_piles) {
+    // The piles are poured on the CPU (snow/deposit.h), from the depth and
+    // the scattered sums, as CpuStabilizer does; their tiles are computed
+    // again by the first relaxation pass after the routing.
+    std::vector<glm::vec2> data = read_depth();
+    std::vector<float> s(data.size()), arrive(data.size());
+    glGetTextureImage(out_a.id(), 0, GL_RED, GL_FLOAT, GLsizei(arrive.size() * sizeof(float)),
+                      arrive.data());
+    gl::check_error("stabilize: routed snow readback");
+    for (size_t k = 0; k < data.size(); ++k) s[k] = data[k].x;
+    if (deposit_piles(cell_data.data(), s.data(), arrive.data(),
+                      DepositGrid{width, height, layers, grid.texel}) > 0) {
+      for (size_t k = 0; k < data.size(); ++k) data[k].x = s[k];
+      glTextureSubImage3D(depth[cur].id(), 0, 0, 0, 0, width, height, layers, GL_RG, GL_FLOAT,
+                          data.data());
+      gl::check_error("stabilize: piles upload");
+    }
+  }
   gl::check_error("stabilize: routing");
   return passes;
 }

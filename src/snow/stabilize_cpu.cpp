@@ -24,6 +24,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "snow/column.h"
+#include "snow/deposit.h"
 
 namespace snow {
 namespace {
@@ -63,10 +64,10 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
   distance_[4] = distance_[5] = distance_[6] = distance_[7] =
       float(double(texel_) * std::sqrt(2.0));
   try {
-    cells_ = stabilize_cells(maps, settings);
+    cells_ = stabilize_surface_cells(maps, settings);
     const size_t n = cells_.size();
-    depth_.assign(n, 0.0f);
-    lost_.assign(n, 0.0f);
+    depth_ = ZeroedArray<float>(n);
+    lost_ = ZeroedArray<float>(n);
     amount_.reset(new float[8 * n]);
     code_.reset(new uint8_t[8 * n]);
   } catch (const std::bad_alloc&) {
@@ -161,11 +162,14 @@ void CpuStabilizer::set_depth(const std::vector<float>& depth) {
     throw InputError("stabilize: depth has " + std::to_string(depth.size()) +
                      " entries, the maps have " + std::to_string(cells_.size()) + " layer texels");
   }
+  // Zeros are written only over what is not zero, so pages that stay zero
+  // are never touched (core/zeroed.h).
   for (size_t k = 0; k < cells_.size(); ++k) {
     const float d = depth[k];
-    depth_[k] = (cell_flags(cells_[k]) & kCellSurface) && d > 0.0f ? d : 0.0f;
+    const float v = (cell_flags(cells_[k]) & kCellSurface) && d > 0.0f ? d : 0.0f;
+    if (v != 0.0f || depth_[k] != 0.0f) depth_[k] = v;
+    if (lost_[k] != 0.0f) lost_[k] = 0.0f;
   }
-  std::fill(lost_.begin(), lost_.end(), 0.0f);
   touch_all();
   route_pending_ = true;
   schedule_.restart();
@@ -498,9 +502,21 @@ int CpuStabilizer::route(double* routed_volume) {
   // the tiles next to one that changed in the pass before (the first: all)
   // into `next`, then copies them back, so each pass reads the last one's
   // heights only.
-  stable_.assign(count, 0.0f);
-  for (size_t k = 0; k < count; ++k) stable_[k] = free_top(cells_[k], depth_[k]);
-  std::vector<float> next(count);
+  // Both only hold layer texels with a surface: free_top is 0 on the others.
+  stable_ = ZeroedArray<float>(count);
+  ZeroedArray<float> next(count);
+  for_tiles(surface_tiles_, [&](int t, size_t) {
+    const Tile b = tile(t);
+    for (int j = b.j0; j < b.j1; ++j) {
+      for (int i = b.i0; i < b.i1; ++i) {
+        const int col_layers = column_layers_[size_t(j) * width_ + i];
+        for (int l = 0; l < col_layers; ++l) {
+          const size_t k = index(l, i, j);
+          stable_[k] = free_top(cells_[k], depth_[k]);
+        }
+      }
+    }
+  });
   // The tiles that changed in the last pass (the first: every tile).
   std::vector<int> moved = surface_tiles_;
   int passes = 0;
@@ -543,14 +559,14 @@ int CpuStabilizer::route(double* routed_volume) {
     }
     if (moved.empty()) break;
   }
-  next = {};
+  next = ZeroedArray<float>();
   // Receiver pass (shaders/stabilize_receiver.frag): a texel holding more
   // than it can keep sends the excess towards the neighbour that limits it
   // (the void when one neighbour is the void); H falls strictly along these
   // pointers, so they form a forest whose roots (terminals) point to
-  // themselves. The routed texels are listed in texel order.
-  std::vector<uint32_t> pointer(count);
-  for (size_t k = 0; k < count; ++k) pointer[k] = uint32_t(k);
+  // themselves. The routed texels are listed in texel order. Only texels
+  // with a surface get a pointer, and only they are pointed at.
+  const std::unique_ptr<uint32_t[]> pointer(new uint32_t[count]);
   std::vector<std::vector<uint32_t>> routed_rows(size_t(layers_) * size_t(height_));
   parallel_for(
       routed_rows.size(),
@@ -612,7 +628,7 @@ int CpuStabilizer::route(double* routed_volume) {
   // Scatter (shaders/stabilize_scatter.*: one point per routed texel, added
   // in texel order into its terminal) and apply (stabilize_apply.frag).
   // Terminals are never routed, so the excess is read before any change.
-  std::vector<float> arrive(count, 0.0f);
+  ZeroedArray<float> arrive(count);
   std::vector<uint32_t> terminals;
   double moved_volume = 0.0;
   for (uint32_t k : routed) {
@@ -629,9 +645,14 @@ int CpuStabilizer::route(double* routed_volume) {
     if (pointer[k] == kPointerVoid) lost_[k] = lost_[k] + e;
     depth_[k] = (depth_[k] - e) + arrive[k];
   }
-  for (uint32_t p : terminals) depth_[p] = depth_[p] + arrive[p];
+  if (settings_.deposit_piles) {  // as piles around the terminals (snow/deposit.h)
+    deposit_piles(cells_.data(), depth_.data(), arrive.data(),
+                  DepositGrid{width_, height_, layers_, texel_});
+  } else {
+    for (uint32_t p : terminals) depth_[p] = depth_[p] + arrive[p];
+  }
   *routed_volume += moved_volume * double(texel_) * double(texel_);
-  stable_ = {};
+  stable_ = ZeroedArray<float>();
   route_pending_ = false;
   touch_all();
   return passes + jumps;
@@ -668,14 +689,14 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
     result.tile_share = tile_work_ / (double(result.iterations) * double(surface_tiles_.size()));
   }
   result.lost_volume = lost_volume() - lost_before;
-  result.volume = snow_volume_of(depth_);
+  result.volume = snow_volume();
   return result;
 }
 
-double CpuStabilizer::snow_volume_of(const std::vector<float>& depth) const {
+double CpuStabilizer::snow_volume() const {
   double sum = 0.0;
-  for (size_t k = 0; k < depth.size(); ++k) {
-    if (cell_flags(cells_[k]) & kCellSurface) sum += double(depth[k]);
+  for (size_t k = 0; k < depth_.size(); ++k) {
+    if (cell_flags(cells_[k]) & kCellSurface) sum += double(depth_[k]);
   }
   return sum * double(texel_) * double(texel_);
 }

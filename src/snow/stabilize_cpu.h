@@ -2,7 +2,8 @@
 // The stabilizer passes (snow/stabilize.h) on the CPU: the same outflow,
 // gather, erosion, receiver, jump, scatter and apply passes as the GPU
 // fragment passes, in the same order and with the same float math, on the
-// cells of snow::stabilize_cells, so the two agree bit for bit.
+// cells of snow::stabilize_cells (zeros where there is no surface: only the
+// flags of those are read), so the two agree bit for bit.
 //
 // Two uses:
 //  - the reference that the GPU passes are tested against (with
@@ -22,6 +23,7 @@
 
 #include <glm/glm.hpp>
 
+#include "core/zeroed.h"
 #include "snow/maps.h"
 #include "snow/stabilize.h"
 
@@ -49,7 +51,7 @@ class CpuStabilizer {
   StabilizeResult iterate(int passes);
   StabilizeResult run() { return iterate(settings_.max_iterations); }
 
-  const std::vector<float>& depth() const { return depth_; }
+  std::vector<float> depth() const { return {depth_.begin(), depth_.end()}; }
   double lost_volume() const;
 
  private:
@@ -102,7 +104,7 @@ class CpuStabilizer {
   void touch_all();
   /// Tile t changed: the tiles within each stride's reach are dirty for it.
   void touch(int t);
-  double snow_volume_of(const std::vector<float>& depth) const;
+  double snow_volume() const;
   size_t index(int l, int i, int j) const {
     return (size_t(l) * size_t(height_) + size_t(j)) * size_t(width_) + size_t(i);
   }
@@ -112,19 +114,21 @@ class CpuStabilizer {
   unsigned threads_ = 0;
   int width_ = 0, height_ = 0, layers_ = 0;
   float texel_ = 0.0f;
-  float distance_[8] = {};  // metres, per direction
-  float rise_ = 0.0f;       // metres, kSurfaceContinuityTexels * texel
-  std::vector<glm::vec4> cells_;
+  float distance_[8] = {};              // metres, per direction
+  float rise_ = 0.0f;                   // metres, kSurfaceContinuityTexels * texel
+  ZeroedArray<glm::vec4> cells_;        // stabilize_surface_cells
   std::vector<uint8_t> column_layers_;  // surfaces per column (layers are packed from the top)
   std::vector<uint8_t> column_sent_;    // per column: its last outflow moved snow
-  std::vector<float> depth_;
-  std::vector<float> lost_;  // metres lost per layer texel (accumulated at the source)
+  // Per layer texel arrays that start at zero hold zero pages where the
+  // layers have no surface (core/zeroed.h).
+  ZeroedArray<float> depth_;
+  ZeroedArray<float> lost_;  // metres lost per layer texel (accumulated at the source)
   // Outflow of the layer texels with a surface (written by the first pass
   // before any read; left uninitialized, so the pages of layers that are
   // mostly empty are never touched).
   std::unique_ptr<float[]> amount_;  // 8 per layer texel, metres
   std::unique_ptr<uint8_t[]> code_;  // 8 per layer texel
-  std::vector<float> stable_;        // metres, highest snow surface each texel can keep (routing)
+  ZeroedArray<float> stable_;        // metres, highest snow surface each texel can keep (routing)
   float residual_ = 0.0f;
   bool route_pending_ = false;
 

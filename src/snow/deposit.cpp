@@ -1,0 +1,196 @@
+#include "snow/deposit.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <queue>
+#include <vector>
+
+#include "core/zeroed.h"
+#include "snow/column.h"
+#include "snow/stabilize.h"
+#include "snow/stabilize_cpu.h"
+
+namespace snow {
+namespace {
+
+/// A pile covers this many texels at most; what it would spread beyond
+/// stays on the texels it covers (the relaxation takes it on from there).
+constexpr size_t kMaxPileTexels = size_t(1) << 20;
+
+class Pourer {
+ public:
+  Pourer(const glm::vec4* cells, float* depth, const DepositGrid& grid)
+      : cells_(cells),
+        depth_(depth),
+        g_(grid),
+        per_layer_(size_t(grid.width) * size_t(grid.height)),
+        rise_(kSurfaceContinuityTexels * grid.texel),
+        seen_(per_layer_ * size_t(grid.layers)),
+        dist_(per_layer_ * size_t(grid.layers)) {
+    for (int n = 0; n < 8; ++n)
+      step_[n] = n < 4 ? grid.texel : float(double(grid.texel) * std::sqrt(2.0));
+  }
+
+  void pour(uint32_t p, float volume);
+
+ private:
+  /// Grows the pile of `volume` at terminal p into covered_ (texel, path
+  /// cost), spreading from a covered texel at the larger of its snow top
+  /// and apex - its path cost; returns the height of the cone's apex.
+  double grow(uint32_t p, float volume, double apex);
+
+  struct Column {
+    const Pourer& s;
+    int i, j;
+    const glm::vec4& cell(int l) const { return s.cells_[s.index(l, i, j)]; }
+    bool has(int l) const { return (int(cell(l).w) & kCellSurface) != 0; }
+    float ground(int l) const { return cell(l).x; }
+    float ceiling(int l) const { return cell(l).y; }
+    float top(int l) const { return cell(l).x + s.depth_[s.index(l, i, j)]; }
+    bool solid(int l) const { return (int(cell(l).w) & kCellSolid) != 0; }
+    bool faces_down(int l) const { return (int(cell(l).w) & kCellDown) != 0; }
+  };
+  size_t index(int l, int i, int j) const {
+    return size_t(l) * per_layer_ + size_t(j) * size_t(g_.width) + size_t(i);
+  }
+  bool on_map(int i, int j) const { return i >= 0 && j >= 0 && i < g_.width && j < g_.height; }
+  float top(size_t k) const { return cells_[k].x + depth_[k]; }
+  // Snow on layer texel k of column (i, j), under the open sky, would slide
+  // off into the void.
+  bool sheds(size_t k, int i, int j) const {
+    const float h = top(k);
+    for (int n = 0; n < 8; ++n) {
+      const int ni = i + kDirI[n], nj = j + kDirJ[n];
+      if (!on_map(ni, nj) ||
+          land_in_column(Column{*this, ni, nj}, g_.layers, h, cells_[k].x, rise_) == kLandVoid) {
+        return true;
+      }
+    }
+    return false;
+  }
+  // The layer of column (i, j) whose gap contains h, or -1: where a pile
+  // rising at h spreads to. Only gaps under the open sky: under a table or
+  // an eave (or inside a solid) the relaxation shapes the snow as before
+  // (snow under the ceiling is squeezed out sideways, which a cone does
+  // not model).
+  int gap_at(int i, int j, float h) const {
+    if (!on_map(i, j)) return -1;
+    const Column col{*this, i, j};
+    for (int l = 0; l < g_.layers && col.has(l); ++l) {
+      if (h >= col.ceiling(l)) return -1;
+      if (h >= col.ground(l)) return col.ceiling(l) < kCellOpenSky ? -1 : l;
+    }
+    return -1;
+  }
+
+  const glm::vec4* cells_;
+  float* depth_;
+  DepositGrid g_;
+  size_t per_layer_;
+  float rise_;
+  float step_[8] = {};
+  // Per layer texel: the pour that last reached it (1-based; 2 * pour + 1
+  // once covered), and its path cost there (m).
+  ZeroedArray<uint32_t> seen_;
+  ZeroedArray<float> dist_;
+  uint32_t pours_ = 0;
+  std::vector<std::pair<uint32_t, float>> covered_;  // texel, path cost
+};
+
+void Pourer::pour(uint32_t p, float volume) {
+  const int pi = int((p % per_layer_) % size_t(g_.width));
+  const int pj = int((p % per_layer_) / size_t(g_.width));
+  if (cells_[p].y < kCellOpenSky || sheds(p, pi, pj)) {  // as before: on the terminal
+    depth_[p] = depth_[p] + volume;
+    return;
+  }
+  // The cone spreads over the gaps its surface lies in, which depends on
+  // its height: grown once at the snow tops as they are, then again at the
+  // cone heights the first growth found.
+  const double first = grow(p, volume, -kOpenSky);
+  const double cone = grow(p, volume, first);
+  // Each covered texel rises to the cone; the terminal keeps the rest, so
+  // the volume is exact.
+  float placed = 0.0f;
+  for (const auto& [k, dist] : covered_) {
+    if (k == p) continue;
+    const float add = float(cone) - dist - top(k);
+    if (add > 0.0f && placed + add <= volume) {
+      depth_[k] = depth_[k] + add;
+      placed += add;
+    }
+  }
+  depth_[p] = depth_[p] + (volume - placed);
+}
+
+double Pourer::grow(uint32_t p, float volume, double apex) {
+  ++pours_;
+  const uint32_t reached = 2 * pours_, done = 2 * pours_ + 1;
+  // Frontier by the height at which the rising cone covers a texel: its
+  // top plus its path cost; ties in texel order.
+  struct Entry {
+    float key, dist;
+    uint32_t k;
+    bool operator<(const Entry& o) const { return key > o.key || (key == o.key && k > o.k); }
+  };
+  std::priority_queue<Entry> frontier;
+  frontier.push({top(p), 0.0f, p});
+  seen_[p] = reached;
+  dist_[p] = 0.0f;
+  covered_.clear();
+  double keys = 0.0;  // sum over covered texels of top + path cost
+  double cone = 0.0;  // height of the cone's apex (m)
+  for (;;) {
+    bool full = frontier.empty() || covered_.size() >= kMaxPileTexels;
+    if (!full) {
+      const Entry e = frontier.top();
+      // The cone at the height where it reaches e holds enough: it ends below.
+      full = !covered_.empty() && double(covered_.size()) * double(e.key) - keys >= double(volume);
+    }
+    if (full) {
+      cone = (double(volume) + keys) / double(covered_.size());
+      break;
+    }
+    const Entry e = frontier.top();
+    frontier.pop();
+    if (seen_[e.k] == done || e.dist > dist_[e.k]) continue;  // stale entry
+    seen_[e.k] = done;
+    const int i = int((e.k % per_layer_) % size_t(g_.width));
+    const int j = int((e.k % per_layer_) / size_t(g_.width));
+    if (e.k != p && sheds(e.k, i, j)) continue;
+    covered_.emplace_back(e.k, e.dist);
+    keys += double(e.key);
+    const glm::vec4 cell = cells_[e.k];
+    const float h = std::max(top(e.k), float(apex) - e.dist);
+    for (int n = 0; n < 8; ++n) {
+      const int ni = i + kDirI[n], nj = j + kDirJ[n];
+      const int lb = gap_at(ni, nj, h);
+      if (lb < 0) continue;
+      const uint32_t b = uint32_t(index(lb, ni, nj));
+      const float d = e.dist + step_[n] * cell.z;
+      if (seen_[b] == done || (seen_[b] == reached && dist_[b] <= d)) continue;
+      seen_[b] = reached;
+      dist_[b] = d;
+      frontier.push({top(b) + d, d, b});
+    }
+  }
+  return cone;
+}
+
+}  // namespace
+
+size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
+                     const DepositGrid& grid) {
+  const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
+  std::vector<uint32_t> terminals;
+  for (size_t k = 0; k < count; ++k) {
+    if (arrive[k] > 0.0f) terminals.push_back(uint32_t(k));
+  }
+  if (terminals.empty()) return 0;
+  Pourer pourer(cells, depth, grid);
+  for (uint32_t p : terminals) pourer.pour(p, arrive[p]);
+  return terminals.size();
+}
+
+}  // namespace snow

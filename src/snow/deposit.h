@@ -1,0 +1,46 @@
+#pragma once
+// Routed snow laid as piles (DESIGN.md "Stabilizer"). The routing sends the
+// snow that cannot stay where it lies down a chain of receivers to a
+// terminal, one texel, in one go: all the snow sliding off a roof's side
+// arrives at a few texels at the foot of the wall, metres deep (20 m of
+// depth on a 9.5 mm texel on building-small-a with 0.3 m of snow). Spread
+// by relaxation passes alone, such a spike takes well over a thousand passes
+// to settle. Here each terminal's snow is poured instead: it forms a cone at
+// the repose angle around the terminal, over the snow already lying there,
+// whose volume is what arrived. The cone is a warm start that the
+// relaxation then finishes, so it only has to be close: heights along the
+// cheapest paths of repose slopes (Dijkstra from the terminal, each step
+// costing distance * tan(repose) of the texel it leaves, as in the
+// relaxation's rule), grown in order of the height at which the rising cone
+// first covers a texel, twice: at the snow tops, then at the cone heights
+// the first growth found (which gaps the surface lies in depends on its
+// height). Only gaps under the open sky take a pile: under a table or an
+// eave the snow is squeezed out sideways, which a cone does not model, so
+// there the routed snow stays on its terminal as before. Texels that snow
+// would slide off into the void take none, and a pile covers at most 2^20
+// texels. Mass is exact: what the cone does not place stays on the
+// terminal.
+//
+// Both stabilizers run this on the CPU after their routing (the GPU reads
+// the depth and the scattered sums back and uploads the result), in texel
+// order of the terminals, so they agree bit for bit.
+#include <cstddef>
+
+#include <glm/glm.hpp>
+
+namespace snow {
+
+struct DepositGrid {
+  int width = 0, height = 0, layers = 0;
+  float texel = 0.0f;  // metres
+};
+
+/// Pours arrive[k] (metres of depth; > 0 at the terminals, 0 elsewhere) as
+/// a pile around each terminal k, in texel order, adding to depth. `cells`
+/// are those of stabilize_cells (texels without a surface may be all zero),
+/// all three arrays have grid.layers * width * height entries in the maps'
+/// layout. Returns the number of piles poured.
+size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
+                     const DepositGrid& grid);
+
+}  // namespace snow
