@@ -217,10 +217,12 @@ struct Stabilizer::Impl {
   int reduce_width = 0, reduce_height = 0;
   glm::vec2 distance{0.0f};
   bool route_pending = false;
-  bool lost_is_zero = true;          // no pass ran since construction or set_depth
-  int cur = 0;                       // depth[cur] holds the current snow
-  std::vector<uint8_t> surface;      // per layer texel: has a surface
-  std::vector<glm::vec4> cell_data;  // stabilize_cells, for the piles (settings.deposit_piles)
+  bool lost_is_zero = true;      // no pass ran since construction or set_depth
+  int cur = 0;                   // depth[cur] holds the current snow
+  std::vector<uint8_t> surface;  // per layer texel: has a surface
+  // The cells with a surface, for pouring the piles on the CPU
+  // (settings.deposit_piles; zero pages elsewhere).
+  ZeroedArray<glm::vec4> pour_cells;
   std::vector<glm::ivec4> rect;  // per layer: x, y, width, height of its surfaces (0 size: none)
 
   gl::Texture cells, depth[2], out_a, out_b, code, reduce;
@@ -314,7 +316,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
                   " layers exceed GL_MAX_ARRAY_TEXTURE_LAYERS " + std::to_string(max_layers));
   }
   {  // the CPU copy of the cells is freed before the pass textures are allocated
-    cell_data = stabilize_cells(maps, s);
+    const std::vector<glm::vec4> cell_data = stabilize_cells(maps, s);
     surface.resize(cell_data.size());
     for (size_t k = 0; k < cell_data.size(); ++k) {
       surface[k] = (int(cell_data[k].w) & kCellSurface) != 0 ? 1 : 0;
@@ -351,7 +353,12 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     cells = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize cells");
     glTextureSubImage3D(cells.id(), 0, 0, 0, 0, width, height, layers, GL_RGBA, GL_FLOAT,
                         cell_data.data());
-    if (!(s.route_steep && s.deposit_piles)) cell_data = {};
+    if (s.route_steep && s.deposit_piles) {
+      pour_cells = ZeroedArray<glm::vec4>(cell_data.size());
+      for (size_t k = 0; k < cell_data.size(); ++k) {
+        if (surface[k]) pour_cells[k] = cell_data[k];
+      }
+    }
   }
   for (int x = 0; x < 2; ++x) {
     depth[x] = gl::create_texture_2d_array(GL_RG32F, width, height, layers, "stabilize depth");
@@ -811,7 +818,7 @@ int Stabilizer::Impl::route() {
                       arrive.data());
     gl::check_error("stabilize: routed snow readback");
     for (size_t k = 0; k < data.size(); ++k) s[k] = data[k].x;
-    if (deposit_piles(cell_data.data(), s.data(), arrive.data(),
+    if (deposit_piles(pour_cells.data(), s.data(), arrive.data(),
                       DepositGrid{width, height, layers, grid.texel}) > 0) {
       for (size_t k = 0; k < data.size(); ++k) data[k].x = s[k];
       glTextureSubImage3D(depth[cur].id(), 0, 0, 0, 0, width, height, layers, GL_RG, GL_FLOAT,
