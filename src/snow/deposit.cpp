@@ -90,11 +90,12 @@ class Pourer {
   size_t per_layer_;
   float rise_;
   float step_[8] = {};
-  // Per layer texel: the pour that last reached it (1-based; 2 * pour + 1
-  // once covered), and its path cost there (m).
+  // Per layer texel: 2 * g for growth g (counted from 1) that last reached
+  // it, 2 * g + 1 once that growth took it from the frontier; and its path
+  // cost there (m).
   ZeroedArray<uint32_t> seen_;
   ZeroedArray<float> dist_;
-  uint32_t pours_ = 0;
+  uint32_t growths_ = 0;
   std::vector<std::pair<uint32_t, float>> covered_;  // texel, path cost
 };
 
@@ -125,8 +126,8 @@ void Pourer::pour(uint32_t p, float volume) {
 }
 
 double Pourer::grow(uint32_t p, float volume, double apex) {
-  ++pours_;
-  const uint32_t reached = 2 * pours_, done = 2 * pours_ + 1;
+  ++growths_;
+  const uint32_t reached = 2 * growths_, done = 2 * growths_ + 1;
   // Frontier by the height at which the rising cone covers a texel: its
   // top plus its path cost; ties in texel order.
   struct Entry {

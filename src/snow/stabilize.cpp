@@ -150,8 +150,8 @@ glm::vec4 surface_cell(const SnowMaps& maps, const StabilizeSettings& settings, 
   return cell;
 }
 
-// Calls fn(k, cell) for every layer texel
-// with a surface, rows on all cores (a tangent per texel).
+// Calls fn(k, cell) for every layer texel with a surface, rows on all
+// cores (a tangent per texel).
 template <class Fn>
 void for_surface_cells(const SnowMaps& maps, const StabilizeSettings& settings, Fn fn) {
   const size_t rows = size_t(maps.layers) * size_t(maps.grid.height);
