@@ -1,10 +1,18 @@
 // OSMesa backend: Mesa's off-screen GL (gallium llvmpipe), a GL 4.5 core
 // context (or the highest core version >= 4.3) rendering into a small
 // malloc'd colour buffer. Passes render to framebuffer objects anyway.
+//
+// libOSMesa is opened when this backend is first asked for, not linked:
+// it links LLVM and its dependencies, whose loading (thousands of page
+// faults of the relocations) every run would pay at start otherwise, twice
+// with the huge-pages re-execution (core/huge_pages.h), though most runs
+// use EGL.
 #include <GL/osmesa.h>
+#include <dlfcn.h>
 
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "core/error.h"
@@ -15,23 +23,59 @@ namespace {
 
 constexpr int kBufferSize = 16;  // pixels per side of the default buffer
 
-ProcAddressFn osmesa_loader() { return reinterpret_cast<ProcAddressFn>(&OSMesaGetProcAddress); }
+// The OSMesa entry points this backend calls, from the library opened once.
+struct OSMesaApi {
+  decltype(&OSMesaCreateContextAttribs) create_context_attribs = nullptr;
+  decltype(&OSMesaMakeCurrent) make_current = nullptr;
+  decltype(&OSMesaGetCurrentContext) get_current_context = nullptr;
+  decltype(&OSMesaDestroyContext) destroy_context = nullptr;
+  decltype(&OSMesaGetProcAddress) get_proc_address = nullptr;
+};
+
+const OSMesaApi& osmesa() {
+  static const OSMesaApi api = [] {
+    void* lib = nullptr;
+    for (const char* name : {"libOSMesa.so.8", "libOSMesa.so"}) {
+      if ((lib = dlopen(name, RTLD_NOW | RTLD_LOCAL)) != nullptr) break;
+    }
+    OSMesaApi a;
+    if (!lib) return a;  // kept open for the program's life
+    const auto find = [lib](auto& fn, const char* symbol) {
+      fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(dlsym(lib, symbol));
+    };
+    find(a.create_context_attribs, "OSMesaCreateContextAttribs");
+    find(a.make_current, "OSMesaMakeCurrent");
+    find(a.get_current_context, "OSMesaGetCurrentContext");
+    find(a.destroy_context, "OSMesaDestroyContext");
+    find(a.get_proc_address, "OSMesaGetProcAddress");
+    return a;
+  }();
+  if (!api.create_context_attribs || !api.make_current || !api.get_current_context ||
+      !api.destroy_context || !api.get_proc_address) {
+    throw GLError(
+        "osmesa: libOSMesa.so.8 with OSMesaCreateContextAttribs not found (install "
+        "libosmesa6)");
+  }
+  return api;
+}
+
+ProcAddressFn osmesa_loader() { return reinterpret_cast<ProcAddressFn>(osmesa().get_proc_address); }
 
 class OSMesaContextImpl final : public Context {
  public:
   ~OSMesaContextImpl() override {
     if (context_) {
-      if (OSMesaGetCurrentContext() == context_) {
-        OSMesaMakeCurrent(nullptr, nullptr, 0, 0, 0);
-      }
-      OSMesaDestroyContext(context_);
+      const OSMesaApi& api = osmesa();
+      if (api.get_current_context() == context_) api.make_current(nullptr, nullptr, 0, 0, 0);
+      api.destroy_context(context_);
     }
   }
 
   Backend backend() const override { return Backend::OSMesa; }
 
   void make_current() override {
-    if (!OSMesaMakeCurrent(context_, buffer_.data(), GL_UNSIGNED_BYTE, kBufferSize, kBufferSize)) {
+    if (!osmesa().make_current(context_, buffer_.data(), GL_UNSIGNED_BYTE, kBufferSize,
+                               kBufferSize)) {
       throw GLError("osmesa: OSMesaMakeCurrent failed");
     }
     load_functions(osmesa_loader(), Backend::OSMesa);
@@ -52,12 +96,13 @@ class OSMesaContextImpl final : public Context {
                              OSMESA_CONTEXT_MINOR_VERSION,
                              minor,
                              0};
-      context_ = OSMesaCreateContextAttribs(attribs, nullptr);
+      context_ = osmesa().create_context_attribs(attribs, nullptr);
       if (context_) break;
     }
     if (!context_) throw GLError("OSMesaCreateContextAttribs for OpenGL 4.3+ core failed");
     buffer_.assign(static_cast<size_t>(kBufferSize) * kBufferSize, 0u);
-    if (!OSMesaMakeCurrent(context_, buffer_.data(), GL_UNSIGNED_BYTE, kBufferSize, kBufferSize)) {
+    if (!osmesa().make_current(context_, buffer_.data(), GL_UNSIGNED_BYTE, kBufferSize,
+                               kBufferSize)) {
       throw GLError("OSMesaMakeCurrent failed");
     }
     init_new_context(osmesa_loader(), Backend::OSMesa, options);
