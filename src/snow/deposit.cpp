@@ -17,6 +17,11 @@ namespace {
 /// A pile covers this many texels at most; what it would spread beyond
 /// stays on the texels it covers (the relaxation takes it on from there).
 constexpr size_t kMaxPileTexels = size_t(1) << 20;
+/// All the piles of one call cover at most this many times the maps' layer
+/// texels (counting each growth); the terminals after that keep their snow
+/// as before, so that no scene makes the pouring outweigh the passes it
+/// saves.
+constexpr size_t kPouredPerLayerTexel = 8;
 
 class Pourer {
  public:
@@ -33,6 +38,8 @@ class Pourer {
   }
 
   void pour(uint32_t p, float volume);
+  /// Texels covered by all growths so far.
+  size_t covered() const { return covered_total_; }
 
  private:
   /// Grows the pile of `volume` at terminal p into covered_ (texel, path
@@ -96,6 +103,7 @@ class Pourer {
   ZeroedArray<uint32_t> seen_;
   ZeroedArray<float> dist_;
   uint32_t growths_ = 0;
+  size_t covered_total_ = 0;
   std::vector<std::pair<uint32_t, float>> covered_;  // texel, path cost
 };
 
@@ -161,6 +169,7 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
     const int j = int((e.k % per_layer_) / size_t(g_.width));
     if (e.k != p && sheds(e.k, i, j)) continue;
     covered_.emplace_back(e.k, e.dist);
+    ++covered_total_;
     keys += double(e.key);
     const glm::vec4 cell = cells_[e.k];
     const float h = std::max(top(e.k), float(apex) - e.dist);
@@ -190,7 +199,14 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
   }
   if (terminals.empty()) return 0;
   Pourer pourer(cells, depth, grid);
-  for (uint32_t p : terminals) pourer.pour(p, arrive[p]);
+  const size_t budget = kPouredPerLayerTexel * count;
+  for (uint32_t p : terminals) {
+    if (pourer.covered() < budget) {
+      pourer.pour(p, arrive[p]);
+    } else {
+      depth[p] = depth[p] + arrive[p];
+    }
+  }
   return terminals.size();
 }
 

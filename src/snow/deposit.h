@@ -17,9 +17,10 @@
 // height). Only gaps under the open sky take a pile: under a table or an
 // eave the snow is squeezed out sideways, which a cone does not model, so
 // there the routed snow stays on its terminal as before. Texels that snow
-// would slide off into the void take none, and a pile covers at most 2^20
-// texels. Mass is exact: what the cone does not place stays on the
-// terminal.
+// would slide off into the void take none, a pile covers at most 2^20
+// texels, and the piles of one call at most 8 times the maps' layer texels
+// (the terminals after that keep their snow, as before). Mass is exact:
+// what the cone does not place stays on the terminal.
 //
 // Both stabilizers run this on the CPU after their routing (the GPU reads
 // the depth and the scattered sums back and uploads the result), in texel
