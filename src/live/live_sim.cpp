@@ -114,7 +114,7 @@ void LiveSim::make_stabilizer(const SnowMaps& maps, const std::vector<float>* de
 void LiveSim::upload_depth(const SnowMaps& maps) {
   if (!cpu_) return;
   glTextureSubImage3D(cpu_depth_.id(), 0, 0, 0, 0, maps.grid.width, maps.grid.height, maps.layers,
-                      GL_RED, GL_FLOAT, cpu_->depth().data());
+                      GL_RED, GL_FLOAT, cpu_->depth_data());
   gl::check_error("live snow depth upload");
 }
 

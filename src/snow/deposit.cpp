@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <queue>
+#include <utility>
 #include <vector>
 
 #include "core/zeroed.h"
@@ -191,13 +192,10 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
 }  // namespace
 
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
-                     const DepositGrid& grid) {
-  const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
-  std::vector<uint32_t> terminals;
-  for (size_t k = 0; k < count; ++k) {
-    if (arrive[k] > 0.0f) terminals.push_back(uint32_t(k));
-  }
+                     std::vector<uint32_t> terminals, const DepositGrid& grid) {
   if (terminals.empty()) return 0;
+  std::sort(terminals.begin(), terminals.end());
+  const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
   Pourer pourer(cells, depth, grid);
   const size_t budget = kPouredPerLayerTexel * count;
   for (uint32_t p : terminals) {
@@ -208,6 +206,16 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
     }
   }
   return terminals.size();
+}
+
+size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
+                     const DepositGrid& grid) {
+  const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
+  std::vector<uint32_t> terminals;
+  for (size_t k = 0; k < count; ++k) {
+    if (arrive[k] > 0.0f) terminals.push_back(uint32_t(k));
+  }
+  return deposit_piles(cells, depth, arrive, std::move(terminals), grid);
 }
 
 }  // namespace snow

@@ -26,6 +26,8 @@
 // the depth and the scattered sums back and uploads the result), in texel
 // order of the terminals, so they agree bit for bit.
 #include <cstddef>
+#include <cstdint>
+#include <vector>
 
 #include <glm/glm.hpp>
 
@@ -43,5 +45,9 @@ struct DepositGrid {
 /// layout. Returns the number of piles poured.
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
                      const DepositGrid& grid);
+/// The same with the terminals given (the texels where arrive > 0, in any
+/// order), as the routing that filled arrive knows them.
+size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
+                     std::vector<uint32_t> terminals, const DepositGrid& grid);
 
 }  // namespace snow

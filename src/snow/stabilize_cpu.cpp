@@ -20,6 +20,7 @@
 #include <cmath>
 #include <new>
 #include <string>
+#include <utility>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -646,7 +647,7 @@ int CpuStabilizer::route(double* routed_volume) {
     depth_[k] = (depth_[k] - e) + arrive[k];
   }
   if (settings_.deposit_piles) {  // as piles around the terminals (snow/deposit.h)
-    deposit_piles(cells_.data(), depth_.data(), arrive.data(),
+    deposit_piles(cells_.data(), depth_.data(), arrive.data(), std::move(terminals),
                   DepositGrid{width_, height_, layers_, texel_});
   } else {
     for (uint32_t p : terminals) depth_[p] = depth_[p] + arrive[p];

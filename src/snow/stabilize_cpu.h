@@ -52,6 +52,9 @@ class CpuStabilizer {
   StabilizeResult run() { return iterate(settings_.max_iterations); }
 
   std::vector<float> depth() const { return {depth_.begin(), depth_.end()}; }
+  /// The same depth in place (layer texels in the maps' layout), valid
+  /// until the next call that changes it.
+  const float* depth_data() const { return depth_.data(); }
   double lost_volume() const;
 
  private:
