@@ -51,6 +51,8 @@
 // iimage2D R32I per tile, read only: the routing's stamps (a tile with a routed texel has
 // one >= u_since; stabilize_jump.frag, stabilize_apply.frag).
 #define SNOW_STABILIZE_TILE_ROUTED 3
+// uimage2D R32UI per tile: the largest sum a texel sent into the void in a checked pass.
+#define SNOW_STABILIZE_TILE_VOID 4
 // SSBO: per layer and for the column passes a draw-indirect command (uint[4]),
 // then per layer and for the column passes its tiles.
 #define SNOW_STABILIZE_TILE_LIST 0

@@ -9,7 +9,7 @@
 // Writes the new depth with imageStore and stamps the tiles that changed
 // (active tiles, src/snow/stabilize.cpp). On convergence checks it also
 // keeps, per tile, the largest move (sum of a texel's 8 amounts, summed in
-// direction order as the CPU does).
+// direction order as the CPU does) and the largest sum sent into the void.
 #include "bindings.h"
 #include "column.glsl"
 
@@ -23,6 +23,7 @@ layout(binding = SNOW_STABILIZE_DEPTH_OUT, rg32f) uniform writeonly image2DArray
 layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform writeonly iimage2D u_changed;
 // Per tile, the largest move (float bits; moves are >= 0), with u_measure.
 layout(binding = SNOW_STABILIZE_TILE_MOVES, r32ui) uniform uimage2D u_moves;
+layout(binding = SNOW_STABILIZE_TILE_VOID, r32ui) uniform uimage2D u_void_moves;
 uniform int u_pass;     // index stamped on changed tiles
 uniform int u_tile;     // texels per tile side
 uniform int u_measure;  // 1: keep the largest move in u_moves
@@ -38,7 +39,7 @@ void main() {
   float s[kMaxLayers], lost[kMaxLayers];
   vec2 before[kMaxLayers];
   bool changed = false;
-  float largest = 0.0;
+  float largest = 0.0, largest_void = 0.0;
   for (int l = 0; l < surfaces; ++l) {
     ivec3 t = ivec3(c, l);
     before[l] = texelFetch(u_depth, t, 0).rg;
@@ -64,6 +65,11 @@ void main() {
       move += b.z;
       move += b.w;
       largest = max(largest, move);
+      float to_void = 0.0;
+      for (int n = 0; n < 8; ++n) {
+        if (code_of(own, n) == kCodeVoid) to_void += n < 4 ? a[n] : b[n - 4];
+      }
+      largest_void = max(largest_void, to_void);
     }
   }
   // Inflow, in direction order as the CPU adds it.
@@ -86,4 +92,5 @@ void main() {
   }
   if (changed) imageStore(u_changed, c / u_tile, ivec4(u_pass));
   if (largest > 0.0) imageAtomicMax(u_moves, c / u_tile, floatBitsToUint(largest));
+  if (largest_void > 0.0) imageAtomicMax(u_void_moves, c / u_tile, floatBitsToUint(largest_void));
 }

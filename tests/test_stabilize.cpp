@@ -248,11 +248,21 @@ TEST(StrideSchedule, LengthensOnlyWhereTheSnowCreeps) {
   EXPECT_EQ(run(16, 1e-2f), std::vector<int>(16, 1));  // single steps first
   EXPECT_EQ(run(16, 1e-3f), std::vector<int>(16, 1));  // fell tenfold: stays
   EXPECT_EQ(schedule.largest(), 1);
+  EXPECT_FALSE(schedule.creeping());
+  EXPECT_FALSE(drain_due(settings, schedule, 1e-3f, 1e-3f));
   run(16, 0.9e-3f);  // fell by a tenth only: creeping, strides up to 2
   EXPECT_EQ(schedule.largest(), 2);
+  EXPECT_TRUE(schedule.creeping());
+  // Draining: creeping, and a quarter of the largest move went into the void.
+  EXPECT_TRUE(drain_due(settings, schedule, 0.9e-3f, 0.25f * 0.9e-3f));
+  EXPECT_FALSE(drain_due(settings, schedule, 0.9e-3f, 0.2e-3f));
+  StabilizeSettings no_drain = settings;
+  no_drain.drain_edges = false;
+  EXPECT_FALSE(drain_due(no_drain, schedule, 0.9e-3f, 0.9e-3f));
   EXPECT_EQ(run(6, 0.0f), (std::vector<int>{2, 1, 2, 1, 2, 1}));
   schedule.checked(2, 1.0f);  // checks after a strided pass do not count
   EXPECT_EQ(schedule.largest(), 2);
+  EXPECT_FALSE(schedule.creeping());
   run(16, 0.85e-3f);  // slow again: 4
   run(18, 0.8e-3f);   // and again, but 4 is the most
   EXPECT_EQ(schedule.largest(), 4);
@@ -408,6 +418,46 @@ TEST(StabilizeReference, RoutedSnowUnderACeilingIsNotPoured) {
   deposit_piles(cells.data(), depth.data(), arrive.data(), DepositGrid{16, 16, 4, texel});
   EXPECT_EQ(depth[under], 1.0f);
   EXPECT_EQ(std::count_if(depth.begin(), depth.end(), [](float d) { return d != 0.0f; }), 1);
+}
+
+// A 0.2 m box on a 0.48 m plate, the void beyond: snow routed off the box
+// piles at its walls and spreads out to the plate's edge, where it creeps off.
+SnowMaps box_on_plate_maps() {
+  const int side = 48;
+  const float texel = 0.01f, half = 0.12f, mid = 0.24f;
+  return make_maps(side, side, texel, 2, [=](float x, float z) {
+    std::vector<Surface> s;
+    if (std::abs(x - mid) < half && std::abs(z - mid) < half) s.push_back({0.2f, kUp});
+    s.push_back({0.0f, kUp});
+    return s;
+  });
+}
+
+TEST(StabilizeReference, SnowCreepingOffAnEdgeIsDrained) {
+  const SnowMaps maps = box_on_plate_maps();
+  const std::vector<float> start = snow_on_top(maps, 0.1f);
+  const double fell = snow_volume(maps, start);
+  std::vector<float> relaxed = start, drained = start;
+  StabilizeSettings settings;
+  settings.drain_edges = false;
+  const StabilizeResult r0 = stabilize_cpu(maps, relaxed, settings);
+  settings.drain_edges = true;
+  const StabilizeResult r1 = stabilize_cpu(maps, drained, settings);
+  std::printf("creeping off an edge: %d passes relaxed, %d with %d drains; %.6f against %.6f m^3\n",
+              r0.iterations, r1.iterations, r1.drains, r0.volume, r1.volume);
+  EXPECT_TRUE(r0.converged);
+  EXPECT_TRUE(r1.converged);
+  EXPECT_EQ(r0.drains, 0);
+  EXPECT_GE(r1.drains, 1);
+  EXPECT_LT(3 * r1.iterations, r0.iterations);  // 426 against 82 when written
+  EXPECT_NEAR(r1.volume + r1.lost_volume, fell, 1e-9);
+  EXPECT_NEAR(r1.volume, r0.volume, 1e-3 * r0.volume);
+  EXPECT_LE(largest_excess(maps, drained, settings, 1e-4f), 2e-4f);
+  float difference = 0.0f;
+  for (size_t k = 0; k < drained.size(); ++k) {
+    difference = std::max(difference, std::abs(drained[k] - relaxed[k]));
+  }
+  EXPECT_LT(difference, 1e-3f);  // a tenth of a texel
 }
 
 TEST(StabilizeReference, TableEdgesRoundOff) {
@@ -632,6 +682,20 @@ TEST(StabilizeGpu, PilesMatchReference) {
   EXPECT_GT(rc.routed_volume, 0.0);
   EXPECT_EQ(rg.route_passes, rc.route_passes);
   EXPECT_LT(*std::max_element(cpu.begin(), cpu.end()), 0.2f + 0.3f);  // poured, no spike
+  EXPECT_EQ(gpu, cpu);
+}
+
+TEST(StabilizeGpu, DrainingMatchesReference) {
+  REQUIRE_GL();
+  const SnowMaps maps = box_on_plate_maps();
+  std::vector<float> cpu = snow_on_top(maps, 0.1f), gpu = cpu;
+  const StabilizeSettings settings;
+  const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
+  const StabilizeResult rg = stabilize(maps, gpu, settings);
+  EXPECT_GE(rc.drains, 1);
+  EXPECT_EQ(rg.drains, rc.drains);
+  EXPECT_EQ(rg.route_passes, rc.route_passes);
+  EXPECT_EQ(rg.iterations, rc.iterations);
   EXPECT_EQ(gpu, cpu);
 }
 

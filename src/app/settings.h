@@ -93,6 +93,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Lay routed snow as a pile at the angle of repose where it comes to rest, not on one texel "
     "(true/false)",
     s.stabilize.deposit_piles);
+  v("snow.drain_edges", "--drain-edges",
+    "Once snow creeps off an edge into the void, drain what will leave in one go (true/false)",
+    s.stabilize.drain_edges);
   // Meshes.
   v("mesh.min_thickness", "--min-thickness", "Snow thinner than this is no snow, metres",
     s.polygonize.min_thickness);

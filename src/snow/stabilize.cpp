@@ -105,6 +105,7 @@ void StrideSchedule::restart() {
   cycle_ = 0;
   since_ = 0;
   last_ = -1.0;
+  creeping_ = false;
 }
 
 int StrideSchedule::next() {
@@ -115,16 +116,22 @@ int StrideSchedule::next() {
 }
 
 void StrideSchedule::checked(int stride, float residual) {
+  creeping_ = false;
   if (stride != 1 || since_ < every_) return;
   // Fell by less than half per check_every passes: creeping, longer moves.
-  const double creeping = last_ * std::pow(0.5, double(since_) / double(every_));
-  const bool longer = adaptive_ && last_ >= 0.0 && cap_ < max_;
-  if (longer && double(residual) > creeping) {
+  creeping_ = last_ >= 0.0 && double(residual) > last_ * std::pow(0.5, double(since_) / double(every_));
+  if (creeping_ && adaptive_ && cap_ < max_) {
     cap_ *= 2;
     cycle_ = 0;
   }
   last_ = double(residual);
   since_ = 0;
+}
+
+bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule,
+               float residual, float residual_void) {
+  return settings.drain_edges && settings.route_steep && schedule.creeping() &&
+         residual >= settings.tolerance && residual_void >= kDrainShare * residual;
 }
 
 namespace {
@@ -192,6 +199,7 @@ void StabilizeResult::add(const StabilizeResult& later) {
   converged = later.converged;
   route_passes += later.route_passes;
   routed_volume += later.routed_volume;
+  drains += later.drains;
   lost_volume += later.lost_volume;
   volume = later.volume;
   route_seconds += later.route_seconds;
@@ -231,6 +239,7 @@ struct Stabilizer::Impl {
   // the same memory as other formats (see route()).
   gl::Texture code_float, out_a_uint, out_b_uint;
   gl::Texture tile_moves;  // R32UI per tile: largest move of a checked pass (float bits)
+  gl::Texture tile_void;   // R32UI per tile: and the largest into the void
   std::vector<gl::Framebuffer> fbo_outflow, fbo_depth[2];
   std::vector<gl::Framebuffer> fbo_out_b, fbo_code_float, fbo_code, fbo_out_a_uint, fbo_out_b_uint;
   std::vector<gl::Framebuffer> fbo_stable_both;  // code_float and out_b: the first erosion pass
@@ -275,7 +284,9 @@ struct Stabilizer::Impl {
   }
   void upload_depth(const std::vector<float>& depth);
   void add_snow(const std::vector<float>& add);
-  int route();
+  // The routing; with `drain`, only the excess on its way into the void
+  // leaves (drain_due). Returns the erosion plus jump passes run.
+  int route(bool drain = false);
   void relax_pass(int stride, bool measure);
   void reset_tiles() { stride_last.assign(stride_last.size(), -1); }
   void bind_changed(const gl::Texture& stamps) const {
@@ -294,8 +305,8 @@ struct Stabilizer::Impl {
   // snow after routing); metres.
   glm::dvec3 sum_blocks();
   // The largest move (m) of the last relaxation pass, which must have been
-  // measured.
-  float largest_move() const;
+  // measured, and the largest into the void.
+  glm::vec2 largest_move() const;
   std::vector<glm::vec2> read_depth() const;
   std::vector<float> read_channel(GLenum channel) const;
   StabilizeResult iterate(int passes);
@@ -376,6 +387,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   tile_relax = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
   tile_erode = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
   tile_moves = gl::create_texture_2d(GL_R32UI, tiles_x, tiles_y, "stabilize tile moves");
+  tile_void = gl::create_texture_2d(GL_R32UI, tiles_x, tiles_y, "stabilize tile moves");
   const GLint never = -1;
   glClearTexImage(tile_relax.id(), 0, GL_RED_INTEGER, GL_INT, &never);
   glClearTexImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT, &never);
@@ -669,7 +681,7 @@ GLuint Stabilizer::Impl::count_fragments(const gl::Program& program) {
   return samples;
 }
 
-int Stabilizer::Impl::route() {
+int Stabilizer::Impl::route(bool drain) {
   bind(SNOW_STABILIZE_CELLS, cells);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
   // The routing runs in the outflow textures (r of each texel): the kept
@@ -764,6 +776,17 @@ int Stabilizer::Impl::route() {
   // from out_a, which the scatter now clears and sums the routed snow into;
   // then apply.
   bind(SNOW_STABILIZE_POINTER, *pointer[0]);
+  if (drain) {  // nothing arrives anywhere but in the void
+    bind_changed(tile_relax);
+    apply.set("u_pass", pass_counter - 1);
+    apply.set("u_since", routed);
+    apply.set("u_add_arrive", 0);
+    apply.set("u_drain", 1);
+    per_layer(apply, fbo_depth[1 - cur]);
+    cur = 1 - cur;
+    gl::check_error("stabilize: draining");
+    return passes;
+  }
   const float zero[4] = {0, 0, 0, 0};
   glClearTexImage(out_a.id(), 0, GL_RGBA, GL_FLOAT, zero);
   scatter.use();
@@ -806,6 +829,7 @@ int Stabilizer::Impl::route() {
   apply.set("u_pass", pass_counter - 1);  // as a change of the last relaxation pass
   apply.set("u_since", routed);
   apply.set("u_add_arrive", settings.deposit_piles ? 0 : 1);
+  apply.set("u_drain", 0);
   per_layer(apply, fbo_depth[1 - cur]);
   cur = 1 - cur;
   if (settings.deposit_piles) {
@@ -846,7 +870,10 @@ void Stabilizer::Impl::relax_pass(int stride, bool measure) {
   if (measure) {
     const GLuint zero = 0;
     glClearTexImage(tile_moves.id(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+    glClearTexImage(tile_void.id(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
     glBindImageTexture(SNOW_STABILIZE_TILE_MOVES, tile_moves.id(), 0, GL_FALSE, 0, GL_READ_WRITE,
+                       GL_R32UI);
+    glBindImageTexture(SNOW_STABILIZE_TILE_VOID, tile_void.id(), 0, GL_FALSE, 0, GL_READ_WRITE,
                        GL_R32UI);
   }
   if (tiled) {
@@ -892,16 +919,18 @@ glm::dvec3 Stabilizer::Impl::sum_blocks() {
   return r;
 }
 
-float Stabilizer::Impl::largest_move() const {
+glm::vec2 Stabilizer::Impl::largest_move() const {
+  glm::vec2 result;
   std::vector<GLuint> moves(size_t(tiles_x) * size_t(tiles_y));
-  glGetTextureImage(tile_moves.id(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT,
-                    GLsizei(moves.size() * sizeof(GLuint)), moves.data());
-  gl::check_error("stabilize: largest move");
-  GLuint largest = 0;  // the bits of non-negative floats order as the floats
-  for (GLuint m : moves) largest = std::max(largest, m);
-  float move = 0.0f;
-  std::memcpy(&move, &largest, sizeof(move));
-  return move;
+  for (int which = 0; which < 2; ++which) {
+    glGetTextureImage((which == 0 ? tile_moves : tile_void).id(), 0, GL_RED_INTEGER,
+                      GL_UNSIGNED_INT, GLsizei(moves.size() * sizeof(GLuint)), moves.data());
+    gl::check_error("stabilize: largest move");
+    GLuint largest = 0;  // the bits of non-negative floats order as the floats
+    for (GLuint m : moves) largest = std::max(largest, m);
+    std::memcpy(&result[which], &largest, sizeof(float));
+  }
+  return result;
 }
 
 // One channel of the depth texture (GL_RED: depth, GL_GREEN: lost), half the
@@ -948,11 +977,17 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
     ++result.iterations;
     if (check) {
       last_check = pass;
-      result.residual = largest_move();
+      const glm::vec2 moves = largest_move();
+      result.residual = moves.x;
       schedule.checked(stride, result.residual);
       if (result.residual < settings.tolerance) {
         result.converged = true;
         break;
+      }
+      if (drain_due(settings, schedule, moves.x, moves.y)) {
+        result.route_passes += route(true);
+        ++result.drains;
+        reset_tiles();  // the routing used the outflow textures
       }
     }
   }

@@ -239,7 +239,7 @@ int CpuStabilizer::gap_at(int i, int j, float h) const {
 }
 
 // Mirrors shaders/stabilize_outflow.frag.
-float CpuStabilizer::outflow_texel(int l, int i, int j, int stride) {
+float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_void) {
   const size_t k = index(l, i, j);
   float* out = &amount_[8 * k];
   uint8_t* code = &code_[8 * k];
@@ -362,6 +362,9 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride) {
   }
   float sum = 0.0f;
   for (int n = 0; n < 8; ++n) sum += out[n];
+  for (int n = 0; n < 8; ++n) {
+    if (code[n] == kCodeVoid) *to_void += out[n];
+  }
   return sum;
 }
 
@@ -374,29 +377,34 @@ void CpuStabilizer::outflow_pass(int stride) {
   work_ = active ? dirty.list : surface_tiles_;
   const std::vector<int>& tiles = work_;
   tile_work_ += double(tiles.size());
-  slot_max_.assign(tiles.size(), 0.0f);
+  slot_max_.assign(tiles.size(), glm::vec2(0.0f));
   for_tiles(tiles, [&](int t, size_t slot) {
     const Tile b = tile(t);
-    float largest = 0.0f;
+    float largest = 0.0f, largest_void = 0.0f;
     for (int j = b.j0; j < b.j1; ++j) {
       for (int i = b.i0; i < b.i1; ++i) {
         const size_t c = size_t(j) * width_ + i;
         float column_largest = 0.0f;
-        for (int l = 0; l < column_layers_[c]; ++l)
-          column_largest = std::max(column_largest, outflow_texel(l, i, j, stride));
+        for (int l = 0; l < column_layers_[c]; ++l) {
+          float to_void = 0.0f;
+          column_largest = std::max(column_largest, outflow_texel(l, i, j, stride, &to_void));
+          largest_void = std::max(largest_void, to_void);
+        }
         column_sent_[c] = column_largest > 0.0f;
         largest = std::max(largest, column_largest);
       }
     }
-    slot_max_[slot] = largest;
+    slot_max_[slot] = glm::vec2(largest, largest_void);
   });
   residual_ = 0.0f;
+  residual_void_ = 0.0f;
   sent_.clear();
   if (active) dirty.list.clear();
   for (size_t slot = 0; slot < tiles.size(); ++slot) {
     const int t = tiles[slot];
-    residual_ = std::max(residual_, slot_max_[slot]);
-    if (slot_max_[slot] > 0.0f) {
+    residual_ = std::max(residual_, slot_max_[slot].x);
+    residual_void_ = std::max(residual_void_, slot_max_[slot].y);
+    if (slot_max_[slot].x > 0.0f) {
       sent_.add(t);
       if (active) dirty.list.push_back(t);  // it moves snow: computed again next time
     } else if (active) {
@@ -495,7 +503,7 @@ float CpuStabilizer::erode_texel(int l, int i, int j) const {
   return hs;
 }
 
-int CpuStabilizer::route(double* routed_volume) {
+int CpuStabilizer::route(double* routed_volume, bool drain) {
   const size_t count = cells_.size();
   // Erosion passes (shaders/stabilize_erode.frag): the highest snow surface
   // each texel can keep, from H = min(ground + depth, ceiling), until
@@ -626,6 +634,21 @@ int CpuStabilizer::route(double* routed_volume) {
     for (size_t r = 0; r < routed.size(); ++r) pointer[routed[r]] = jumped[r];
     ++jumps;
   }
+  if (drain) {
+    // Only the excess on its way into the void leaves (stabilize_apply.frag
+    // with u_drain); the tiles it left are computed again.
+    for (uint32_t k : routed) {
+      if (pointer[k] != kPointerVoid) continue;
+      const float e = (cells_[k].x + depth_[k]) - stable_[k];
+      lost_[k] = lost_[k] + e;
+      depth_[k] = depth_[k] - e;
+      const size_t column = k % (size_t(width_) * size_t(height_));
+      const int i = int(column % size_t(width_)), j = int(column / size_t(width_));
+      touch((j / kTile) * tiles_x_ + i / kTile);
+    }
+    stable_ = ZeroedArray<float>();
+    return passes + jumps;
+  }
   // Scatter (shaders/stabilize_scatter.*: one point per routed texel, added
   // in texel order into its terminal) and apply (stabilize_apply.frag).
   // Terminals are never routed, so the excess is read before any change.
@@ -683,6 +706,10 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
       if (result.residual < settings_.tolerance) {
         result.converged = true;
         break;
+      }
+      if (drain_due(settings_, schedule_, result.residual, residual_void_)) {
+        result.route_passes += route(nullptr, true);
+        ++result.drains;
       }
     }
   }

@@ -70,13 +70,16 @@ class CpuStabilizer {
   void gather_pass(int stride);
   /// Routing (erosion until stable, receiver, jumps until every pointer
   /// reaches a terminal, scatter, apply); returns the erosion plus jump passes
-  /// run. Adds the routed volume (m^3) to *routed_volume.
-  int route(double* routed_volume);
+  /// run. Adds the routed volume (m^3) to *routed_volume. With `drain`
+  /// (drain_due; routed_volume unused), only the texels whose path ends in
+  /// the void give up their excess.
+  int route(double* routed_volume, bool drain = false);
   [[gnu::always_inline]] int land(int i, int j, float h, float support, float rise,
                                   bool kept = false) const;
   int gap_at(int i, int j, float h) const;
-  /// Outflow of one layer texel; returns the sum of its amounts.
-  float outflow_texel(int l, int i, int j, int stride);
+  /// Outflow of one layer texel; returns the sum of its amounts, and the sum
+  /// of those into the void in *to_void.
+  float outflow_texel(int l, int i, int j, int stride, float* to_void);
   /// Gather of the layer texels of one column; true when a depth changed.
   bool gather_column(int i, int j, int stride);
   /// Erosion of one layer texel: its next kept height from stable_.
@@ -132,7 +135,8 @@ class CpuStabilizer {
   std::unique_ptr<float[]> amount_;  // 8 per layer texel, metres
   std::unique_ptr<uint8_t[]> code_;  // 8 per layer texel
   ZeroedArray<float> stable_;        // metres, highest snow surface each texel can keep (routing)
-  float residual_ = 0.0f;
+  float residual_ = 0.0f;       // largest move of the last outflow pass
+  float residual_void_ = 0.0f;  // and the largest into the void
   bool route_pending_ = false;
 
   // Tiles of kTile x kTile columns, all layers.
@@ -148,7 +152,7 @@ class CpuStabilizer {
   TileSet near_;      // scratch: the tiles a gather or erosion pass computes
   std::vector<uint8_t> changed_;  // per tile: its last gather or erosion pass changed it
   std::vector<int> work_;         // the tiles a pass computes
-  std::vector<float> slot_max_;   // per tile of work_: largest move (outflow)
+  std::vector<glm::vec2> slot_max_;  // per tile of work_: largest move, largest into the void
   double tile_work_ = 0.0;        // tiles computed by the relaxation passes (count_tiles)
 };
 
