@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
+#include <limits>
 #include <queue>
 #include <utility>
 #include <vector>
@@ -64,6 +66,12 @@ class Pourer {
   }
   bool on_map(int i, int j) const { return i >= 0 && j >= 0 && i < g_.width && j < g_.height; }
   float top(size_t k) const { return cells_[k].x + depth_[k]; }
+  // The highest snow top texel k can hold (kCeilingClearance under its
+  // ceiling; infinite under the open sky).
+  double cap(size_t k) const {
+    return cells_[k].y < kCellOpenSky ? double(cells_[k].y) - double(kCeilingClearance)
+                                      : std::numeric_limits<double>::infinity();
+  }
   // Snow on layer texel k of column (i, j), under the open sky, would slide
   // off into the void.
   bool sheds(size_t k, int i, int j) const {
@@ -77,17 +85,14 @@ class Pourer {
     }
     return false;
   }
-  // The layer of column (i, j) whose gap contains h, or -1: where a pile
-  // rising at h spreads to. Only gaps under the open sky: under a table or
-  // an eave (or inside a solid) the relaxation shapes the snow as before
-  // (snow under the ceiling is squeezed out sideways, which a cone does
-  // not model).
+  // The layer of column (i, j) whose gap contains h, or -1 (none, or the
+  // inside of a solid): where a pile rising at h spreads to.
   int gap_at(int i, int j, float h) const {
     if (!on_map(i, j)) return -1;
     const Column col{*this, i, j};
     for (int l = 0; l < g_.layers && col.has(l); ++l) {
       if (h >= col.ceiling(l)) return -1;
-      if (h >= col.ground(l)) return col.ceiling(l) < kCellOpenSky ? -1 : l;
+      if (h >= col.ground(l)) return col.solid(l) ? -1 : l;
     }
     return -1;
   }
@@ -111,9 +116,21 @@ class Pourer {
 void Pourer::pour(uint32_t p, float volume) {
   const int pi = int((p % per_layer_) % size_t(g_.width));
   const int pj = int((p % per_layer_) / size_t(g_.width));
-  if (cells_[p].y < kCellOpenSky || sheds(p, pi, pj)) {  // as before: on the terminal
+  if (sheds(p, pi, pj)) {  // as before: on the terminal
     depth_[p] = depth_[p] + volume;
     return;
+  }
+  if (cells_[p].y < kCellOpenSky) {
+    // Under a ceiling, what fits stays on the terminal as before (the
+    // relaxation spreads it); only what would be pressed above the ceiling
+    // is poured.
+    const float fits = float(std::max(0.0, cap(p) - double(top(p))));
+    if (volume <= fits) {
+      depth_[p] = depth_[p] + volume;
+      return;
+    }
+    depth_[p] = depth_[p] + fits;
+    volume -= fits;
   }
   // The cone spreads over the gaps its surface lies in, which depends on
   // its height: grown once at the snow tops as they are, then again at the
@@ -125,7 +142,7 @@ void Pourer::pour(uint32_t p, float volume) {
   float placed = 0.0f;
   for (const auto& [k, dist] : covered_) {
     if (k == p) continue;
-    const float add = float(cone) - dist - top(k);
+    const float add = float(std::min(cone - double(dist), cap(k))) - top(k);
     if (add > 0.0f && placed + add <= volume) {
       depth_[k] = depth_[k] + add;
       placed += add;
@@ -149,18 +166,35 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
   seen_[p] = reached;
   dist_[p] = 0.0f;
   covered_.clear();
-  double keys = 0.0;  // sum over covered texels of top + path cost
-  double cone = 0.0;  // height of the cone's apex (m)
+  // A covered texel takes snow from the apex height at which the cone
+  // reaches it (its key: top + path cost) up to the one at which the cone
+  // reaches its ceiling (cap + path cost): the volume under an apex A is
+  // active * A - keys + full, over the texels still filling (active, the
+  // sum of their keys) and the full ones (full: what they hold).
+  using Saturation = std::pair<double, uint32_t>;  // apex height, texel
+  std::priority_queue<Saturation, std::vector<Saturation>, std::greater<Saturation>> saturations;
+  size_t active = 0;
+  double keys = 0.0, full = 0.0;
+  const double inf = std::numeric_limits<double>::infinity();
+  double cone = inf;  // height of the cone's apex (m); infinite: every texel full
   for (;;) {
-    bool full = frontier.empty() || covered_.size() >= kMaxPileTexels;
-    if (!full) {
-      const Entry e = frontier.top();
-      // The cone at the height where it reaches e holds enough: it ends below.
-      full = !covered_.empty() && double(covered_.size()) * double(e.key) - keys >= double(volume);
-    }
-    if (full) {
-      cone = (double(volume) + keys) / double(covered_.size());
+    const double next_key =
+        frontier.empty() || covered_.size() >= kMaxPileTexels ? inf : double(frontier.top().key);
+    const double next_full = saturations.empty() ? inf : saturations.top().first;
+    const double next = std::min(next_key, next_full);
+    // The cone at the height of the next event holds enough: it ends below.
+    if (active > 0 && (next == inf || double(active) * next - keys + full >= double(volume))) {
+      cone = (double(volume) - full + keys) / double(active);
       break;
+    }
+    if (next == inf) break;
+    if (next_full <= next_key) {
+      const uint32_t k = saturations.top().second;
+      saturations.pop();
+      --active;
+      keys -= double(top(k)) + double(dist_[k]);
+      full += cap(k) - double(top(k));
+      continue;
     }
     const Entry e = frontier.top();
     frontier.pop();
@@ -171,9 +205,14 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
     if (e.k != p && sheds(e.k, i, j)) continue;
     covered_.emplace_back(e.k, e.dist);
     ++covered_total_;
-    keys += double(e.key);
+    const double room = cap(e.k) - double(top(e.k));
+    if (room > 0.0) {
+      ++active;
+      keys += double(top(e.k)) + double(e.dist);
+      if (room < inf) saturations.push({cap(e.k) + double(e.dist), e.k});
+    }
     const glm::vec4 cell = cells_[e.k];
-    const float h = std::max(top(e.k), float(apex) - e.dist);
+    const float h = float(std::max(double(top(e.k)), std::min(apex - double(e.dist), cap(e.k))));
     for (int n = 0; n < 8; ++n) {
       const int ni = i + kDirI[n], nj = j + kDirJ[n];
       const int lb = gap_at(ni, nj, h);

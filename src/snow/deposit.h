@@ -14,9 +14,13 @@
 // relaxation's rule), grown in order of the height at which the rising cone
 // first covers a texel, twice: at the snow tops, then at the cone heights
 // the first growth found (which gaps the surface lies in depends on its
-// height). Only gaps under the open sky take a pile: under a table or an
-// eave the snow is squeezed out sideways, which a cone does not model, so
-// there the routed snow stays on its terminal as before. Texels that snow
+// height). Under a ceiling (a table, an eave, a tree's tiers) a texel takes
+// snow only up to kCeilingClearance under it: the cone fills the gap there
+// and spreads on. A terminal under a ceiling keeps what fits under it, as
+// before, for the relaxation to spread; only what would be pressed above
+// the ceiling is poured (snow sliding off a tree's tiers lands in the low
+// gap under them, metres deep on one texel: Kenney grass-trees-tall, 0.3 m,
+// 1664 -> 384 passes). Texels that snow
 // would slide off into the void take none, a pile covers at most 2^20
 // texels, and the piles of one call at most 8 times the maps' layer texels
 // (the terminals after that keep their snow, as before). Mass is exact:
