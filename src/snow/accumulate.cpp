@@ -32,9 +32,10 @@ StabilizeResult stabilize_step(AnyStabilizer& stabilizer, const StabilizeSetting
     const StabilizeResult r = stabilizer.iterate(passes);
     total.add(r);
     char line[200];
-    std::snprintf(line, sizeof line,
-                  "stabilize: %d passes, largest move %.3g m, routing %d passes (%.2f s), %d drains",
-                  total.iterations, double(r.residual), r.route_passes, r.route_seconds, r.drains);
+    std::snprintf(
+        line, sizeof line,
+        "stabilize: %d passes, largest move %.3g m, routing %d passes (%.2f s), %d drains",
+        total.iterations, double(r.residual), r.route_passes, r.route_seconds, r.drains);
     log_debug(line);
     if (r.converged || passes <= 0 || total.iterations >= settings.max_iterations) break;
     // The larger of the share of passes run and the share of the way down

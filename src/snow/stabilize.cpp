@@ -119,7 +119,8 @@ void StrideSchedule::checked(int stride, float residual) {
   creeping_ = false;
   if (stride != 1 || since_ < every_) return;
   // Fell by less than half per check_every passes: creeping, longer moves.
-  creeping_ = last_ >= 0.0 && double(residual) > last_ * std::pow(0.5, double(since_) / double(every_));
+  creeping_ =
+      last_ >= 0.0 && double(residual) > last_ * std::pow(0.5, double(since_) / double(every_));
   if (creeping_ && adaptive_ && cap_ < max_) {
     cap_ *= 2;
     cycle_ = 0;
@@ -128,8 +129,8 @@ void StrideSchedule::checked(int stride, float residual) {
   since_ = 0;
 }
 
-bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule,
-               float residual, float residual_void) {
+bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule, float residual,
+               float residual_void) {
   return settings.drain_edges && settings.route_steep && schedule.creeping() &&
          residual >= settings.tolerance && residual_void >= kDrainShare * residual;
 }
@@ -387,7 +388,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   tile_relax = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
   tile_erode = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
   tile_moves = gl::create_texture_2d(GL_R32UI, tiles_x, tiles_y, "stabilize tile moves");
-  tile_void = gl::create_texture_2d(GL_R32UI, tiles_x, tiles_y, "stabilize tile moves");
+  tile_void = gl::create_texture_2d(GL_R32UI, tiles_x, tiles_y, "stabilize tile void moves");
   const GLint never = -1;
   glClearTexImage(tile_relax.id(), 0, GL_RED_INTEGER, GL_INT, &never);
   glClearTexImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT, &never);

@@ -218,8 +218,8 @@ class StrideSchedule {
 /// `residual_void`: the largest sum a texel sent into the void in that pass.
 /// Shared by both stabilizers, which measure both maxima alike.
 constexpr float kDrainShare = 0.25f;
-bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule,
-               float residual, float residual_void);
+bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule, float residual,
+               float residual_void);
 /// Snow volume (m^3): sum of depth (m) over the layer texels that have a
 /// surface times texel^2, in double.
 double snow_volume(const SnowMaps& maps, const std::vector<float>& depth);

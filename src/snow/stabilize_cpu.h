@@ -135,8 +135,8 @@ class CpuStabilizer {
   std::unique_ptr<float[]> amount_;  // 8 per layer texel, metres
   std::unique_ptr<uint8_t[]> code_;  // 8 per layer texel
   ZeroedArray<float> stable_;        // metres, highest snow surface each texel can keep (routing)
-  float residual_ = 0.0f;       // largest move of the last outflow pass
-  float residual_void_ = 0.0f;  // and the largest into the void
+  float residual_ = 0.0f;            // largest move of the last outflow pass
+  float residual_void_ = 0.0f;       // and the largest into the void
   bool route_pending_ = false;
 
   // Tiles of kTile x kTile columns, all layers.
@@ -150,10 +150,10 @@ class CpuStabilizer {
                       // there, or that one moved snow)
   TileSet sent_;      // the tiles whose last outflow moved snow
   TileSet near_;      // scratch: the tiles a gather or erosion pass computes
-  std::vector<uint8_t> changed_;  // per tile: its last gather or erosion pass changed it
-  std::vector<int> work_;         // the tiles a pass computes
+  std::vector<uint8_t> changed_;     // per tile: its last gather or erosion pass changed it
+  std::vector<int> work_;            // the tiles a pass computes
   std::vector<glm::vec2> slot_max_;  // per tile of work_: largest move, largest into the void
-  double tile_work_ = 0.0;        // tiles computed by the relaxation passes (count_tiles)
+  double tile_work_ = 0.0;           // tiles computed by the relaxation passes (count_tiles)
 };
 
 /// One-off CPU stabilize (same contract as snow::stabilize): a CpuStabilizer
