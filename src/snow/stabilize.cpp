@@ -981,7 +981,9 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
       const glm::vec2 moves = largest_move();
       result.residual = moves.x;
       schedule.checked(stride, result.residual);
-      if (result.residual < settings.tolerance) {
+      // A strided pass's largest move says nothing of single steps (its
+      // paths may be blocked where single steps still move snow).
+      if (stride == 1 && result.residual < settings.tolerance) {
         result.converged = true;
         break;
       }

@@ -703,7 +703,9 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
       last_check = pass;
       result.residual = residual_;
       schedule_.checked(stride, result.residual);
-      if (result.residual < settings_.tolerance) {
+      // A strided pass's largest move says nothing of single steps (its
+      // paths may be blocked where single steps still move snow).
+      if (stride == 1 && result.residual < settings_.tolerance) {
         result.converged = true;
         break;
       }
