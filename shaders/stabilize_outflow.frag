@@ -27,6 +27,22 @@ int gap_at(ivec2 c, float h) {
   return kLandBlocked;
 }
 
+// The stride-1 rule of a strided pass (below): would a single step move
+// snow from this texel? Most texels of a late strided pass stay, and this
+// answers for them without walking the paths. Mirrors
+// CpuStabilizer::single_step_moves.
+bool single_step_moves(ivec2 c, vec4 cell, float s, float he, float over) {
+  float wmax1 = 0.0;
+  for (int n = 0; n < 8; ++n) {
+    vec4 mc;
+    float top;
+    int land_l = landing(c + kDir[n], he, cell.x, false, mc, top);
+    if (land_l == kLandVoid) return true;
+    if (land_l >= 0) wmax1 = max(wmax1, he - top - dir_distance(n) * (0.0 + cell.z));
+  }
+  return wmax1 > 0.0 && min(s, max(0.5 * wmax1, over)) >= u_min_move;
+}
+
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
   float amount[8];
@@ -37,10 +53,10 @@ void main() {
   }
   vec4 cell = texelFetch(u_cells, ivec3(c, u_layer), 0);
   float s = texelFetch(u_depth, ivec3(c, u_layer), 0).r;
-  if ((int(cell.w) & kCellSurface) != 0 && s > 0.0) {
-    float h = cell.x + s;
-    float he = free_top(cell, s);  // snow above the ceiling is pressed out
-    float over = h - he;
+  float he = free_top(cell, s);  // snow above the ceiling is pressed out
+  float over = (cell.x + s) - he;
+  if ((int(cell.w) & kCellSurface) != 0 && s > 0.0 &&
+      (u_stride == 1 || single_step_moves(c, cell, s, he, over))) {
     float w[8];
     float wsum = 0.0, wmax = 0.0;
     int voids = 0;

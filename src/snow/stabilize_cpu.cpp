@@ -238,6 +238,24 @@ int CpuStabilizer::gap_at(int i, int j, float h) const {
   return kLandBlocked;
 }
 
+// The stride-1 rule of a strided pass (see outflow_texel): would a single
+// step move snow from this texel? Most texels of a late strided pass stay,
+// and this answers for them without walking the paths.
+bool CpuStabilizer::single_step_moves(int i, int j, const glm::vec4& cell, float s, float he,
+                                      float over) const {
+  float wmax1 = 0.0f;
+  for (int n = 0; n < 8; ++n) {
+    const int ni = i + kDirI[n], nj = j + kDirJ[n];
+    const int land_l = land(ni, nj, he, cell.x, rise_);
+    if (land_l == kLandVoid) return true;
+    if (land_l < 0) continue;
+    const size_t km = index(land_l, ni, nj);
+    const float top = cells_[km].x + depth_[km];
+    wmax1 = std::max(wmax1, he - top - distance_[n] * (0.0f + cell.z));
+  }
+  return wmax1 > 0.0f && std::min(s, std::max(0.5f * wmax1, over)) >= settings_.min_move;
+}
+
 // Mirrors shaders/stabilize_outflow.frag.
 float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_void) {
   const size_t k = index(l, i, j);
@@ -253,6 +271,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   const float h = cell.x + s;
   const float he = free_top(cell, s);  // snow above the ceiling is pressed out
   const float over = h - he;
+  if (stride > 1 && !single_step_moves(i, j, cell, s, he, over)) return 0.0f;
   float w[8];
   float wsum = 0.0f, wmax = 0.0f;
   int voids = 0;
