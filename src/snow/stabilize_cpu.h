@@ -80,8 +80,7 @@ class CpuStabilizer {
   /// Whether a single step moves snow from layer texel (i, j) with this cell,
   /// depth s, free top he and snow over the ceiling (the rule strided passes
   /// move by).
-  bool single_step_moves(int i, int j, const glm::vec4& cell, float s, float he,
-                         float over) const;
+  bool single_step_moves(int i, int j, const glm::vec4& cell, float s, float he, float over) const;
   /// Outflow of one layer texel; returns the sum of its amounts, and the sum
   /// of those into the void in *to_void.
   float outflow_texel(int l, int i, int j, int stride, float* to_void);
