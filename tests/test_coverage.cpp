@@ -406,6 +406,9 @@ TEST(Coverage, BatchSizeDoesNotChangeTheResult) {
   s.batch = 1;
   const std::vector<float> b = compute_coverage(scene, maps, s);
   EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0);
+  s.batch = 0;  // automatic: all 20 in one batch on these small maps
+  const std::vector<float> c = compute_coverage(scene, maps, s);
+  EXPECT_EQ(std::memcmp(a.data(), c.data(), a.size() * sizeof(float)), 0);
 }
 
 TEST(Coverage, SnowOnSnowOccludesAndRaisesPoints) {
@@ -447,7 +450,7 @@ TEST(Coverage, RejectsMismatchedSnowDepth) {
   std::vector<float> depth(3, 0.0f);
   EXPECT_THROW(compute_coverage(scene, maps, {}, &depth), InputError);
   CoverageSettings bad;
-  bad.batch = 0;
+  bad.batch = 33;
   EXPECT_THROW(compute_coverage(scene, maps, bad), InputError);
 }
 

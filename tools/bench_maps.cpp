@@ -126,7 +126,9 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
         double(std::max<uint64_t>(1, t.culled + t.pairs / uint64_t(std::max(1, cs.directions))));
     r.queued_share =
         double(t.queued) /
-        double(std::max<uint64_t>(1, t.pairs / uint64_t(std::min(cs.batch, cs.directions))));
+        double(std::max<uint64_t>(1, t.pairs / uint64_t(snow::shadow_batch(
+                                                   cs, double(renderer.shadow_map_size().x) *
+                                                           double(renderer.shadow_map_size().y)))));
   }
   r.shadow = renderer.shadow_map_size();
   if (o.accuracy) {

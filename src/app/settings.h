@@ -57,7 +57,10 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("coverage.fall_speed", "--fall-speed", "Flakes' still-air fall speed in m/s",
     s.coverage.fall_speed);
   v("coverage.seed", "--seed", "Seed of all jitter; same seed, same output", s.coverage.seed);
-  v("coverage.batch", "--shadow-batch", "Shadow maps rendered per GPU batch", s.coverage.batch);
+  v("coverage.batch", "--shadow-batch",
+    "Shadow maps rendered per GPU batch (1..32; 0 = automatic: as many as fit in 64 MiB, 8 at "
+    "least)",
+    s.coverage.batch);
   v("coverage.bias", "--shadow-bias", "Shadow depth bias in metres (negative = automatic)",
     s.coverage.bias);
   // Accumulation and stabilizer.

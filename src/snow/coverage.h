@@ -43,13 +43,18 @@ struct CoverageSettings {
   float fall_speed = 1.0f;    // m/s, flakes' still-air fall speed (dry snow about 1, wet 1.5..2)
   uint64_t seed = 1;          // seed of the direction and shadow-origin jitter; same seed, same
                               // result bit for bit
-  int batch = 8;              // shadow maps per GPU batch (1..32); memory: batch * 4 B per
-                              // shadow texel
+  int batch = 0;              // shadow maps per GPU batch (1..32; 0 = automatic: as many as
+                              // fit in 64 MiB, 8 at least); memory: batch * 4 B per shadow
+                              // texel
   float bias = -1.0f;         // metres, receiver-plane depth bias: a shadow-map surface less
                               // than this above the receiver's own plane (extended to that
                               // shadow texel, so the bias follows the slope) is the receiver
                               // itself; < 0 = automatic: 0.25 texel + 1e-5 of the height range
 };
+
+/// Shadow maps per batch for maps of `shadow_texels` texels: settings.batch,
+/// or automatic where it is 0; at most settings.directions.
+int shadow_batch(const CoverageSettings& settings, double shadow_texels);
 
 /// Largest tilt + flutter allowed (degrees): directions closer than 15
 /// degrees to the horizon would need shadow maps many times the scene's size.

@@ -142,7 +142,7 @@ uint64_t estimate_memory(const MapGrid& grid, int layers, const CoverageSettings
                                      : 0.0;
   const double shadow_texels =
       (double(grid.width) + 2 * grow + 2) * (double(grid.height) + 2 * grow + 2);
-  const double batch = std::clamp(coverage.batch, 1, std::max(1, coverage.directions));
+  const double batch = shadow_batch(coverage, shadow_texels);
   const double bytes =
       layer_texels * (kMapsPerLayerTexel + kCoveragePerLayerTexel + kLaterPerLayerTexel) +
       texels * kPeelPerTexel + batch * shadow_texels * 4 + double(triangles) * kPerTriangle;
