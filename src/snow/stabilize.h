@@ -33,7 +33,7 @@
 //    stabilize call and after snow is added. At the convergence checks it
 //    runs only to drain (drain_due): where the snow creeps and much of what
 //    moves goes into the void, the excess whose path ends there leaves at
-//    once (Kenney buildings 437-512 -> 128-164 passes). Routing everything
+//    once (Kenney buildings with 0.3 m: 438-564 -> 100-355 passes). Routing everything
 //    again at every check cost a quarter to a third of the stabilizer's time
 //    and saved no passes on the courtyard or a terrain.
 // Relaxation passes cycle through strides up to max_stride, ..., 2, 1
@@ -93,7 +93,7 @@ struct StabilizeSettings {
                                    // 466 passes); off: all of it on that one texel
   bool drain_edges = true;         // with route_steep: once snow creeps off an edge into the
                                    // void, drain what will leave in one go (drain_due;
-                                   // pavement-fountain, 0.3 m: 1856 -> 128 passes)
+                                   // pavement-fountain, 0.3 m: 2532 -> 145 passes)
   uint32_t seed = 1;               // seed of the repose jitter; same seed, same result
   bool active_tiles = true;        // GPU: relaxation and erosion passes compute only the
                                    // 4 x 4-column tiles that can still change (bit-identical
@@ -210,7 +210,7 @@ class StrideSchedule {
 
 /// Draining (settings.drain_edges): snow creeping off an edge into the void
 /// is a slope relaxing by diffusion, in passes that grow with the square of
-/// its length (Kenney pavement-fountain, 0.3 m: 1856 passes). So at a check
+/// its length (Kenney pavement-fountain, 0.3 m: 2532 passes). So at a check
 /// where the snow creeps and the snow leaving one texel into the void is at
 /// least kDrainShare of the largest move, the routing runs again, but moves
 /// only the excess whose path ends in the void: it is lost at once, and the
