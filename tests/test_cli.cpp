@@ -336,6 +336,24 @@ TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
   EXPECT_EQ(automatic.output.find("may take very long"), std::string::npos) << automatic.output;
 }
 
+// A run whose stabilizer stops at --max-iterations with the snow still
+// moving says so; one that settles does not.
+TEST(Cli, WarnsWhenTheSnowDoesNotSettle) {
+  const fs::path dir = temp_dir("settle");
+  snow::SceneBuilder builder;
+  builder.add_plane("Floor", 0.0f, {-0.5f, -0.5f}, {0.5f, 0.5f});
+  builder.add_box("Top", {-0.2f, 0.3f, -0.2f}, {0.2f, 0.33f, 0.2f});
+  save_built_scene(builder, dir / "small.glb");
+  const std::string common = "snow " + q(dir / "small.glb") + " --max-side 32 --directions 8";
+  const RunResult cut = run(common + " --max-iterations 2 -o " + q(dir / "cut.obj"));
+  ASSERT_EQ(cut.code, 0) << cut.output;
+  EXPECT_NE(cut.output.find("did not settle within --max-iterations 2 passes"), std::string::npos)
+      << cut.output;
+  const RunResult settled = run(common + " -o " + q(dir / "settled.obj"));
+  ASSERT_EQ(settled.code, 0) << settled.output;
+  EXPECT_EQ(settled.output.find("did not settle"), std::string::npos) << settled.output;
+}
+
 // A run that meshes no snow says why: snow thinner than --min-thickness, or
 // patches smaller than --min-patch-area (a 1 m floor with 2 cm of snow).
 TEST(Cli, SaysWhyNoSnowPatchCameOut) {

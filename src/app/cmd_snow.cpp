@@ -108,6 +108,19 @@ void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth) {
   log_warn(line);
 }
 
+/// Warns when the last step's stabilizing stopped at --max-iterations with the
+/// snow still moving more than --tolerance: the snow shown is not at rest.
+void warn_if_unsettled(const SnowResult& snow, const StabilizeSettings& settings) {
+  if (snow.last.converged || settings.tolerance <= 0.0f || snow.last.iterations == 0) return;
+  char line[300];
+  std::snprintf(line, sizeof line,
+                "the snow did not settle within --max-iterations %d passes: it still moved more "
+                "than --tolerance %.3g m (raise --max-iterations, or use less snow or coarser "
+                "texels)",
+                settings.max_iterations, double(settings.tolerance));
+  log_warn(line);
+}
+
 /// Objects that enclose the scene like a sky dome or a sky box: their bounds
 /// hold every other object and in most columns they top there is another
 /// surface below them (unlike a hilly terrain, which is also wide and tall).
@@ -331,6 +344,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
     const auto context = gl_context(false);
     snow = accumulate(snow_scene, maps, s.coverage, s.stabilize, s.accumulate, receives);
   });
+  warn_if_unsettled(snow, s.stabilize);
   warn_if_sheltered(snow_scene, maps, snow.coverage);
   std::vector<SnowPatch> patches;
   stage("polygonize", [&] { patches = polygonize(maps, snow.depth, snow_scene, s.polygonize); });
