@@ -294,15 +294,20 @@ void save_built_scene(const snow::SceneBuilder& builder, const fs::path& path) {
 }
 }  // namespace
 
+// A 1 m floor with a 0.4 m table top 0.3 m above it.
+void save_small_table(const fs::path& path) {
+  snow::SceneBuilder builder;
+  builder.add_plane("Floor", 0.0f, {-0.5f, -0.5f}, {0.5f, 0.5f});
+  builder.add_box("Top", {-0.2f, 0.3f, -0.2f}, {0.2f, 0.33f, 0.2f});
+  save_built_scene(builder, path);
+}
+
 // 0.3 m of snow on a table 1 m wide (a model in other units than metres)
 // is out of scale: the run warns; 2 cm is not. Snow many texels deep warns
 // that stabilizing will be slow.
 TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
   const fs::path dir = temp_dir("scale");
-  snow::SceneBuilder builder;
-  builder.add_plane("Floor", 0.0f, {-0.5f, -0.5f}, {0.5f, 0.5f});
-  builder.add_box("Top", {-0.2f, 0.3f, -0.2f}, {0.2f, 0.33f, 0.2f});
-  save_built_scene(builder, dir / "small.glb");
+  save_small_table(dir / "small.glb");
 
   const std::string common = "snow " + q(dir / "small.glb") + " --max-side 32 --directions 8";
   const RunResult deep = run(common + " -o " + q(dir / "deep.obj"));
@@ -340,10 +345,7 @@ TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
 // moving says so; one that settles does not.
 TEST(Cli, WarnsWhenTheSnowDoesNotSettle) {
   const fs::path dir = temp_dir("settle");
-  snow::SceneBuilder builder;
-  builder.add_plane("Floor", 0.0f, {-0.5f, -0.5f}, {0.5f, 0.5f});
-  builder.add_box("Top", {-0.2f, 0.3f, -0.2f}, {0.2f, 0.33f, 0.2f});
-  save_built_scene(builder, dir / "small.glb");
+  save_small_table(dir / "small.glb");
   const std::string common = "snow " + q(dir / "small.glb") + " --max-side 32 --directions 8";
   const RunResult cut = run(common + " --max-iterations 2 -o " + q(dir / "cut.obj"));
   ASSERT_EQ(cut.code, 0) << cut.output;

@@ -72,8 +72,7 @@ class Pourer {
     return cells_[k].y < kCellOpenSky ? double(cells_[k].y) - double(kCeilingClearance)
                                       : std::numeric_limits<double>::infinity();
   }
-  // Snow on layer texel k of column (i, j), under the open sky, would slide
-  // off into the void.
+  // Snow on layer texel k of column (i, j) would slide off into the void.
   bool sheds(size_t k, int i, int j) const {
     const float h = top(k);
     for (int n = 0; n < 8; ++n) {

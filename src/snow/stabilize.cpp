@@ -288,6 +288,7 @@ struct Stabilizer::Impl {
   // The routing; with `drain`, only the excess on its way into the void
   // leaves (drain_due). Returns the erosion plus jump passes run.
   int route(bool drain = false);
+  void scatter_routed(int routed);
   void relax_pass(int stride, bool measure);
   void reset_tiles() { stride_last.assign(stride_last.size(), -1); }
   void bind_changed(const gl::Texture& stamps) const {
@@ -682,6 +683,52 @@ GLuint Stabilizer::Impl::count_fragments(const gl::Program& program) {
   return samples;
 }
 
+// Scatter (stabilize_scatter.*): the routed texels' excess summed into their
+// terminals in out_a.r (cleared first), one point per layer texel of the
+// tiles the receiver pass stamped (`routed` or later in tile_erode).
+void Stabilizer::Impl::scatter_routed(int routed) {
+  std::vector<GLint> stamps(size_t(tiles_x) * size_t(tiles_y));
+  glGetTextureImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT,
+                    GLsizei(stamps.size() * sizeof(GLint)), stamps.data());
+  const float zero[4] = {0, 0, 0, 0};
+  glClearTexImage(out_a.id(), 0, GL_RGBA, GL_FLOAT, zero);
+  scatter.use();
+  glBindVertexArray(vao.id());
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_scatter.id());
+  glViewport(0, 0, width, height);
+  glEnable(GL_BLEND);
+  glBlendEquation(GL_FUNC_ADD);
+  glBlendFunc(GL_ONE, GL_ONE);
+  // One point per layer texel of the stamped tiles in its layer's rectangle
+  // (the texels elsewhere route nothing), in texel order: runs along rows,
+  // joined across short gaps (a draw costs more than a few points on a
+  // software rasterizer).
+  constexpr GLint kJoinGap = 64;  // texels
+  std::vector<GLint> firsts;
+  std::vector<GLsizei> counts;
+  for (int l = 0; l < layers; ++l) {
+    const glm::ivec4 r = rect[size_t(l)];
+    for (int y = r.y; y < r.y + r.w; ++y) {
+      const GLint* row = &stamps[size_t(y / kTile) * size_t(tiles_x)];
+      for (int tx = r.x / kTile; tx * kTile < r.x + r.z; ++tx) {
+        if (row[tx] < routed) continue;
+        const int x0 = std::max(tx * kTile, r.x), x1 = std::min((tx + 1) * kTile, r.x + r.z);
+        const GLint start = GLint((size_t(l) * size_t(height) + size_t(y)) * size_t(width)) + x0;
+        if (!firsts.empty() && start - (firsts.back() + counts.back()) <= kJoinGap) {
+          counts.back() = start + (x1 - x0) - firsts.back();
+        } else {
+          firsts.push_back(start);
+          counts.push_back(x1 - x0);
+        }
+      }
+    }
+  }
+  if (!firsts.empty()) {
+    glMultiDrawArrays(GL_POINTS, firsts.data(), counts.data(), GLsizei(firsts.size()));
+  }
+  glDisable(GL_BLEND);
+}
+
 int Stabilizer::Impl::route(bool drain) {
   bind(SNOW_STABILIZE_CELLS, cells);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
@@ -747,9 +794,6 @@ int Stabilizer::Impl::route(bool drain) {
   glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT);
   glBindImageTexture(SNOW_STABILIZE_TILE_ROUTED, tile_erode.id(), 0, GL_FALSE, 0, GL_READ_ONLY,
                      GL_R32I);
-  std::vector<GLint> stamps(size_t(tiles_x) * size_t(tiles_y));
-  glGetTextureImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT,
-                    GLsizei(stamps.size() * sizeof(GLint)), stamps.data());
   (tiled ? jump_tiled : jump).set("u_since", routed);
   if (tiled) select_tiles(tile_erode, 0, routed, false);
   int p = 0;  // pointer[p] holds the pointers
@@ -777,63 +821,16 @@ int Stabilizer::Impl::route(bool drain) {
   // from out_a, which the scatter now clears and sums the routed snow into;
   // then apply.
   bind(SNOW_STABILIZE_POINTER, *pointer[0]);
-  if (drain) {  // nothing arrives anywhere but in the void
-    bind_changed(tile_relax);
-    apply.set("u_pass", pass_counter - 1);
-    apply.set("u_since", routed);
-    apply.set("u_add_arrive", 0);
-    apply.set("u_drain", 1);
-    per_layer(apply, fbo_depth[1 - cur]);
-    cur = 1 - cur;
-    gl::check_error("stabilize: draining");
-    return passes;
-  }
-  const float zero[4] = {0, 0, 0, 0};
-  glClearTexImage(out_a.id(), 0, GL_RGBA, GL_FLOAT, zero);
-  scatter.use();
-  glBindVertexArray(vao.id());
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo_scatter.id());
-  glViewport(0, 0, width, height);
-  glEnable(GL_BLEND);
-  glBlendEquation(GL_FUNC_ADD);
-  glBlendFunc(GL_ONE, GL_ONE);
-  // One point per layer texel of the stamped tiles in its layer's rectangle
-  // (the texels elsewhere route nothing), in texel order: runs along rows,
-  // joined across short gaps (a draw costs more than a few points on a
-  // software rasterizer).
-  constexpr GLint kJoinGap = 64;  // texels
-  std::vector<GLint> firsts;
-  std::vector<GLsizei> counts;
-  for (int l = 0; l < layers; ++l) {
-    const glm::ivec4 r = rect[size_t(l)];
-    for (int y = r.y; y < r.y + r.w; ++y) {
-      const GLint* row = &stamps[size_t(y / kTile) * size_t(tiles_x)];
-      for (int tx = r.x / kTile; tx * kTile < r.x + r.z; ++tx) {
-        if (row[tx] < routed) continue;
-        const int x0 = std::max(tx * kTile, r.x), x1 = std::min((tx + 1) * kTile, r.x + r.z);
-        const GLint start = GLint((size_t(l) * size_t(height) + size_t(y)) * size_t(width)) + x0;
-        if (!firsts.empty() && start - (firsts.back() + counts.back()) <= kJoinGap) {
-          counts.back() = start + (x1 - x0) - firsts.back();
-        } else {
-          firsts.push_back(start);
-          counts.push_back(x1 - x0);
-        }
-      }
-    }
-  }
-  if (!firsts.empty()) {
-    glMultiDrawArrays(GL_POINTS, firsts.data(), counts.data(), GLsizei(firsts.size()));
-  }
-  glDisable(GL_BLEND);
+  if (!drain) scatter_routed(routed);  // draining: nothing arrives but in the void
   bind(SNOW_STABILIZE_OUT_A, out_a);
   bind_changed(tile_relax);
   apply.set("u_pass", pass_counter - 1);  // as a change of the last relaxation pass
   apply.set("u_since", routed);
-  apply.set("u_add_arrive", settings.deposit_piles ? 0 : 1);
-  apply.set("u_drain", 0);
+  apply.set("u_add_arrive", drain || settings.deposit_piles ? 0 : 1);
+  apply.set("u_drain", drain ? 1 : 0);
   per_layer(apply, fbo_depth[1 - cur]);
   cur = 1 - cur;
-  if (settings.deposit_piles) {
+  if (!drain && settings.deposit_piles) {
     // The piles are poured on the CPU (snow/deposit.h), from the depth and
     // the scattered sums, as CpuStabilizer does; their tiles are computed
     // again by the first relaxation pass after the routing.

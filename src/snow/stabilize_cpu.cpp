@@ -380,8 +380,8 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
     if (out[n] == 0.0f) code[n] = kCodeNone;
   }
   float sum = 0.0f;
-  for (int n = 0; n < 8; ++n) sum += out[n];
   for (int n = 0; n < 8; ++n) {
+    sum += out[n];
     if (code[n] == kCodeVoid) *to_void += out[n];
   }
   return sum;
