@@ -346,6 +346,97 @@ TEST(Coverage, GpuMatchesRayCastReference) {
   }
 }
 
+// Casting every line as a ray (no shadow maps) is the reference's method on
+// the GPU, and its sky cull then ignores only what the reference ignores
+// (surfaces within 0.1 mm above the receiver, not the shadow maps' quarter
+// texel): not one ray differs. With the maps' bias in the cull, one stairs
+// texel differed by a ray.
+TEST(Coverage, RaysMatchTheRayCastReference) {
+  REQUIRE_GL();
+  struct Case {
+    const char* name;
+    Scene scene;
+    glm::vec2 wind;
+  };
+  Case cases[] = {
+      {"table in wind", make_table_scene(0.75f, 1.0f, 4.0f), {0.4f, -0.3f}},
+      {"closed box", make_closed_box_scene(1.0f), {0.0f, 0.0f}},
+      {"house", make_house_scene(45.0f, 0.5f), {0.3f, 0.0f}},
+      {"stairs", make_stairs_scene(), {0.0f, 0.2f}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const SnowMaps maps = peel(c.scene, 64);
+    CoverageSettings s;
+    s.wind = c.wind;
+    s.method = "rays";
+    CoverageRenderer renderer(c.scene);
+    const std::vector<float> gpu = renderer.compute(maps, s);
+    EXPECT_TRUE(renderer.timings().rays);
+    const std::vector<float> cpu = reference::compute_coverage(c.scene, maps, fall_directions(s));
+    const Difference d = compare(maps, gpu, cpu);
+    std::printf("%-14s rays: mean |gpu - cpu| %.5f, max %.3f over %zu layer texels\n", c.name,
+                d.mean, d.max, d.count);
+    EXPECT_GT(d.count, 1000u);
+    EXPECT_LT(d.max, 0.5f / 64.0f);
+  }
+}
+
+// The automatic method casts rays where the pairs are few against the
+// triangles drawn per shadow map: a finely tessellated table top (80k
+// triangles) on maps of 24 texels.
+TEST(Coverage, AutomaticMethodCastsRaysWherePairsAreFew) {
+  CoverageSettings s;                      // auto, 64 directions
+  EXPECT_TRUE(use_rays(s, 108936, 84));    // ToyCar at 16 texels
+  EXPECT_FALSE(use_rays(s, 39936, 7944));  // SheenChair at 91 texels
+  EXPECT_FALSE(use_rays(s, 440, 35106));   // a Kenney building at 110 texels
+  s.method = "shadow-maps";
+  EXPECT_FALSE(use_rays(s, 108936, 84));
+  s.method = "rays";
+  EXPECT_TRUE(use_rays(s, 440, 35106));
+  s.method = "raytrace";
+  EXPECT_THROW(fall_directions(s), InputError);
+
+  REQUIRE_GL();
+  SceneBuilder b;
+  b.add_plane("Floor", 0.0f, glm::vec2(-2.0f), glm::vec2(2.0f));
+  constexpr int kCells = 200;  // 200 x 200 quads: 80k triangles at y = 0.75
+  std::vector<glm::vec3> positions;
+  std::vector<uint32_t> indices;
+  for (int j = 0; j <= kCells; ++j) {
+    for (int i = 0; i <= kCells; ++i) {
+      positions.emplace_back(-0.5f + float(i) / kCells, 0.75f, -0.5f + float(j) / kCells);
+    }
+  }
+  for (int j = 0; j < kCells; ++j) {
+    for (int i = 0; i < kCells; ++i) {
+      const uint32_t v = uint32_t(j * (kCells + 1) + i);
+      for (uint32_t corner : {v, v + kCells + 1, v + 1, v + 1, v + kCells + 1, v + kCells + 2}) {
+        indices.push_back(corner);
+      }
+    }
+  }
+  b.add_mesh("TableTop", positions, indices);
+  const Scene scene = b.build();
+  const SnowMaps maps = peel(scene, 24);
+  CoverageSettings autos;
+  CoverageRenderer renderer(scene);
+  const std::vector<float> a = renderer.compute(maps, autos);
+  EXPECT_TRUE(renderer.timings().rays);
+  CoverageSettings rays;
+  rays.method = "rays";
+  const std::vector<float> r = renderer.compute(maps, rays);
+  EXPECT_EQ(std::memcmp(a.data(), r.data(), a.size() * sizeof(float)), 0);
+  // The floor under the top is shaded; the shadow-map method agrees on average.
+  const glm::ivec2 under = texel_at(maps.grid, 0.0f, 0.0f);
+  EXPECT_LT(coverage_at_height(maps, a, under.x, under.y, 0.0f), 0.01f);
+  CoverageSettings maps_method;
+  maps_method.method = "shadow-maps";
+  const std::vector<float> m = renderer.compute(maps, maps_method);
+  EXPECT_FALSE(renderer.timings().rays);
+  EXPECT_LT(compare(maps, a, m).mean, 0.02);
+}
+
 // The CPU sky cull (receivers open along every direction get coverage 1
 // without GPU work, found per tile of receivers) skips most texels the
 // reference's rays find open, and hardly more: the cull, like the GPU
@@ -428,11 +519,17 @@ TEST(Coverage, SnowOnSnowOccludesAndRaisesPoints) {
   }
   CoverageSettings s;
   s.wind = glm::vec2(0.0f, 0.8f);  // blowing across the ridge: tilt 38.7 degrees
-  const std::vector<float> gpu = compute_coverage(scene, maps, s, &depth);
   const std::vector<float> cpu =
       reference::compute_coverage(scene, maps, fall_directions(s), &depth);
+  s.method = "rays";  // the snow heightfield walked by every ray
+  const Difference rays = compare(maps, compute_coverage(scene, maps, s, &depth), cpu);
+  std::printf("snow on snow, rays: mean |gpu - cpu| %.5f, max %.3f\n", rays.mean, rays.max);
+  EXPECT_LT(rays.mean, 1e-3);
+  s.method = "shadow-maps";
+  const std::vector<float> gpu = compute_coverage(scene, maps, s, &depth);
   const Difference d = compare(maps, gpu, cpu);
   std::printf("snow on snow: mean |gpu - cpu| %.4f, max %.3f\n", d.mean, d.max);
+  EXPECT_LT(d.mean, 0.02);
   // The ridge's crest sees the sky; the bare plane in its lee is shadowed.
   const glm::ivec2 crest = texel_at(g, 0.0f, 0.0f);
   EXPECT_GT(gpu[maps.index(0, crest.x, crest.y)], 0.99f);

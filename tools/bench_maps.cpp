@@ -6,7 +6,8 @@
 //
 // Usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]
 //                             [--big-side N] [--big-triangles T] [--no-big | --big-only]
-//                             [--accuracy] [scene.glb|scene.gltf ...]
+//                             [--method auto|shadow-maps|rays] [--accuracy]
+//                             [scene.glb|scene.gltf ...]
 // Without scene arguments it runs the bundled courtyard, a few scenes from
 // ../shared/scenes (when present) and a generated scene of about
 // --big-triangles triangles (default 1M) at --big-side (default 2048).
@@ -57,8 +58,9 @@ struct Options {
   int big_triangles = 1000000;
   bool big = true;
   bool big_only = false;
-  int repeat = 1;         // coverage runs per scene; each stage's best time is reported
-  bool accuracy = false;  // compare with the CPU ray-cast reference
+  int repeat = 1;               // coverage runs per scene; each stage's best time is reported
+  bool accuracy = false;        // compare with the CPU ray-cast reference
+  std::string method = "auto";  // snow::CoverageSettings::method
   std::vector<std::string> scenes;
 };
 
@@ -72,6 +74,7 @@ struct Row {
   double raw_grid = 0;  // K depth passes at the snow map's own size (no culling, no shear growth)
   double coverage_cpu = 0;  // CPU seconds of one coverage run, all threads
   double queued_share = 0;  // receivers sent to the exact pass per batch / receivers
+  bool rays = false;        // every pair cast as a ray (snow::use_rays), no shadow maps
   double culled_share = 0;  // receivers found open to the sky on the CPU / all receivers
   double mean_error = 0, max_error = 0;  // |GPU - CPU reference| coverage (--accuracy)
   double reference_s = 0;                // wall time of the CPU reference
@@ -106,6 +109,7 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
 
   snow::CoverageSettings cs;
   cs.directions = o.directions;
+  cs.method = o.method;
   snow::CoverageRenderer renderer(scene);
   renderer.set_profiling(true);
   // Each stage's best time over the runs (the first run also JIT-compiles
@@ -124,13 +128,17 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
     r.culled_share =
         double(t.culled) /
         double(std::max<uint64_t>(1, t.culled + t.pairs / uint64_t(std::max(1, cs.directions))));
+    r.rays = t.rays;
     r.queued_share =
-        double(t.queued) /
-        double(std::max<uint64_t>(1, t.pairs / uint64_t(snow::shadow_batch(
-                                                   cs, double(renderer.shadow_map_size().x) *
-                                                           double(renderer.shadow_map_size().y)))));
+        t.rays ? 1.0
+               : double(t.queued) /
+                     double(std::max<uint64_t>(
+                         1, t.pairs / uint64_t(snow::shadow_batch(
+                                          cs, double(renderer.shadow_map_size().x) *
+                                                  double(renderer.shadow_map_size().y)))));
   }
-  r.shadow = renderer.shadow_map_size();
+  // With rays (snow::use_rays) no shadow maps were drawn: the raw passes at the maps' size.
+  r.shadow = r.rays ? glm::ivec2(r.width, r.height) : renderer.shadow_map_size();
   if (o.accuracy) {
     const double t0 = seconds();
     const std::vector<float> cpu =
@@ -164,11 +172,12 @@ void print(const Row& r, const Options& o) {
   const double total = r.peel + r.setup + r.shadow_s + r.composite + r.readback;
   const double raw = r.raw_peel + r.raw_grid;
   std::printf(
-      "| %s | %zu | %dx%d | %d | %.2f | %dx%d | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | "
+      "| %s | %zu | %dx%d | %d | %.2f | %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | "
       "%.2f | %.2f | %.2f | %.0f%% | %.1f%% |",
-      r.name.c_str(), r.triangles, r.width, r.height, r.layers_found, r.peel, r.shadow.x,
-      r.shadow.y, r.setup, r.shadow_s, r.composite, r.readback, total, r.raw_peel, r.raw_grid,
-      r.raw_shadow, total / raw, r.coverage_cpu, 100.0 * r.culled_share, 100.0 * r.queued_share);
+      r.name.c_str(), r.triangles, r.width, r.height, r.layers_found, r.peel,
+      r.rays ? "rays" : (std::to_string(r.shadow.x) + "x" + std::to_string(r.shadow.y)).c_str(),
+      r.setup, r.shadow_s, r.composite, r.readback, total, r.raw_peel, r.raw_grid, r.raw_shadow,
+      total / raw, r.coverage_cpu, 100.0 * r.culled_share, 100.0 * r.queued_share);
   if (o.accuracy) std::printf(" %.4f | %.3f | %.1f |", r.mean_error, r.max_error, r.reference_s);
   std::printf("\n");
   std::fflush(stdout);
@@ -198,13 +207,15 @@ int main(int argc, char** argv) {
       o.big_only = true;
     else if (a == "--accuracy")
       o.accuracy = true;
+    else if (a == "--method" && i + 1 < argc)
+      o.method = argv[++i];
     else if (a == "--repeat")
       o.repeat = std::max(1, next());
     else if (a == "-h" || a == "--help") {
       std::printf(
           "usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]\n"
           "  [--big-side N] [--big-triangles T] [--no-big | --big-only] [--repeat R]\n"
-          "  [--accuracy]\n"
+          "  [--method auto|shadow-maps|rays] [--accuracy]\n"
           "  [scene.glb|scene.gltf ...]\n");
       return 0;
     } else if (a.rfind("--", 0) == 0) {

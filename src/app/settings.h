@@ -63,6 +63,10 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     s.coverage.batch);
   v("coverage.bias", "--shadow-bias", "Shadow depth bias in metres (negative = automatic)",
     s.coverage.bias);
+  v("coverage.method", "--coverage-method",
+    "How lines of fall are tested: shadow-maps, rays (each cast exactly, no shadow maps) or "
+    "auto (rays where they cost less than drawing the scene once per direction)",
+    s.coverage.method);
   // Accumulation and stabilizer.
   v("snow.depth", "--depth", "Fresh snow that falls, metres", s.accumulate.fall_depth);
   v("snow.steps", "--steps", "Time steps of snowfall, each followed by stabilizing",

@@ -25,8 +25,12 @@
 // through a BVH of the scene (and the snow heightfield). No CPU readback
 // until the end. Results match the ray-cast reference up to occluders or
 // gaps thinner than a shadow texel.
+// Where the receivers left are few against the scene's triangles (see
+// use_rays), no shadow maps are drawn: every pair goes to the exact pass,
+// and the result is the reference's.
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -37,20 +41,33 @@
 namespace snow {
 
 struct CoverageSettings {
-  int directions = 64;        // K, shadow maps (1..4096)
-  float flutter_deg = 15.0f;  // degrees, half-angle of the cone of fall directions (0..60)
-  glm::vec2 wind{0.0f};       // m/s, horizontal wind along world x and z
-  float fall_speed = 1.0f;    // m/s, flakes' still-air fall speed (dry snow about 1, wet 1.5..2)
-  uint64_t seed = 1;          // seed of the direction and shadow-origin jitter; same seed, same
-                              // result bit for bit
-  int batch = 0;              // shadow maps per GPU batch (1..32; 0 = automatic: as many as
-                              // fit in 64 MiB, 8 at least); memory: batch * 4 B per shadow
-                              // texel
-  float bias = -1.0f;         // metres, receiver-plane depth bias: a shadow-map surface less
-                              // than this above the receiver's own plane (extended to that
-                              // shadow texel, so the bias follows the slope) is the receiver
-                              // itself; < 0 = automatic: 0.25 texel + 1e-5 of the height range
+  int directions = 64;          // K, shadow maps (1..4096)
+  float flutter_deg = 15.0f;    // degrees, half-angle of the cone of fall directions (0..60)
+  glm::vec2 wind{0.0f};         // m/s, horizontal wind along world x and z
+  float fall_speed = 1.0f;      // m/s, flakes' still-air fall speed (dry snow about 1, wet 1.5..2)
+  uint64_t seed = 1;            // seed of the direction and shadow-origin jitter; same seed, same
+                                // result bit for bit
+  int batch = 0;                // shadow maps per GPU batch (1..32; 0 = automatic: as many as
+                                // fit in 64 MiB, 8 at least); memory: batch * 4 B per shadow
+                                // texel
+  float bias = -1.0f;           // metres, receiver-plane depth bias: a shadow-map surface less
+                                // than this above the receiver's own plane (extended to that
+                                // shadow texel, so the bias follows the slope) is the receiver
+                                // itself; < 0 = automatic: 0.25 texel + 1e-5 of the height range
+  std::string method = "auto";  // "shadow-maps", "rays" (every pair cast exactly, no shadow
+                                // maps) or "auto": rays where casting the pairs costs less than
+                                // drawing the scene K times (see use_rays)
 };
+
+/// Whether settings.method casts every (receiver, direction) pair exactly
+/// instead of drawing shadow maps: "rays", or "auto" where the receivers
+/// (surface texels not open to the sky; a ray per direction each) are few
+/// against the triangles drawn per shadow map: a shadow map costs a pass
+/// over every triangle however small the map, a ray a BVH walk of about 16
+/// triangles' cost. Small, dense models (a 109k-triangle toy car at 16 x 16
+/// texels: 84 receivers) cast rays; scenes mapped finer than their
+/// triangles draw shadow maps.
+bool use_rays(const CoverageSettings& settings, size_t triangles, size_t receivers);
 
 /// Shadow maps per batch for maps of `shadow_texels` texels: settings.batch,
 /// or automatic where it is 0; at most settings.directions.
@@ -132,6 +149,7 @@ class CoverageRenderer {
     uint64_t culled = 0;   // receivers open to the sky along every direction (no GPU work)
     uint64_t queued = 0;   // receivers sent to the exact pass, summed over batches (profiling)
     uint64_t pairs = 0;    // (receiver, direction) pairs classified
+    bool rays = false;     // every pair cast exactly, no shadow maps (use_rays)
   };
   const Timings& timings() const;
   void set_profiling(bool on);
