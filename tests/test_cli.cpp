@@ -254,6 +254,13 @@ TEST(Cli, ExitCodesAndNoPartialOutputs) {
   EXPECT_EQ(bad_device.code, 2);
   EXPECT_NE(bad_device.output.find("device must be auto, gpu or cpu, got 'tpu'"), std::string::npos)
       << bad_device.output;
+  const RunResult bad_method =
+      run("snow " + q(kCourtyard) + " --coverage-method raytrace -o " + q(out / "x.glb"));
+  EXPECT_EQ(bad_method.code, 2);
+  EXPECT_NE(bad_method.output.find("coverage method must be auto, shadow-maps, rays or cpu-rays"),
+            std::string::npos)
+      << bad_method.output;
+  EXPECT_EQ(bad_method.output.find("peel"), std::string::npos) << bad_method.output;
   write_all(dir / "bad_settings.json", R"({"maps": {"texle": 0.1}})");
   const RunResult bad_config = run("snow " + q(kCourtyard) + " --config " +
                                    q(dir / "bad_settings.json") + " -o " + q(out / "x.glb"));

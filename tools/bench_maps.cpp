@@ -6,7 +6,7 @@
 //
 // Usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]
 //                             [--big-side N] [--big-triangles T] [--no-big | --big-only]
-//                             [--method auto|shadow-maps|rays] [--accuracy]
+//                             [--method auto|shadow-maps|rays|cpu-rays] [--accuracy]
 //                             [scene.glb|scene.gltf ...]
 // Without scene arguments it runs the bundled courtyard, a few scenes from
 // ../shared/scenes (when present) and a generated scene of about
@@ -74,7 +74,7 @@ struct Row {
   double raw_grid = 0;  // K depth passes at the snow map's own size (no culling, no shear growth)
   double coverage_cpu = 0;  // CPU seconds of one coverage run, all threads
   double queued_share = 0;  // receivers sent to the exact pass per batch / receivers
-  bool rays = false;        // every pair cast as a ray (snow::use_rays), no shadow maps
+  snow::CoverageMethod method = snow::CoverageMethod::ShadowMaps;
   double culled_share = 0;  // receivers found open to the sky on the CPU / all receivers
   double mean_error = 0, max_error = 0;  // |GPU - CPU reference| coverage (--accuracy)
   double reference_s = 0;                // wall time of the CPU reference
@@ -128,17 +128,20 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
     r.culled_share =
         double(t.culled) /
         double(std::max<uint64_t>(1, t.culled + t.pairs / uint64_t(std::max(1, cs.directions))));
-    r.rays = t.rays;
+    r.method = t.method;
     r.queued_share =
-        t.rays ? 1.0
-               : double(t.queued) /
-                     double(std::max<uint64_t>(
-                         1, t.pairs / uint64_t(snow::shadow_batch(
-                                          cs, double(renderer.shadow_map_size().x) *
-                                                  double(renderer.shadow_map_size().y)))));
+        t.method != snow::CoverageMethod::ShadowMaps
+            ? 1.0
+            : double(t.queued) /
+                  double(std::max<uint64_t>(
+                      1, t.pairs / uint64_t(snow::shadow_batch(
+                                       cs, double(renderer.shadow_map_size().x) *
+                                               double(renderer.shadow_map_size().y)))));
   }
-  // With rays (snow::use_rays) no shadow maps were drawn: the raw passes at the maps' size.
-  r.shadow = r.rays ? glm::ivec2(r.width, r.height) : renderer.shadow_map_size();
+  // Cast as rays (snow::choose_coverage_method), no shadow maps were drawn:
+  // the raw passes at the maps' size.
+  const bool rays = r.method != snow::CoverageMethod::ShadowMaps;
+  r.shadow = rays ? glm::ivec2(r.width, r.height) : renderer.shadow_map_size();
   if (o.accuracy) {
     const double t0 = seconds();
     const std::vector<float> cpu =
@@ -175,7 +178,10 @@ void print(const Row& r, const Options& o) {
       "| %s | %zu | %dx%d | %d | %.2f | %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | "
       "%.2f | %.2f | %.2f | %.0f%% | %.1f%% |",
       r.name.c_str(), r.triangles, r.width, r.height, r.layers_found, r.peel,
-      r.rays ? "rays" : (std::to_string(r.shadow.x) + "x" + std::to_string(r.shadow.y)).c_str(),
+      r.method == snow::CoverageMethod::GpuRays ? "GPU rays"
+      : r.method == snow::CoverageMethod::CpuRays
+          ? "CPU rays"
+          : (std::to_string(r.shadow.x) + "x" + std::to_string(r.shadow.y)).c_str(),
       r.setup, r.shadow_s, r.composite, r.readback, total, r.raw_peel, r.raw_grid, r.raw_shadow,
       total / raw, r.coverage_cpu, 100.0 * r.culled_share, 100.0 * r.queued_share);
   if (o.accuracy) std::printf(" %.4f | %.3f | %.1f |", r.mean_error, r.max_error, r.reference_s);
@@ -215,7 +221,7 @@ int main(int argc, char** argv) {
       std::printf(
           "usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]\n"
           "  [--big-side N] [--big-triangles T] [--no-big | --big-only] [--repeat R]\n"
-          "  [--method auto|shadow-maps|rays] [--accuracy]\n"
+          "  [--method auto|shadow-maps|rays|cpu-rays] [--accuracy]\n"
           "  [scene.glb|scene.gltf ...]\n");
       return 0;
     } else if (a.rfind("--", 0) == 0) {

@@ -311,6 +311,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   if (!o.snow_output.empty()) format_from_path(o.snow_output);
 
   check_stabilize_settings(s.stabilize);  // before minutes of peeling and shadows
+  fall_directions(s.coverage);             // checks the coverage settings
 
   Scene scene;
   stage("load", [&] { scene = load_scene(o.input, s.load); });

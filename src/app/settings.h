@@ -64,8 +64,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("coverage.bias", "--shadow-bias", "Shadow depth bias in metres (negative = automatic)",
     s.coverage.bias);
   v("coverage.method", "--coverage-method",
-    "How lines of fall are tested: shadow-maps, rays (each cast exactly, no shadow maps) or "
-    "auto (rays where they cost less than drawing the scene once per direction)",
+    "How lines of fall are tested: shadow-maps, rays (each cast exactly on the GPU, no shadow "
+    "maps), cpu-rays (the same on the CPU cores) or auto (the cheapest for the scene and the "
+    "renderer)",
     s.coverage.method);
   // Accumulation and stabilizer.
   v("snow.depth", "--depth", "Fresh snow that falls, metres", s.accumulate.fall_depth);

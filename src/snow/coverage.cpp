@@ -23,12 +23,14 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "core/parallel.h"
+#include "gl/context.h"
 #include "gl/gl.h"
 #include "gl/objects.h"
 #include "gl/program.h"
 #include "shaders/bindings.h"
 #include "snow/bvh.h"
 #include "snow/gpu_scene.h"
+#include "snow/reference/coverage_ref.h"
 
 namespace snow {
 namespace {
@@ -40,11 +42,16 @@ constexpr float kNoSnowSurface = -3.0e38f;  // "no surface" in the snow-surface 
 constexpr int kLocalSize = 64;              // coverage.comp's local_size_x
 constexpr int kMaxShadowSide = 16384;       // texels, also capped by GL_MAX_TEXTURE_SIZE
 constexpr int kMaxBatch = 32;               // shadow maps per batch (a 32-bit direction mask)
-// Cost of one exact ray cast (a BVH walk) in triangles drawn into a shadow
-// map, for the automatic choice of use_rays. On llvmpipe, 2026-11-26: a
-// drawn triangle 80 ns (ToyCar, 109k triangles x 64 maps: 0.55 s), a ray
-// 0.5-1.3 us (building-small-a 2.2M rays: 1.2 s; SheenChair 0.5M: 0.65 s).
-constexpr double kRayCost = 16.0;
+// Costs of choose_coverage_method, in triangles drawn into one shadow map.
+// On llvmpipe, 2-core EPYC, 2026-11-26: a drawn triangle 80 ns (ToyCar,
+// 109k triangles x 64 maps: 0.55 s); a shadow texel 2 ns (courtyard at
+// 1024: 64 maps of 1049 x 1050 in 0.13 s); a ray in the GPU's exact pass
+// 0.5-1.3 us (building-small-a 2.2M rays: 1.2 s; SheenChair 0.5M: 0.65 s),
+// on the CPU's 2 cores 95-240 ns (terrains of 10k and 100k triangles at 512
+// texels, 1.9M and 2.2M rays: 0.18 and 0.27 s; SheenChair 0.54M: 0.13 s).
+constexpr double kShadowTexelCost = 1.0 / 40.0;
+constexpr double kGpuRayCost = 16.0;
+constexpr double kCpuRayCost = 2.0;
 
 /// splitmix64 (Steele, Lea and Flood 2014): tiny, fast, same stream everywhere.
 class SplitMix64 {
@@ -81,8 +88,10 @@ void validate(const CoverageSettings& s) {
                      std::to_string(s.batch));
   }
   if (!std::isfinite(s.bias)) throw InputError("shadow bias must be finite");
-  if (s.method != "auto" && s.method != "shadow-maps" && s.method != "rays") {
-    throw InputError("coverage method must be auto, shadow-maps or rays, got '" + s.method + "'");
+  if (s.method != "auto" && s.method != "shadow-maps" && s.method != "rays" &&
+      s.method != "cpu-rays") {
+    throw InputError("coverage method must be auto, shadow-maps, rays or cpu-rays, got '" +
+                     s.method + "'");
   }
   const glm::dvec3 m(mean_fall_direction(s));
   const double tilt = std::acos(std::clamp(-m.y, -1.0, 1.0)) * 180.0 / kPi;
@@ -133,10 +142,14 @@ glm::vec3 gradient_normal(const SnowMaps& maps, const std::vector<float>& top, i
 // point at its box's xz distance, once per small tile of receivers (at the
 // tile's distance and lowest receiver); then per receiver, in each leaf
 // the tile kept whose node fails for it, a triangle is
-// harmless when its highest point passes the test at its footprint's
-// distance, or when its slope is at most cot(theta_max) and its plane
-// extended to p lies at most y + eps (height minus the cone, over the whole
-// plane, is largest there).
+// harmless when it lies wholly under the cone: either its slope is at most
+// cot(theta_max) and its plane extended to p lies at most y + eps (height
+// minus the cone, over the whole plane, is largest there), or the cone
+// minus the height, a convex function, is >= 0 at its minimum over the
+// triangle, which lies at p (p inside the footprint) or on an edge (found
+// in closed form per edge). The exact edge test keeps a terrain's ridges
+// culled where the bound it replaced (the highest corner at the footprint's
+// distance) did not.
 // So a receiver on a gentle slope or terrain is culled whatever its own
 // triangles do, and nothing that shades a receiver is ever overlooked. The
 // snow surface (snow on snow) is bounded by a max pyramid of the snowy tops.
@@ -162,18 +175,44 @@ double distance_xz(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c
   return best;
 }
 
+// Smallest cot * |q - p| - h(q) over the segment q from u to w (xz in .x
+// and .z, height h in .y, linear along it): a convex function of the
+// position along the segment, smallest at its stationary point or an end.
+double edge_minimum(const glm::dvec3& u, const glm::dvec3& w, const glm::dvec2& p, double cot) {
+  const glm::dvec2 a(u.x - p.x, u.z - p.y), e(w.x - u.x, w.z - u.z);
+  const double len = glm::length(e);
+  const auto value = [&](double t) {
+    return cot * glm::length(a + t * e) - (u.y + t * (w.y - u.y));
+  };
+  double best = std::min(value(0.0), value(1.0));
+  if (len > 0.0) {
+    // Along the edge's line, s metres from the foot of the perpendicular
+    // from p (at distance d): cot sqrt(d^2 + s^2) - k s, with k the height
+    // gained per metre; stationary at s = k d / sqrt(cot^2 - k^2).
+    const glm::dvec2 dir = e / len;
+    const double s0 = -glm::dot(a, dir);  // the foot, metres from u
+    const double d = std::abs(a.x * dir.y - a.y * dir.x);
+    const double k = (w.y - u.y) / len;
+    if (std::abs(k) < cot) {
+      const double s = s0 + k * d / std::sqrt(cot * cot - k * k);
+      best = std::min(best, value(std::clamp(s / len, 0.0, 1.0)));
+    }
+  }
+  return best;
+}
+
 bool triangle_harmless(const glm::vec3* corner, const glm::vec2& p, double limit, double cot) {
   const glm::dvec3 a(corner[0]), b(corner[1]), c(corner[2]);
   const glm::dvec3 n = glm::cross(b - a, c - a);
-  // Either test suffices: for a gentle plane, the plane extended to p (the
-  // cheaper one, first), or the highest point at the footprint's distance.
+  // The plane test first (cheaper): for a gentle plane it covers the whole plane.
   if (std::abs(n.y) > 1e-9 * glm::length(n)) {
     const double gx = -n.x / n.y, gz = -n.z / n.y;
-    if (gx * gx + gz * gz <= cot * cot && a.y + gx * (p.x - a.x) + gz * (p.y - a.z) <= limit) {
-      return true;
-    }
+    const double at_p = a.y + gx * (p.x - a.x) + gz * (p.y - a.z);
+    if (gx * gx + gz * gz <= cot * cot && at_p <= limit) return true;
+    if (distance_xz(a, b, c, p) == 0.0 && at_p > limit) return false;  // over p itself
   }
-  return std::max({a.y, b.y, c.y}) <= limit + distance_xz(a, b, c, p) * cot;
+  return std::min({edge_minimum(a, b, p, cot), edge_minimum(b, c, p, cot),
+                   edge_minimum(c, a, p, cot)}) >= -limit;
 }
 
 // The node test at the box's xz distance from the rectangle [lo, hi] (for
@@ -312,9 +351,20 @@ int shadow_batch(const CoverageSettings& settings, double shadow_texels) {
   return std::max(1, std::min(batch, settings.directions));
 }
 
-bool use_rays(const CoverageSettings& settings, size_t triangles, size_t receivers) {
-  if (settings.method != "auto") return settings.method == "rays";
-  return double(receivers) * kRayCost < double(triangles);  // both times K
+CoverageMethod choose_coverage_method(const CoverageSettings& settings, const CoverageWork& w) {
+  if (settings.method == "shadow-maps") return CoverageMethod::ShadowMaps;
+  if (settings.method == "rays") return CoverageMethod::GpuRays;
+  if (settings.method == "cpu-rays") return CoverageMethod::CpuRays;
+  // Per direction: shadow maps draw the triangles and clear and sample the
+  // maps' texels; rays cost per receiver (a snow surface adds a walk of
+  // each snowy layer's heightfield to a GPU ray).
+  const double shadow = w.triangles + w.shadow_texels * kShadowTexelCost;
+  const double gpu_rays = double(w.receivers) * kGpuRayCost * (w.snow ? 2.0 : 1.0);
+  const double cpu_rays = double(w.receivers) * kCpuRayCost;
+  if (w.software && !w.snow && cpu_rays < std::min(shadow, gpu_rays)) {
+    return CoverageMethod::CpuRays;
+  }
+  return gpu_rays < shadow ? CoverageMethod::GpuRays : CoverageMethod::ShadowMaps;
 }
 
 glm::vec3 mean_fall_direction(const CoverageSettings& s) {
@@ -487,6 +537,35 @@ struct CoverageRenderer::Impl {
     }
   }
 
+  // CoverageMethod::CpuRays: the reference's casts (reference::compute_coverage)
+  // for the receivers left, on all cores; with a snow surface its triangles
+  // get a BVH of their own.
+  void cast_on_cpu(const SnowMaps& maps, const std::vector<glm::vec3>& dirs,
+                   const std::vector<float>* snow_depth, const std::vector<glm::uvec4>& recv,
+                   const std::vector<uint32_t>& recv_index, std::vector<float>& coverage) const {
+    std::unique_ptr<Bvh> snow_bvh;
+    if (snow_depth) {
+      snow_bvh = std::make_unique<Bvh>(reference::snow_surface_triangles(maps, *snow_depth));
+    }
+    constexpr size_t kChunk = 256;
+    parallel_for((recv.size() + kChunk - 1) / kChunk, [&](size_t c) {
+      for (size_t r = c * kChunk; r < std::min(recv.size(), (c + 1) * kChunk); ++r) {
+        const glm::vec2 xz = maps.grid.center(int(recv[r].x & 0xffffu), int(recv[r].x >> 16));
+        float y;
+        std::memcpy(&y, &recv[r].y, sizeof y);
+        const glm::vec3 p(xz.x, y, xz.y);
+        const float eps = 1e-4f + 1e-6f * std::abs(y);
+        int lit = 0;
+        for (const glm::vec3& d : dirs) {
+          const float t_min = eps / -d.y;  // d.y < -0.2: checked by compute_checked
+          lit += !bvh.occluded(p, -d, t_min, kOpenSky) &&
+                 !(snow_bvh && snow_bvh->occluded(p, -d, t_min, kOpenSky));
+        }
+        coverage[recv_index[r]] = float(lit) / float(dirs.size());
+      }
+    });
+  }
+
   static void upload(gl::Buffer& buffer, const void* data, size_t bytes, const char* what) {
     if (!buffer) buffer = gl::create_buffer();
     glNamedBufferData(buffer.id(), GLsizeiptr(std::max<size_t>(bytes, 4)), data, GL_DYNAMIC_DRAW);
@@ -644,11 +723,13 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
   const float bias =
       settings.bias >= 0.0f ? settings.bias : float(0.25 * grid.texel + 1e-5 * y_range);
 
-  // Drawn per shadow map: the scene and two triangles per snowy quad. A ray
-  // walks the BVH and, with snow, each snowy layer's heightfield.
-  double drawn = double(im.triangles);
-  for (const glm::ivec4& q : snowy_quads) drawn += 2.0 * (q.y - q.x) * (q.w - q.z);
-  bool rays = false;
+  CoverageWork work;  // for choose_coverage_method: drawn per shadow map, the scene and
+                      // two triangles per snowy quad
+  work.triangles = double(im.triangles);
+  for (const glm::ivec4& q : snowy_quads) work.triangles += 2.0 * (q.y - q.x) * (q.w - q.z);
+  work.snow = !snowy_layers.empty();
+  work.software = gl::renderer_is_software();
+  CoverageMethod method = CoverageMethod::ShadowMaps;
 
   // Receivers open to the sky along every direction are lit without GPU work.
   glm::ivec4 texel_box(0, 0, grid.width - 1, grid.height - 1);  // the others' (i, j) bounds
@@ -717,10 +798,35 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
         }
       });
     };
+    // The receivers left and their box's texels (about a shadow map's).
+    const auto count_closed = [&]() {
+      work.receivers = 0;
+      glm::ivec4 box(grid.width, grid.height, -1, -1);
+      for (size_t r = 0; r < recv.size(); ++r) {
+        if (open[r]) continue;
+        ++work.receivers;
+        const int i = int(recv[r].x & 0xffffu), j = int(recv[r].x >> 16);
+        box = glm::ivec4(std::min(box.x, i), std::min(box.y, j), std::max(box.z, i),
+                         std::max(box.w, j));
+      }
+      work.shadow_texels =
+          double(std::max(box.z - box.x + 1, 0)) * double(std::max(box.w - box.y + 1, 0));
+    };
     find_open(false);
-    const size_t closed = recv.size() - size_t(std::count(open.begin(), open.end(), 1));
-    rays = use_rays(settings, size_t(drawn), closed * (1 + snowy_layers.size()));
-    if (rays) find_open(true);
+    count_closed();
+    method = choose_coverage_method(settings, work);
+    if (method != CoverageMethod::ShadowMaps) {
+      // Rays cull with the reference's epsilon, which leaves more receivers
+      // (terrains: 87 % culled against 97 %); where that makes the shadow
+      // maps cheaper after all, they run with the first cull.
+      std::vector<uint8_t> biased = open;
+      find_open(true);
+      count_closed();
+      if (choose_coverage_method(settings, work) == CoverageMethod::ShadowMaps) {
+        method = CoverageMethod::ShadowMaps;
+        open.swap(biased);
+      }
+    }
     size_t kept = 0;
     y_lo = kOpenSky;
     y_hi = -kOpenSky;
@@ -745,7 +851,17 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     recv_index.resize(kept);
     im.timings.culled = open.size() - kept;
   }
+  im.timings.method = method;
   if (recv.empty()) return coverage;
+  if (method == CoverageMethod::CpuRays) {
+    log_debug("coverage: " + std::to_string(recv.size()) +
+              " receivers not open to the sky, every line cast on the CPU");
+    im.cast_on_cpu(maps, dirs, snow_depth, recv, recv_index, coverage);
+    im.timings.shadow = now_seconds() - t_start;
+    im.timings.pairs = uint64_t(recv.size()) * uint64_t(dirs.size());
+    progress.finish();
+    return coverage;
+  }
 
   // Shadow-map regions: each direction's map covers the remaining
   // receivers' box projected along it, origin jittered by a sub-texel offset.
@@ -776,11 +892,10 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     dir_params[k] = glm::vec4(float(a), float(b), float(u_min - jitter[k].x * st),
                               float(v_min - jitter[k].y * st));
   }
-  im.timings.rays = rays;
+  const bool rays = method == CoverageMethod::GpuRays;
   log_debug("coverage: " + std::to_string(recv.size()) + " receivers not open to the sky, " +
-            std::to_string(k_count) + " directions, " + std::to_string(size_t(drawn)) +
-            " triangles per shadow map: " +
-            (rays ? "every line cast as a ray"
+            std::to_string(size_t(work.triangles)) + " triangles per shadow map: " +
+            (rays ? "every line cast by the GPU"
                   : "shadow maps of " + std::to_string(size.x) + " x " + std::to_string(size.y) +
                         " texels"));
   const int batch = rays ? std::min(kMaxBatch, settings.directions)

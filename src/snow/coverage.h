@@ -26,8 +26,9 @@
 // until the end. Results match the ray-cast reference up to occluders or
 // gaps thinner than a shadow texel.
 // Where the receivers left are few against the scene's triangles (see
-// use_rays), no shadow maps are drawn: every pair goes to the exact pass,
-// and the result is the reference's.
+// choose_coverage_method), no shadow maps are drawn: every pair is cast
+// exactly, by the exact pass or on the CPU, and the result is the
+// reference's.
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -54,20 +55,42 @@ struct CoverageSettings {
                                 // than this above the receiver's own plane (extended to that
                                 // shadow texel, so the bias follows the slope) is the receiver
                                 // itself; < 0 = automatic: 0.25 texel + 1e-5 of the height range
-  std::string method = "auto";  // "shadow-maps", "rays" (every pair cast exactly, no shadow
-                                // maps) or "auto": rays where casting the pairs costs less than
-                                // drawing the scene K times (see use_rays)
+  std::string method = "auto";  // "shadow-maps", "rays" (every pair cast exactly on the GPU, no
+                                // shadow maps), "cpu-rays" (the same on the CPU) or "auto": the
+                                // cheapest (choose_coverage_method)
 };
 
-/// Whether settings.method casts every (receiver, direction) pair exactly
-/// instead of drawing shadow maps: "rays", or "auto" where the receivers
-/// (surface texels not open to the sky; a ray per direction each) are few
-/// against the triangles drawn per shadow map: a shadow map costs a pass
-/// over every triangle however small the map, a ray a BVH walk of about 16
-/// triangles' cost. Small, dense models (a 109k-triangle toy car at 16 x 16
-/// texels: 84 receivers) cast rays; scenes mapped finer than their
-/// triangles draw shadow maps.
-bool use_rays(const CoverageSettings& settings, size_t triangles, size_t receivers);
+/// How a coverage pass tests the lines of fall (settings.method).
+enum class CoverageMethod {
+  ShadowMaps,  // a depth map per direction; exact GPU ray casts only near silhouettes
+  GpuRays,     // every (receiver, direction) pair cast exactly by the GPU's compute pass
+  CpuRays,     // the same casts on all CPU cores (snow::Bvh::occluded)
+};
+
+/// What a coverage pass costs each way, in triangles drawn into one shadow
+/// map (per direction). The inputs come from the pass: `triangles` drawn
+/// per shadow map (the scene, plus the snow surface's), the shadow map's
+/// texels, the receivers left after the sky cull, whether a snow surface
+/// is drawn, and whether the GL renderer is a software rasterizer.
+struct CoverageWork {
+  double triangles = 0;
+  double shadow_texels = 0;
+  size_t receivers = 0;
+  bool snow = false;
+  bool software = false;
+};
+
+/// The method settings.method asks for: "shadow-maps", "rays" (GpuRays),
+/// "cpu-rays", or "auto": the cheapest by the costs measured on llvmpipe
+/// (tools/RESULTS.md). A shadow map draws every triangle however small the
+/// map (80 ns each on llvmpipe), a ray walks the BVH (75-100 ns on a CPU
+/// core, 0.5-1.3 us in llvmpipe's compute pass). So small, dense models
+/// (a 109k-triangle toy car mapped at 16 x 16 texels: 84 receivers left)
+/// and terrains (most receivers culled) cast rays, on the CPU where GL runs
+/// in software (never with a snow surface, which only the GPU pass walks as
+/// a heightfield), and scenes mapped finer than their triangles (a 440-
+/// triangle building at 110 texels: 35k receivers) draw shadow maps.
+CoverageMethod choose_coverage_method(const CoverageSettings& settings, const CoverageWork& work);
 
 /// Shadow maps per batch for maps of `shadow_texels` texels: settings.batch,
 /// or automatic where it is 0; at most settings.directions.
@@ -149,7 +172,7 @@ class CoverageRenderer {
     uint64_t culled = 0;   // receivers open to the sky along every direction (no GPU work)
     uint64_t queued = 0;   // receivers sent to the exact pass, summed over batches (profiling)
     uint64_t pairs = 0;    // (receiver, direction) pairs classified
-    bool rays = false;     // every pair cast exactly, no shadow maps (use_rays)
+    CoverageMethod method = CoverageMethod::ShadowMaps;
   };
   const Timings& timings() const;
   void set_profiling(bool on);
