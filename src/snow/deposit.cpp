@@ -246,6 +246,25 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
   return terminals.size();
 }
 
+size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
+                         float min_over) {
+  const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
+  std::vector<uint32_t> terminals;
+  for (size_t k = 0; k < count; ++k) {
+    const glm::vec4& c = cells[k];
+    if ((int(c.w) & kCellSurface) == 0 || !(c.y < kCellOpenSky)) continue;
+    if ((c.x + depth[k]) - (c.y - kCeilingClearance) >= min_over) terminals.push_back(uint32_t(k));
+  }
+  if (terminals.empty()) return 0;
+  ZeroedArray<float> arrive(count);
+  for (uint32_t k : terminals) {
+    const float kept = std::max(0.0f, (cells[k].y - kCeilingClearance) - cells[k].x);
+    arrive[k] = depth[k] - kept;
+    depth[k] = kept;
+  }
+  return deposit_piles(cells, depth, arrive.data(), std::move(terminals), grid);
+}
+
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
                      const DepositGrid& grid) {
   const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);

@@ -135,6 +135,12 @@ bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule
          residual >= settings.tolerance && residual_void >= kDrainShare * residual;
 }
 
+bool pressed_snow_due(const StabilizeSettings& settings, const StrideSchedule& schedule,
+                      float residual) {
+  return settings.route_steep && settings.deposit_piles && schedule.creeping() &&
+         residual >= settings.tolerance;
+}
+
 namespace {
 
 // The cell of layer texel k = (l, i, j), which has a finite ground.
@@ -201,6 +207,7 @@ void StabilizeResult::add(const StabilizeResult& later) {
   route_passes += later.route_passes;
   routed_volume += later.routed_volume;
   drains += later.drains;
+  pours += later.pours;
   lost_volume += later.lost_volume;
   volume = later.volume;
   route_seconds += later.route_seconds;
@@ -310,6 +317,8 @@ struct Stabilizer::Impl {
   // measured, and the largest into the void.
   glm::vec2 largest_move() const;
   std::vector<glm::vec2> read_depth() const;
+  // pour_pressed_snow on the depth read back; uploads it when it changed.
+  bool pour_pressed();
   std::vector<float> read_channel(GLenum channel) const;
   StabilizeResult iterate(int passes);
 };
@@ -852,6 +861,21 @@ int Stabilizer::Impl::route(bool drain) {
   return passes;
 }
 
+bool Stabilizer::Impl::pour_pressed() {
+  std::vector<glm::vec2> data = read_depth();
+  std::vector<float> s(data.size());
+  for (size_t k = 0; k < data.size(); ++k) s[k] = data[k].x;
+  if (pour_pressed_snow(pour_cells.data(), s.data(), DepositGrid{width, height, layers, grid.texel},
+                        settings.tolerance) == 0) {
+    return false;
+  }
+  for (size_t k = 0; k < data.size(); ++k) data[k].x = s[k];
+  glTextureSubImage3D(depth[cur].id(), 0, 0, 0, 0, width, height, layers, GL_RG, GL_FLOAT,
+                      data.data());
+  gl::check_error("stabilize: pressed snow upload");
+  return true;
+}
+
 // One relaxation pass (outflow, then gather); with `measure`, the gather
 // keeps the largest move per tile for largest_move().
 void Stabilizer::Impl::relax_pass(int stride, bool measure) {
@@ -988,6 +1012,9 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
         result.route_passes += route(true);
         ++result.drains;
         reset_tiles();  // the routing used the outflow textures
+      } else if (pressed_snow_due(settings, schedule, moves.x) && pour_pressed()) {
+        ++result.pours;
+        reset_tiles();
       }
     }
   }

@@ -117,6 +117,7 @@ struct StabilizeResult {
   int route_passes = 0;        // erosion plus pointer-jumping passes of the routing, count
   double routed_volume = 0.0;  // m^3 moved by routing (not drains: their snow is lost_volume)
   int drains = 0;              // draining routings run (drain_due), count
+  int pours = 0;               // pours of pressed snow (pressed_snow_due), count
   double lost_volume = 0.0;    // m^3 that left the scene during the call (off the map or into
                                // the void below the lowest surface)
   double volume = 0.0;         // m^3 of snow lying on the maps after the call
@@ -220,6 +221,12 @@ class StrideSchedule {
 constexpr float kDrainShare = 0.25f;
 bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule, float residual,
                float residual_void);
+/// Snow pressed above its ceilings is poured (snow::pour_pressed_snow) at a
+/// check where the snow creeps, still moves more than the tolerance, and no
+/// drain runs; where none lies more than the tolerance above its ceiling's
+/// clearance, nothing changes. Shared by both stabilizers.
+bool pressed_snow_due(const StabilizeSettings& settings, const StrideSchedule& schedule,
+                      float residual);
 /// Snow volume (m^3): sum of depth (m) over the layer texels that have a
 /// surface times texel^2, in double.
 double snow_volume(const SnowMaps& maps, const std::vector<float>& depth);
