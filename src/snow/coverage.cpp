@@ -42,6 +42,8 @@ constexpr float kNoSnowSurface = -3.0e38f;  // "no surface" in the snow-surface 
 constexpr int kLocalSize = 64;              // coverage.comp's local_size_x
 constexpr int kMaxShadowSide = 16384;       // texels, also capped by GL_MAX_TEXTURE_SIZE
 constexpr int kMaxBatch = 32;               // shadow maps per batch (a 32-bit direction mask)
+constexpr float kOwnSurface = 1e-4f;        // metres: as snow::reference::compute_coverage, plus
+                                            // 1e-6 of the height
 // Costs of choose_coverage_method, in triangles drawn into one shadow map.
 // On llvmpipe, 2-core EPYC, 2026-11-26: a drawn triangle 80 ns (ToyCar,
 // 109k triangles x 64 maps: 0.55 s); a shadow texel 2 ns (courtyard at
@@ -554,7 +556,7 @@ struct CoverageRenderer::Impl {
         float y;
         std::memcpy(&y, &recv[r].y, sizeof y);
         const glm::vec3 p(xz.x, y, xz.y);
-        const float eps = 1e-4f + 1e-6f * std::abs(y);
+        const float eps = kOwnSurface + 1e-6f * std::abs(y);
         int lit = 0;
         for (const glm::vec3& d : dirs) {
           const float t_min = eps / -d.y;  // d.y < -0.2: checked by compute_checked
@@ -756,77 +758,60 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
       if (r == 0 || band_of(r) != band_of(r - 1)) bands.push_back(r);
     }
     bands.push_back(recv.size());
-    // Surfaces less than `eps` above a receiver are its own: the shadow maps'
-    // depth bias, or with rays the reference's (1e-4 + 1e-6 |y| metres; the
-    // tiles' lists take its lowest value, a superset), so rays give the
-    // reference's result. The bias culls far more on terrains (1M triangles
-    // at 2048: 97 % against 93 % of the receivers), where shadow maps run.
+    // Surfaces less than 1e-4 m (+ 1e-6 of the height) above a receiver are
+    // its own, as for the reference's rays, so rays give the reference's
+    // result (the tiles' lists take the lowest value, a superset). Culling
+    // with the shadow maps' bias (a quarter texel) instead kept fewer
+    // receivers only where a surface lies that close above one: 125462
+    // against 125791 of 3.9M on the 1M-triangle terrain at 2048.
     std::vector<uint8_t> open(recv.size(), 0);
-    const auto find_open = [&](bool exact) {
-      const auto eps = [&](float y) { return exact ? 1e-4f + 1e-6f * std::abs(y) : bias; };
-      parallel_for(bands.size() - 1, [&](size_t b) {
-        const size_t r0 = bands[b], r1 = bands[b + 1];
-        const auto tile_of = [&](size_t r) { return (recv[r].x & 0xffffu) / uint32_t(kTile); };
-        std::vector<uint32_t> order(r1 - r0);
-        std::iota(order.begin(), order.end(), uint32_t(r0));
-        std::stable_sort(order.begin(), order.end(),
-                         [&](uint32_t a, uint32_t c) { return tile_of(a) < tile_of(c); });
-        std::vector<uint32_t> leaves;
-        for (size_t a = 0; a < order.size();) {
-          size_t e = a;
-          glm::vec2 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-          float y_min = kOpenSky;
-          for (; e < order.size() && tile_of(order[e]) == tile_of(order[a]); ++e) {
-            const glm::uvec4& rc = recv[order[e]];
-            const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
-            float y;
-            std::memcpy(&y, &rc.y, sizeof y);
-            lo = glm::min(lo, p);
-            hi = glm::max(hi, p);
-            y_min = std::min(y_min, y);
-          }
-          leaves.clear();
-          candidate_leaves(im.bvh, lo, hi, y_min, exact ? 1e-4f : bias, cot_max, leaves);
-          for (; a < e; ++a) {
-            const glm::uvec4& rc = recv[order[a]];
-            float y;
-            std::memcpy(&y, &rc.y, sizeof y);
-            const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
-            open[order[a]] = leaves_open(im.bvh, leaves, p, y, eps(y), cot_max) &&
-                             (!snow_bound || snow_bound->open(p, y, eps(y), cot_max));
-          }
+    parallel_for(bands.size() - 1, [&](size_t b) {
+      const size_t r0 = bands[b], r1 = bands[b + 1];
+      const auto tile_of = [&](size_t r) { return (recv[r].x & 0xffffu) / uint32_t(kTile); };
+      std::vector<uint32_t> order(r1 - r0);
+      std::iota(order.begin(), order.end(), uint32_t(r0));
+      std::stable_sort(order.begin(), order.end(),
+                       [&](uint32_t a, uint32_t c) { return tile_of(a) < tile_of(c); });
+      std::vector<uint32_t> leaves;
+      for (size_t a = 0; a < order.size();) {
+        size_t e = a;
+        glm::vec2 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+        float y_min = kOpenSky;
+        for (; e < order.size() && tile_of(order[e]) == tile_of(order[a]); ++e) {
+          const glm::uvec4& rc = recv[order[e]];
+          const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
+          float y;
+          std::memcpy(&y, &rc.y, sizeof y);
+          lo = glm::min(lo, p);
+          hi = glm::max(hi, p);
+          y_min = std::min(y_min, y);
         }
-      });
-    };
-    // The receivers left and their box's texels (about a shadow map's).
-    const auto count_closed = [&]() {
-      work.receivers = 0;
-      glm::ivec4 box(grid.width, grid.height, -1, -1);
-      for (size_t r = 0; r < recv.size(); ++r) {
-        if (open[r]) continue;
-        ++work.receivers;
-        const int i = int(recv[r].x & 0xffffu), j = int(recv[r].x >> 16);
-        box = glm::ivec4(std::min(box.x, i), std::min(box.y, j), std::max(box.z, i),
-                         std::max(box.w, j));
+        leaves.clear();
+        candidate_leaves(im.bvh, lo, hi, y_min, kOwnSurface, cot_max, leaves);
+        for (; a < e; ++a) {
+          const glm::uvec4& rc = recv[order[a]];
+          float y;
+          std::memcpy(&y, &rc.y, sizeof y);
+          const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
+          const float eps = kOwnSurface + 1e-6f * std::abs(y);
+          open[order[a]] = leaves_open(im.bvh, leaves, p, y, eps, cot_max) &&
+                           (!snow_bound || snow_bound->open(p, y, eps, cot_max));
+        }
       }
-      work.shadow_texels =
-          double(std::max(box.z - box.x + 1, 0)) * double(std::max(box.w - box.y + 1, 0));
-    };
-    find_open(false);
-    count_closed();
-    method = choose_coverage_method(settings, work);
-    if (method != CoverageMethod::ShadowMaps) {
-      // Rays cull with the reference's epsilon, which leaves more receivers
-      // (terrains: 87 % culled against 97 %); where that makes the shadow
-      // maps cheaper after all, they run with the first cull.
-      std::vector<uint8_t> biased = open;
-      find_open(true);
-      count_closed();
-      if (choose_coverage_method(settings, work) == CoverageMethod::ShadowMaps) {
-        method = CoverageMethod::ShadowMaps;
-        open.swap(biased);
-      }
+    });
+    // The method, from the receivers left and their box's texels (about a
+    // shadow map's).
+    glm::ivec4 box(grid.width, grid.height, -1, -1);
+    for (size_t r = 0; r < recv.size(); ++r) {
+      if (open[r]) continue;
+      ++work.receivers;
+      const int i = int(recv[r].x & 0xffffu), j = int(recv[r].x >> 16);
+      box = glm::ivec4(std::min(box.x, i), std::min(box.y, j), std::max(box.z, i),
+                       std::max(box.w, j));
     }
+    work.shadow_texels =
+        double(std::max(box.z - box.x + 1, 0)) * double(std::max(box.w - box.y + 1, 0));
+    method = choose_coverage_method(settings, work);
     size_t kept = 0;
     y_lo = kOpenSky;
     y_hi = -kOpenSky;
