@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <string>
 
@@ -34,10 +35,13 @@ gl::Context* context() {
 #define REQUIRE_GL() \
   if (!context()) GTEST_SKIP() << "no OpenGL context"
 
-PeelSettings settings_with_side(int side, int layers = 8) {
+// The GPU passes unless `device` says otherwise ("auto" would peel these
+// small maps on the CPU under llvmpipe).
+PeelSettings settings_with_side(int side, int layers = 8, const char* device = "gpu") {
   PeelSettings s;
   s.max_side = side;
   s.layers = layers;
+  s.device = device;
   return s;
 }
 
@@ -349,28 +353,31 @@ TEST(Peel, CountsAndWarnsAboutOverflowColumnsOnce) {
   Scene scene;
   for (int k = 0; k < 5; ++k)
     add_quad(scene, "Plate" + std::to_string(k), 0.1f * k, -1, 1, -1, 1, true);
-  clear_warnings();
-  const SnowMaps maps = peel_layers(scene, settings_with_side(64, 3));
-  // Every texel centre inside the plates holds 5 surfaces.
-  size_t inside = 0;
-  for (int j = 0; j < maps.grid.height; ++j) {
-    for (int i = 0; i < maps.grid.width; ++i) {
-      const glm::vec2 c = maps.grid.center(i, j);
-      inside += std::abs(c.x) < 1.0f && std::abs(c.y) < 1.0f;
+  for (const char* device : {"gpu", "cpu"}) {
+    SCOPED_TRACE(device);
+    clear_warnings();
+    const SnowMaps maps = peel_layers(scene, settings_with_side(64, 3, device));
+    // Every texel centre inside the plates holds 5 surfaces.
+    size_t inside = 0;
+    for (int j = 0; j < maps.grid.height; ++j) {
+      for (int i = 0; i < maps.grid.width; ++i) {
+        const glm::vec2 c = maps.grid.center(i, j);
+        inside += std::abs(c.x) < 1.0f && std::abs(c.y) < 1.0f;
+      }
     }
+    EXPECT_EQ(maps.overflow_columns, inside);
+    const SnowMaps ref = reference::peel_layers(scene, maps.grid, 3);
+    EXPECT_EQ(ref.overflow_columns, inside);
+    size_t warnings = 0;
+    for (const std::string& w : recorded_warnings())
+      warnings += w.find("more than 3") != std::string::npos;
+    EXPECT_EQ(warnings, 1u);
+    // The top three plates are kept, top down.
+    const glm::ivec2 mid = texel_at(maps.grid, 0.01f, 0.01f);
+    EXPECT_NEAR(maps.ground[maps.index(0, mid.x, mid.y)], 0.4f, 1e-5);
+    EXPECT_NEAR(maps.ground[maps.index(2, mid.x, mid.y)], 0.2f, 1e-5);
+    EXPECT_NEAR(maps.ceiling[maps.index(2, mid.x, mid.y)], 0.3f, 1e-5);
   }
-  EXPECT_EQ(maps.overflow_columns, inside);
-  const SnowMaps ref = reference::peel_layers(scene, maps.grid, 3);
-  EXPECT_EQ(ref.overflow_columns, inside);
-  size_t warnings = 0;
-  for (const std::string& w : recorded_warnings())
-    warnings += w.find("more than 3") != std::string::npos;
-  EXPECT_EQ(warnings, 1u);
-  // The top three plates are kept, top down.
-  const glm::ivec2 mid = texel_at(maps.grid, 0.01f, 0.01f);
-  EXPECT_NEAR(maps.ground[maps.index(0, mid.x, mid.y)], 0.4f, 1e-5);
-  EXPECT_NEAR(maps.ground[maps.index(2, mid.x, mid.y)], 0.2f, 1e-5);
-  EXPECT_NEAR(maps.ceiling[maps.index(2, mid.x, mid.y)], 0.3f, 1e-5);
 }
 
 TEST(Peel, EmptySceneGivesEmptyMaps) {
@@ -378,8 +385,38 @@ TEST(Peel, EmptySceneGivesEmptyMaps) {
   Scene scene;
   scene.bounds.extend({0, 0, 0});
   scene.bounds.extend({1, 1, 1});
-  const SnowMaps maps = peel_layers(scene, settings_with_side(16, 2));
-  for (float g : maps.ground) EXPECT_TRUE(std::isnan(g));
+  for (const char* device : {"gpu", "cpu"}) {
+    const SnowMaps maps = peel_layers(scene, settings_with_side(16, 2, device));
+    EXPECT_EQ(maps.layers, 1) << device;
+    for (float g : maps.ground) EXPECT_TRUE(std::isnan(g)) << device;
+  }
+}
+
+// The CPU peel is the reference's vertical rays; "auto" takes it for small
+// maps where GL runs in software (faster there: no passes to set up), the
+// GPU passes for large ones.
+TEST(Peel, DeviceChoosesTheCpuForSmallMapsInSoftware) {
+  REQUIRE_GL();
+  const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
+  const SnowMaps cpu = peel_layers(scene, settings_with_side(96, 6, "cpu"));
+  const SnowMaps ref = reference::peel_layers(scene, cpu.grid, 6);
+  EXPECT_EQ(compare_maps(cpu, ref).mismatched, 0u);
+  EXPECT_EQ(cpu.ground.size(), ref.ground.size());
+  const SnowMaps small = peel_layers(scene, settings_with_side(96, 6, "auto"));
+  const SnowMaps gpu = peel_layers(scene, settings_with_side(96, 6, "gpu"));
+  const SnowMaps& expected = gl::renderer_is_software() ? cpu : gpu;
+  ASSERT_EQ(small.ground.size(), expected.ground.size());
+  EXPECT_EQ(
+      std::memcmp(small.ground.data(), expected.ground.data(), small.ground.size() * sizeof(float)),
+      0);
+  // 512 x 512 texels x 6 layers is over kCpuPeelLayerTexels: the GPU's passes.
+  const SnowMaps large = peel_layers(scene, settings_with_side(512, 6, "auto"));
+  const SnowMaps large_gpu = peel_layers(scene, settings_with_side(512, 6, "gpu"));
+  ASSERT_EQ(large.ground.size(), large_gpu.ground.size());
+  EXPECT_EQ(std::memcmp(large.ground.data(), large_gpu.ground.data(),
+                        large.ground.size() * sizeof(float)),
+            0);
+  EXPECT_THROW(peel_layers(scene, settings_with_side(96, 6, "tpu")), InputError);
 }
 
 }  // namespace

@@ -16,11 +16,13 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "gl/context.h"
 #include "gl/gl.h"
 #include "gl/objects.h"
 #include "gl/program.h"
 #include "shaders/bindings.h"
 #include "snow/gpu_scene.h"
+#include "snow/reference/peel_ref.h"
 
 namespace snow {
 namespace {
@@ -74,6 +76,17 @@ void validate_peel_settings(const PeelSettings& s) {
   if (!(s.merge_distance >= 0.0f) || !std::isfinite(s.merge_distance)) {
     throw InputError("merge distance must be a finite number >= 0 m, got " +
                      format_metres(s.merge_distance));
+  }
+  if (s.device != "auto" && s.device != "gpu" && s.device != "cpu") {
+    throw InputError("peel device must be auto, gpu or cpu, got '" + s.device + "'");
+  }
+}
+
+void warn_overflow(const SnowMaps& maps, int layers) {
+  if (maps.overflow_columns > 0) {
+    log_warn(std::to_string(maps.overflow_columns) + " map columns hold more than " +
+             std::to_string(layers) +
+             " surfaces; the lowest ones are dropped (raise --layers to keep them)");
   }
 }
 
@@ -187,6 +200,15 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
   const float scene_height = scene.bounds.empty() ? 0.0f : scene.bounds.size().y;
   check_memory_budget(grid, settings.layers, CoverageSettings{}, settings.memory_budget,
                       scene_height, scene.triangle_count());
+  if (settings.device == "cpu" || (settings.device == "auto" &&
+                                   grid.texels() * size_t(settings.layers) <= kCpuPeelLayerTexels &&
+                                   gl::renderer_is_software())) {
+    Progress progress("peel", 1);
+    SnowMaps maps = reference::peel_layers(scene, grid, settings.layers, settings.merge_distance);
+    progress.finish();
+    warn_overflow(maps, settings.layers);
+    return maps;
+  }
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
   if (max_size > 0 && (grid.width > max_size || grid.height > max_size)) {
@@ -332,11 +354,7 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
   glBindTextureUnit(SNOW_PEEL_PREV_TEXTURE, 0);
   if (maps.layers == 0) maps.add_layer();
   maps.drop_empty_layers();  // a pass can find only triangles out of range
-  if (maps.overflow_columns > 0) {
-    log_warn(std::to_string(maps.overflow_columns) + " map columns hold more than " +
-             std::to_string(settings.layers) +
-             " surfaces; the lowest ones are dropped (raise --layers to keep them)");
-  }
+  warn_overflow(maps, settings.layers);
   return maps;
 }
 
