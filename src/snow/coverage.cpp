@@ -136,25 +136,33 @@ glm::vec3 gradient_normal(const SnowMaps& maps, const std::vector<float>& top, i
 }
 
 // Culling of receivers that see the open sky along every direction, before
-// any GPU work. A line of fall from a receiver p at height y rises at least
-// cot(theta_max) metres per metre it moves sideways, so a scene point q can
-// only be in its way if height(q) > y + eps + |q - p|_xz * cot(theta_max)
-// (eps is the pass-1 bias, below which a surface counts as the receiver's
-// own). The scene's BVH is walked with that test on each node's highest
-// point at its box's xz distance, once per small tile of receivers (at the
-// tile's distance and lowest receiver); then per receiver, in each leaf
-// the tile kept whose node fails for it, a triangle is
-// harmless when it lies wholly under the cone: either its slope is at most
-// cot(theta_max) and its plane extended to p lies at most y + eps (height
-// minus the cone, over the whole plane, is largest there), or the cone
-// minus the height, a convex function, is >= 0 at its minimum over the
-// triangle, which lies at p (p inside the footprint) or on an edge (found
-// in closed form per edge). The exact edge test keeps a terrain's ridges
-// culled where the bound it replaced (the highest corner at the footprint's
-// distance) did not.
+// any GPU work. A line of fall from a receiver p at height y rises s metres
+// while it moves at most s tan(theta_max) sideways, and hits within eps of
+// the receiver (s <= eps) do not count (the reference's rule, for the
+// receiver's own surface). So a scene point q can only be in its way if
+// height(q) > top(q) = y + max(eps, cot(theta_max) |q - p|_xz): a cone with
+// a flat top of radius eps / cot around p. The scene's BVH is walked with
+// that test on each node's highest point at its box's xz distance, once per
+// small tile of receivers (at the tile's distance and lowest receiver);
+// then per receiver, in each leaf the tile kept whose node fails for it, a
+// triangle is harmless when it lies wholly under top(): top minus the
+// height, a convex function, is >= 0 at its minimum over the triangle,
+// which lies on the flat top's rim or on an edge (found in closed form).
+// The exact edge test keeps a terrain's ridges culled where the bound it
+// replaced (the highest corner at the footprint's distance) did not.
 // So a receiver on a gentle slope or terrain is culled whatever its own
 // triangles do, and nothing that shades a receiver is ever overlooked. The
 // snow surface (snow on snow) is bounded by a max pyramid of the snowy tops.
+struct Cone {
+  Cone(const glm::vec2& at, float height, float own, float cot_max)
+      : p(at), y(height), eps(own), cot(cot_max), r0(double(own) / double(cot_max)) {}
+  glm::dvec2 p;  // metres, the receiver's xz
+  double y;      // metres, its height
+  double eps;    // metres, surfaces less than this above it are its own
+  double cot;    // cot(theta_max), metres up per metre sideways
+  double r0;     // metres, radius of the flat top
+  double top(double d) const { return y + std::max(eps, cot * d); }
+};
 
 // Distance in xz from p to the triangle's footprint (0 inside).
 double distance_xz(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c,
@@ -177,53 +185,69 @@ double distance_xz(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c
   return best;
 }
 
-// Smallest cot * |q - p| - h(q) over the segment q from u to w (xz in .x
-// and .z, height h in .y, linear along it): a convex function of the
-// position along the segment, smallest at its stationary point or an end.
-double edge_minimum(const glm::dvec3& u, const glm::dvec3& w, const glm::dvec2& p, double cot) {
-  const glm::dvec2 a(u.x - p.x, u.z - p.y), e(w.x - u.x, w.z - u.z);
-  const double len = glm::length(e);
+// Smallest top(q) - h(q) over the segment q from u to w (xz in .x and .z,
+// height h in .y, linear along it). It is convex along the segment: flat-
+// topped near p, a cone beyond; so it is smallest at an end, where it
+// crosses the flat top's rim, or at the cone's stationary point.
+double edge_minimum(const glm::dvec3& u, const glm::dvec3& w, const Cone& cone) {
+  const glm::dvec2 a(u.x - cone.p.x, u.z - cone.p.y), e(w.x - u.x, w.z - u.z);
   const auto value = [&](double t) {
-    return cot * glm::length(a + t * e) - (u.y + t * (w.y - u.y));
+    t = std::clamp(t, 0.0, 1.0);
+    return cone.top(glm::length(a + t * e)) - (u.y + t * (w.y - u.y));
   };
   double best = std::min(value(0.0), value(1.0));
-  if (len > 0.0) {
+  const double ee = glm::dot(e, e);
+  if (ee > 0.0) {
+    // Where |a + t e| = r0 (the rim).
+    const double ae = glm::dot(a, e);
+    const double disc = ae * ae - ee * (glm::dot(a, a) - cone.r0 * cone.r0);
+    if (disc >= 0.0) {
+      best = std::min(
+          {best, value((-ae - std::sqrt(disc)) / ee), value((-ae + std::sqrt(disc)) / ee)});
+    }
     // Along the edge's line, s metres from the foot of the perpendicular
     // from p (at distance d): cot sqrt(d^2 + s^2) - k s, with k the height
     // gained per metre; stationary at s = k d / sqrt(cot^2 - k^2).
+    const double len = std::sqrt(ee);
     const glm::dvec2 dir = e / len;
     const double s0 = -glm::dot(a, dir);  // the foot, metres from u
     const double d = std::abs(a.x * dir.y - a.y * dir.x);
     const double k = (w.y - u.y) / len;
-    if (std::abs(k) < cot) {
-      const double s = s0 + k * d / std::sqrt(cot * cot - k * k);
-      best = std::min(best, value(std::clamp(s / len, 0.0, 1.0)));
+    if (std::abs(k) < cone.cot) {
+      best = std::min(best, value((s0 + k * d / std::sqrt(cone.cot * cone.cot - k * k)) / len));
     }
   }
   return best;
 }
 
-bool triangle_harmless(const glm::vec3* corner, const glm::vec2& p, double limit, double cot) {
+bool triangle_harmless(const glm::vec3* corner, const Cone& cone) {
   const glm::dvec3 a(corner[0]), b(corner[1]), c(corner[2]);
   const glm::dvec3 n = glm::cross(b - a, c - a);
-  // The plane test first (cheaper): for a gentle plane it covers the whole plane.
   if (std::abs(n.y) > 1e-9 * glm::length(n)) {
+    // top - h over the plane, inside the flat top, is smallest at q* = p +
+    // r0 g / |g| (g: the plane's gradient); a gentle plane (|g| <= cot)
+    // rises slower than the cone beyond it, so q* is its smallest over the
+    // whole plane: the cheap test first.
     const double gx = -n.x / n.y, gz = -n.z / n.y;
-    const double at_p = a.y + gx * (p.x - a.x) + gz * (p.y - a.z);
-    if (gx * gx + gz * gz <= cot * cot && at_p <= limit) return true;
-    if (distance_xz(a, b, c, p) == 0.0 && at_p > limit) return false;  // over p itself
+    const double slope = std::sqrt(gx * gx + gz * gz);
+    const double at_p = a.y + gx * (cone.p.x - a.x) + gz * (cone.p.y - a.z);
+    const double worst = at_p + cone.r0 * slope;  // h(q*)
+    if (slope <= cone.cot && worst <= cone.y + cone.eps) return true;
+    const glm::vec2 q =
+        slope > 0.0 ? glm::vec2(cone.p + cone.r0 * glm::dvec2(gx, gz) / slope) : glm::vec2(cone.p);
+    if (worst > cone.y + cone.eps && distance_xz(a, b, c, q) == 0.0) return false;
   }
-  return std::min({edge_minimum(a, b, p, cot), edge_minimum(b, c, p, cot),
-                   edge_minimum(c, a, p, cot)}) >= -limit;
+  return std::min({edge_minimum(a, b, cone), edge_minimum(b, c, cone), edge_minimum(c, a, cone)}) >=
+         0.0;
 }
 
 // The node test at the box's xz distance from the rectangle [lo, hi] (for
-// a point, lo = hi).
-bool node_harmless(const Bvh::Node& node, const glm::vec2& lo, const glm::vec2& hi, double limit,
-                   double cot) {
+// a point, lo = hi): its highest point under the cone's top there.
+bool node_harmless(const Bvh::Node& node, const glm::vec2& lo, const glm::vec2& hi,
+                   const Cone& cone) {
   const double dx = std::max({double(node.min.x) - hi.x, double(lo.x) - node.max.x, 0.0});
   const double dz = std::max({double(node.min.z) - hi.y, double(lo.y) - node.max.z, 0.0});
-  return double(node.max.y) <= limit + std::sqrt(dx * dx + dz * dz) * cot;
+  return double(node.max.y) <= cone.top(std::sqrt(dx * dx + dz * dz));
 }
 
 // The leaves of `bvh` that can hold a triangle in the way of a line of fall
@@ -232,14 +256,13 @@ bool node_harmless(const Bvh::Node& node, const glm::vec2& lo, const glm::vec2& 
 // rectangle's distance), appended to `leaves`. A node that passes for the
 // rectangle passes for each of its points, so a point's own walk reaches
 // only leaves listed here.
-void candidate_leaves(const Bvh& bvh, const glm::vec2& lo, const glm::vec2& hi, float y, float eps,
-                      float cot, std::vector<uint32_t>& leaves) {
+void candidate_leaves(const Bvh& bvh, const glm::vec2& lo, const glm::vec2& hi, const Cone& cone,
+                      std::vector<uint32_t>& leaves) {
   const std::vector<Bvh::Node>& nodes = bvh.nodes();
-  const double limit = double(y) + double(eps);
   const uint32_t count = uint32_t(nodes.size());
   for (uint32_t i = 0; i < count;) {
     const Bvh::Node& node = nodes[i];
-    const bool harmless = node_harmless(node, lo, hi, limit, cot);
+    const bool harmless = node_harmless(node, lo, hi, cone);
     if (node.count == 0) {
       i = harmless ? node.first : i + 1;
       continue;
@@ -251,16 +274,15 @@ void candidate_leaves(const Bvh& bvh, const glm::vec2& lo, const glm::vec2& hi, 
 
 // True when no triangle of the listed leaves can be in the way of a line of
 // fall from (p, y): the node test, then each triangle's.
-bool leaves_open(const Bvh& bvh, const std::vector<uint32_t>& leaves, const glm::vec2& p, float y,
-                 float eps, float cot) {
+bool leaves_open(const Bvh& bvh, const std::vector<uint32_t>& leaves, const Cone& cone) {
   const std::vector<Bvh::Node>& nodes = bvh.nodes();
   const std::vector<glm::vec3>& corners = bvh.corners();
-  const double limit = double(y) + double(eps);
+  const glm::vec2 p(cone.p);
   for (uint32_t leaf : leaves) {
     const Bvh::Node& node = nodes[leaf];
-    if (node_harmless(node, p, p, limit, cot)) continue;
+    if (node_harmless(node, p, p, cone)) continue;
     for (uint32_t t = node.first; t < node.first + node.count; ++t) {
-      if (!triangle_harmless(&corners[3 * size_t(t)], p, limit, cot)) return false;
+      if (!triangle_harmless(&corners[3 * size_t(t)], cone)) return false;
     }
   }
   return true;
@@ -308,7 +330,8 @@ class SnowBound {
     }
   }
 
-  bool open(const glm::vec2& p, float y, float eps, float cot) const {
+  bool open(const Cone& cone) const {
+    const glm::vec2 p(cone.p);
     struct Node {
       int level, i, j;
     };
@@ -322,7 +345,7 @@ class SnowBound {
       const glm::vec2 d = glm::max(glm::max(lo - p, p - (lo + span)), glm::vec2(0.0f));
       const float m =
           levels_[size_t(n.level)][size_t(n.j) * size_t(sizes_[size_t(n.level)].x) + size_t(n.i)];
-      if (m <= y + eps + glm::length(d) * cot) continue;
+      if (double(m) <= cone.top(glm::length(glm::dvec2(d)))) continue;
       if (n.level == 0) return false;
       const glm::ivec2 size = sizes_[size_t(n.level) - 1];
       for (int c = 0; c < 4; ++c) {
@@ -787,15 +810,15 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
           y_min = std::min(y_min, y);
         }
         leaves.clear();
-        candidate_leaves(im.bvh, lo, hi, y_min, kOwnSurface, cot_max, leaves);
+        candidate_leaves(im.bvh, lo, hi, Cone(lo, y_min, kOwnSurface, cot_max), leaves);
         for (; a < e; ++a) {
           const glm::uvec4& rc = recv[order[a]];
           float y;
           std::memcpy(&y, &rc.y, sizeof y);
           const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
-          const float eps = kOwnSurface + 1e-6f * std::abs(y);
-          open[order[a]] = leaves_open(im.bvh, leaves, p, y, eps, cot_max) &&
-                           (!snow_bound || snow_bound->open(p, y, eps, cot_max));
+          const Cone cone(p, y, kOwnSurface + 1e-6f * std::abs(y), cot_max);
+          open[order[a]] =
+              leaves_open(im.bvh, leaves, cone) && (!snow_bound || snow_bound->open(cone));
         }
       }
     });
