@@ -316,23 +316,28 @@ TEST(Coverage, WindMovesTheWallsShadowDownwind) {
   EXPECT_GT(cov_wind[maps.index(0, up.x, up.y)], 0.99f);
 }
 
+// Canned scenes with a wind each, for the comparisons with the reference.
+struct Case {
+  const char* name;
+  Scene scene;
+  glm::vec2 wind;
+};
+
+std::vector<Case> canned_cases() {
+  std::vector<Case> cases;
+  cases.push_back({"open plane", make_open_plane(10.0f), {0.0f, 0.0f}});
+  cases.push_back({"table", make_table_scene(0.75f, 1.0f, 4.0f), {0.0f, 0.0f}});
+  cases.push_back({"table in wind", make_table_scene(0.75f, 1.0f, 4.0f), {0.4f, -0.3f}});
+  cases.push_back({"closed box", make_closed_box_scene(1.0f), {0.0f, 0.0f}});
+  cases.push_back({"wall in wind", make_wall_scene(2.0f, 6.0f, 10.0f), {0.0f, 0.5f}});
+  cases.push_back({"house", make_house_scene(45.0f, 0.5f), {0.3f, 0.0f}});
+  cases.push_back({"stairs", make_stairs_scene(), {0.0f, 0.2f}});
+  return cases;
+}
+
 TEST(Coverage, GpuMatchesRayCastReference) {
   REQUIRE_GL();
-  struct Case {
-    const char* name;
-    Scene scene;
-    glm::vec2 wind;
-  };
-  Case cases[] = {
-      {"open plane", make_open_plane(10.0f), {0.0f, 0.0f}},
-      {"table", make_table_scene(0.75f, 1.0f, 4.0f), {0.0f, 0.0f}},
-      {"table in wind", make_table_scene(0.75f, 1.0f, 4.0f), {0.4f, -0.3f}},
-      {"closed box", make_closed_box_scene(1.0f), {0.0f, 0.0f}},
-      {"wall in wind", make_wall_scene(2.0f, 6.0f, 10.0f), {0.0f, 0.5f}},
-      {"house", make_house_scene(45.0f, 0.5f), {0.3f, 0.0f}},
-      {"stairs", make_stairs_scene(), {0.0f, 0.2f}},
-  };
-  for (const Case& c : cases) {
+  for (const Case& c : canned_cases()) {
     SCOPED_TRACE(c.name);
     const SnowMaps maps = peel(c.scene, 128);
     CoverageSettings s;
@@ -355,18 +360,7 @@ TEST(Coverage, GpuMatchesRayCastReference) {
 // the cull, one stairs texel differed by a ray.
 TEST(Coverage, RaysMatchTheRayCastReference) {
   REQUIRE_GL();
-  struct Case {
-    const char* name;
-    Scene scene;
-    glm::vec2 wind;
-  };
-  Case cases[] = {
-      {"table in wind", make_table_scene(0.75f, 1.0f, 4.0f), {0.4f, -0.3f}},
-      {"closed box", make_closed_box_scene(1.0f), {0.0f, 0.0f}},
-      {"house", make_house_scene(45.0f, 0.5f), {0.3f, 0.0f}},
-      {"stairs", make_stairs_scene(), {0.0f, 0.2f}},
-  };
-  for (const Case& c : cases) {
+  for (const Case& c : canned_cases()) {
     SCOPED_TRACE(c.name);
     const SnowMaps maps = peel(c.scene, 64);
     CoverageSettings s;

@@ -430,12 +430,12 @@ TEST(StabilizeReference, RoutedSnowIsPouredAsAConeAtRest) {
   EXPECT_LT(with.iterations, without.iterations);
 }
 
-// A 2.4 m floor (48 texels of 5 cm) with a 0.8 m square shelf over its
-// middle (texel columns 16 to 31): top 0.15 m, underside 0.1 m above it.
-SnowMaps shelf_maps() {
-  return make_maps(48, 48, 0.05f, 4, [](float x, float z) {
+// A 2.4 m floor (48 texels of 5 cm) with a square slab over x, z in (lo,
+// hi): top 0.15 m, underside 0.1 m above the floor.
+SnowMaps slab_maps(float lo, float hi) {
+  return make_maps(48, 48, 0.05f, 4, [=](float x, float z) {
     std::vector<Surface> s;
-    if (x > 0.8f && x < 1.6f && z > 0.8f && z < 1.6f) {
+    if (x > lo && x < hi && z > lo && z < hi) {
       s.push_back({0.15f, kUp});
       s.push_back({0.1f, kDown});
     }
@@ -443,6 +443,9 @@ SnowMaps shelf_maps() {
     return s;
   });
 }
+
+// A 0.8 m square shelf over the middle (texel columns 16 to 31).
+SnowMaps shelf_maps() { return slab_maps(0.8f, 1.6f); }
 
 // Under a ceiling, what fits stays on the terminal; what would be pressed
 // above the ceiling is poured as a pile that fills the gap up to the
@@ -578,17 +581,7 @@ TEST(StabilizeReference, LowCeilingCapsDepth) {
 // around it. The routing sends out only the edge's pressed snow (inside,
 // the heights it may keep are level); the relaxation squeezes the rest out
 // one texel per pass, a pressure that diffuses across the slab.
-SnowMaps cellar_maps() {
-  return make_maps(48, 48, 0.05f, 4, [](float x, float z) {
-    std::vector<Surface> s;
-    if (x > 0.4f && x < 2.0f && z > 0.4f && z < 2.0f) {
-      s.push_back({0.15f, kUp});
-      s.push_back({0.1f, kDown});
-    }
-    s.push_back({0.0f, kUp});
-    return s;
-  });
-}
+SnowMaps cellar_maps() { return slab_maps(0.4f, 2.0f); }
 
 std::vector<float> cellar_snow(const SnowMaps& maps) {
   std::vector<float> depth(maps.ground.size(), 0.0f);

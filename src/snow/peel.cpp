@@ -203,6 +203,7 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
   if (settings.device == "cpu" || (settings.device == "auto" &&
                                    grid.texels() * size_t(settings.layers) <= kCpuPeelLayerTexels &&
                                    gl::renderer_is_software())) {
+    log_debug("peel: a vertical ray per texel on the CPU");
     Progress progress("peel", 1);
     SnowMaps maps = reference::peel_layers(scene, grid, settings.layers, settings.merge_distance);
     progress.finish();
