@@ -100,6 +100,14 @@ TEST(Cli, InfoPrintsSceneSummary) {
                                    : "Stabilizer (--stabilizer auto): GPU passes"),
             std::string::npos)
       << r.output;
+  EXPECT_NE(r.output.find(software ? "Peel (--peel-device auto): the CPU for small maps"
+                                   : "Peel (--peel-device auto): the GPU's passes"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find(software ? "rays on the CPU where they cost less"
+                                   : "rays on the GPU where they cost less"),
+            std::string::npos)
+      << r.output;
 }
 
 TEST(Cli, InfoSaysWhetherTheHeapHasHugePages) {

@@ -24,9 +24,14 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
       auto context = make_headless_context(global);
       std::printf("OpenGL: %s (%s)\n", context->description().c_str(),
                   gl::to_string(context->backend()).c_str());
-      std::printf(
-          "Stabilizer (--stabilizer auto): %s\n",
-          gl::renderer_is_software() ? "CPU passes (the GL renderer is software)" : "GPU passes");
+      const bool software = gl::renderer_is_software();
+      std::printf("Stabilizer (--stabilizer auto): %s\n",
+                  software ? "CPU passes (the GL renderer is software)" : "GPU passes");
+      std::printf("Peel (--peel-device auto): %s\n",
+                  software ? "the CPU for small maps, else the GPU's passes" : "the GPU's passes");
+      std::printf("Coverage (--coverage-method auto): %s\n",
+                  software ? "shadow maps, or rays on the CPU where they cost less"
+                           : "shadow maps, or rays on the GPU where they cost less");
     }
     if (!options->json) std::printf("Huge pages for the heap: %s\n", huge_pages_status().c_str());
     if (options->scene.empty()) return;
