@@ -568,16 +568,18 @@ struct CoverageRenderer::Impl {
 
   // CoverageMethod::CpuRays: the reference's casts (reference::compute_coverage)
   // for the receivers left, on all cores; with a snow surface its triangles
-  // get a BVH of their own.
+  // get a BVH of their own. Progress is reported between kRounds rounds
+  // (Progress is not thread-safe), in directions as by the other methods.
   void cast_on_cpu(const SnowMaps& maps, const std::vector<glm::vec3>& dirs,
                    const std::vector<float>* snow_depth, const std::vector<glm::uvec4>& recv,
-                   const std::vector<uint32_t>& recv_index, std::vector<float>& coverage) const {
+                   const std::vector<uint32_t>& recv_index, std::vector<float>& coverage,
+                   Progress& progress) const {
     std::unique_ptr<Bvh> snow_bvh;
     if (snow_depth) {
       snow_bvh = std::make_unique<Bvh>(reference::snow_surface_triangles(maps, *snow_depth));
     }
-    constexpr size_t kChunk = 256;
-    parallel_for((recv.size() + kChunk - 1) / kChunk, [&](size_t c) {
+    constexpr size_t kChunk = 256, kRounds = 16;
+    const auto cast_chunk = [&](size_t c) {
       for (size_t r = c * kChunk; r < std::min(recv.size(), (c + 1) * kChunk); ++r) {
         const glm::vec2 xz = maps.grid.center(int(recv[r].x & 0xffffu), int(recv[r].x >> 16));
         float y;
@@ -591,7 +593,13 @@ struct CoverageRenderer::Impl {
         }
         coverage[recv_index[r]] = float(lit) / float(dirs.size());
       }
-    });
+    };
+    const size_t chunks = (recv.size() + kChunk - 1) / kChunk;
+    const size_t per_round = (chunks + kRounds - 1) / kRounds;
+    for (size_t first = 0; first < chunks; first += per_round) {
+      parallel_for(std::min(per_round, chunks - first), [&](size_t c) { cast_chunk(first + c); });
+      progress.update(double(dirs.size()) * double(first + per_round) / double(chunks));
+    }
   }
 
   static void upload(gl::Buffer& buffer, const void* data, size_t bytes, const char* what) {
@@ -867,7 +875,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
   if (method == CoverageMethod::CpuRays) {
     log_debug("coverage: " + std::to_string(recv.size()) +
               " receivers not open to the sky, every line cast on the CPU");
-    im.cast_on_cpu(maps, dirs, snow_depth, recv, recv_index, coverage);
+    im.cast_on_cpu(maps, dirs, snow_depth, recv, recv_index, coverage, progress);
     im.timings.shadow = now_seconds() - t_start;
     im.timings.pairs = uint64_t(recv.size()) * uint64_t(dirs.size());
     progress.finish();
