@@ -10,6 +10,7 @@
 
 #include "core/error.h"
 #include "core/fs.h"
+#include "core/log.h"
 #include "core/parallel.h"
 
 namespace fs = std::filesystem;
@@ -96,4 +97,25 @@ TEST(ParallelFor, RethrowsTheFirstErrorAfterAllThreadsStop) {
     // The remaining indices are skipped once one call has thrown.
     EXPECT_LT(calls.load(), 1000) << threads;
   }
+}
+
+// A quiet thread prints nothing but still records its warnings; other
+// threads print as before.
+TEST(Log, QuietThreadPrintsNothingAndKeepsWarnings) {
+  snow::set_log_level(snow::LogLevel::Debug);
+  snow::clear_warnings();
+  testing::internal::CaptureStderr();
+  std::thread([] {
+    const snow::QuietThread quiet;
+    snow::log_info("quiet info");
+    snow::log_debug("quiet debug");
+    snow::log_warn("quiet warning");
+  }).join();
+  snow::log_info("loud info");
+  const std::string printed = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(printed.find("quiet"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("loud info"), std::string::npos) << printed;
+  ASSERT_EQ(snow::recorded_warnings().size(), 1u);
+  EXPECT_EQ(snow::recorded_warnings()[0], "quiet warning");
+  snow::set_log_level(snow::LogLevel::Info);
 }

@@ -10,23 +10,27 @@ namespace {
 LogLevel g_level = LogLevel::Info;
 std::mutex g_mutex;
 std::vector<std::string> g_warnings;
+thread_local bool t_quiet = false;  // QuietThread
 }  // namespace
+
+QuietThread::QuietThread() : was_(t_quiet) { t_quiet = true; }
+QuietThread::~QuietThread() { t_quiet = was_; }
 
 void set_log_level(LogLevel level) { g_level = level; }
 LogLevel log_level() { return g_level; }
 
 void log_info(const std::string& message) {
-  if (g_level >= LogLevel::Info) std::fprintf(stderr, "%s\n", message.c_str());
+  if (g_level >= LogLevel::Info && !t_quiet) std::fprintf(stderr, "%s\n", message.c_str());
 }
 
 void log_debug(const std::string& message) {
-  if (g_level >= LogLevel::Debug) std::fprintf(stderr, "debug: %s\n", message.c_str());
+  if (g_level >= LogLevel::Debug && !t_quiet) std::fprintf(stderr, "debug: %s\n", message.c_str());
 }
 
 void log_warn(const std::string& message) {
   std::lock_guard<std::mutex> lock(g_mutex);
   g_warnings.push_back(message);
-  if (g_level >= LogLevel::Warn) std::fprintf(stderr, "warning: %s\n", message.c_str());
+  if (g_level >= LogLevel::Warn && !t_quiet) std::fprintf(stderr, "warning: %s\n", message.c_str());
 }
 
 const std::vector<std::string>& recorded_warnings() { return g_warnings; }
@@ -63,7 +67,8 @@ void Progress::update(double done) {
     const int filled = static_cast<int>(fraction * kWidth);
     std::string bar(static_cast<size_t>(filled), '#');
     bar.append(static_cast<size_t>(kWidth - filled), '.');
-    std::fprintf(stderr, "\r%-12s [%s] %3d%%  ETA %5.1fs ", stage_.c_str(), bar.c_str(), percent, eta);
+    std::fprintf(stderr, "\r%-12s [%s] %3d%%  ETA %5.1fs ", stage_.c_str(), bar.c_str(), percent,
+                 eta);
     std::fflush(stderr);
   } else {
     // Plain log: a line every 10% at most, and not more than every 2 s.

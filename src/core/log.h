@@ -24,6 +24,20 @@ void log_warn(const std::string& message);
 const std::vector<std::string>& recorded_warnings();
 void clear_warnings();
 
+/// While one lives, this thread logs nothing (warnings are still recorded):
+/// for work done ahead in the background whose messages the foreground
+/// prints when it does the same work.
+class QuietThread {
+ public:
+  QuietThread();
+  ~QuietThread();
+  QuietThread(const QuietThread&) = delete;
+  QuietThread& operator=(const QuietThread&) = delete;
+
+ private:
+  bool was_;
+};
+
 /// Progress of one stage. update() may be called often; output is throttled.
 /// Destruction (or finish()) closes the line and logs the stage time.
 class Progress {
