@@ -227,19 +227,29 @@ double edge_minimum(const glm::dvec3& u, const glm::dvec3& w, const Cone& cone) 
 bool triangle_harmless(const glm::vec3* corner, const Cone& cone) {
   const glm::dvec3 a(corner[0]), b(corner[1]), c(corner[2]);
   const glm::dvec3 n = glm::cross(b - a, c - a);
-  if (std::abs(n.y) > 1e-9 * glm::length(n)) {
-    // top - h over the plane, inside the flat top, is smallest at q* = p +
-    // r0 g / |g| (g: the plane's gradient); a gentle plane (|g| <= cot)
-    // rises slower than the cone beyond it, so q* is its smallest over the
-    // whole plane: the cheap test first.
-    const double gx = -n.x / n.y, gz = -n.z / n.y;
-    const double slope = std::sqrt(gx * gx + gz * gz);
-    const double at_p = a.y + gx * (cone.p.x - a.x) + gz * (cone.p.y - a.z);
-    const double worst = at_p + cone.r0 * slope;  // h(q*)
-    if (slope <= cone.cot && worst <= cone.y + cone.eps) return true;
-    const glm::vec2 q =
-        slope > 0.0 ? glm::vec2(cone.p + cone.r0 * glm::dvec2(gx, gz) / slope) : glm::vec2(cone.p);
-    if (worst > cone.y + cone.eps && distance_xz(a, b, c, q) == 0.0) return false;
+  const bool sloped = std::abs(n.y) > 1e-9 * glm::length(n);  // not seen edge-on from above
+  // Over the plane, top - h is smallest inside the flat top at q* = p +
+  // r0 g / |g| (g: the plane's gradient), and a gentle plane (|g| <= cot)
+  // rises slower than the cone beyond it: then q* is the smallest over the
+  // whole plane (the cheapest test, first).
+  const double gx = sloped ? -n.x / n.y : 0.0, gz = sloped ? -n.z / n.y : 0.0;
+  const double slope = std::sqrt(gx * gx + gz * gz);
+  const double worst = a.y + gx * (cone.p.x - a.x) + gz * (cone.p.y - a.z) + cone.r0 * slope;
+  if (sloped && slope <= cone.cot && worst <= cone.y + cone.eps) return true;
+  // A corner over the cone is in the way; the highest corner under the cone
+  // at the footprint's distance (every point of the triangle is at least
+  // that far) is not.
+  double highest = -std::numeric_limits<double>::infinity();
+  for (const glm::dvec3* q : {&a, &b, &c}) {
+    if (q->y > cone.top(glm::length(glm::dvec2(q->x, q->z) - cone.p))) return false;
+    highest = std::max(highest, q->y);
+  }
+  if (highest <= cone.top(distance_xz(a, b, c, glm::vec2(cone.p)))) return true;
+  // The exact answer: the smallest of top - h over the triangle lies at q*
+  // (where the triangle holds it) or on an edge.
+  if (sloped && worst > cone.y + cone.eps) {
+    const glm::dvec2 q = slope > 0.0 ? cone.p + cone.r0 * glm::dvec2(gx, gz) / slope : cone.p;
+    if (distance_xz(a, b, c, glm::vec2(q)) == 0.0) return false;
   }
   return std::min({edge_minimum(a, b, cone), edge_minimum(b, c, cone), edge_minimum(c, a, cone)}) >=
          0.0;
