@@ -183,6 +183,18 @@ TEST(Cli, SnowWritesAllOutputsAndIsDeterministic) {
     EXPECT_NE(e.output.find(where), std::string::npos) << e.output;
     EXPECT_EQ(read_all(dir / "a.glb"), read_all(dir / (device + std::string(".glb")))) << device;
   }
+  // The summary names the coverage method; rays cast on the CPU or the GPU
+  // agree with each other exactly (the reference's result).
+  for (const char* method : {"shadow-maps", "cpu-rays", "rays"}) {
+    const RunResult f = run(common + " --coverage-method " + method + " -o " +
+                            q(dir / (method + std::string(".glb"))));
+    ASSERT_EQ(f.code, 0) << f.output;
+    const std::string said = std::string(method) == "shadow-maps" ? "coverage by shadow maps"
+                             : std::string(method) == "rays"      ? "coverage by rays on the GPU"
+                                                                  : "coverage by rays on the CPU";
+    EXPECT_NE(f.output.find(said), std::string::npos) << f.output;
+  }
+  EXPECT_EQ(read_all(dir / "cpu-rays.glb"), read_all(dir / "rays.glb"));
 }
 
 TEST(Cli, NoSnowOnAndIgnoreFilters) {

@@ -434,11 +434,14 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   std::snprintf(
       summary, sizeof summary,
       "summary: %.2f s (%s); peak memory %.0f MiB; triangles in %zu, snow out %zu in %zu "
-      "patches; snow %.3f m^3 (fell %.3f, lost off the domain %.3f); stabilizer %d passes on the "
-      "%s",
+      "patches; snow %.3f m^3 (fell %.3f, lost off the domain %.3f); coverage by %s; stabilizer "
+      "%d passes on the %s",
       total, timing.c_str(), peak_memory_mib(), scene.triangle_count(), triangles_out,
-      patches.size(), snow.volume, snow.fallen_volume, snow.lost_volume, snow.iterations,
-      snow.stabilized_on_cpu ? "CPU" : "GPU");
+      patches.size(), snow.volume, snow.fallen_volume, snow.lost_volume,
+      snow.coverage_method == CoverageMethod::CpuRays   ? "rays on the CPU"
+      : snow.coverage_method == CoverageMethod::GpuRays ? "rays on the GPU"
+                                                        : "shadow maps",
+      snow.iterations, snow.stabilized_on_cpu ? "CPU" : "GPU");
   log_info(summary);
 }
 

@@ -86,6 +86,7 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   SnowResult result;
   std::optional<CoverageRenderer> shadows(std::in_place, scene);
   result.coverage = shadows->compute(maps, coverage);
+  result.coverage_method = shadows->timings().method;
   mask_coverage(maps, receives, result.coverage);
   result.coverage_updates = 1;
   // Without snow-on-snow updates the shadow maps are done with: they are

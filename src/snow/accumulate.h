@@ -27,9 +27,10 @@ struct SnowResult {
   int iterations = 0;              // stabilizer passes over all steps, count
   int coverage_updates = 0;        // coverage computations (1 + snow-on-snow updates), count
   bool stabilized_on_cpu = false;  // the stabilizer ran on the CPU (StabilizeSettings::device)
-  double fallen_volume = 0.0;      // m^3 of snow added
-  double lost_volume = 0.0;        // m^3 that left the maps (off the domain)
-  double volume = 0.0;             // m^3 lying at the end; fallen = volume + lost (up to rounding)
+  CoverageMethod coverage_method = CoverageMethod::ShadowMaps;  // of the first coverage
+  double fallen_volume = 0.0;                                   // m^3 of snow added
+  double lost_volume = 0.0;  // m^3 that left the maps (off the domain)
+  double volume = 0.0;       // m^3 lying at the end; fallen = volume + lost (up to rounding)
 };
 
 /// Multiplies coverage by 0 on every layer texel whose object does not
