@@ -419,5 +419,33 @@ TEST(Peel, DeviceChoosesTheCpuForSmallMapsInSoftware) {
   EXPECT_THROW(peel_layers(scene, settings_with_side(96, 6, "tpu")), InputError);
 }
 
+// Many large stacked triangles would make the CPU peel store every hit of
+// every texel (kCpuPeelHits): "auto" keeps the GPU's passes for them.
+TEST(Peel, ManyStackedTrianglesKeepTheGpu) {
+  REQUIRE_GL();
+  // 1100 tilted plates (2200 triangles) over all 64 x 64 texels: 9M box
+  // texels. Tilted, so that the devices' heights differ in their last bits.
+  SceneBuilder b;
+  for (int k = 0; k < 1100; ++k) {
+    const auto at = [k](float x, float z) {
+      return glm::vec3(x, 0.002f * float(k) + 0.05f * x + 0.03f * z, z);
+    };
+    b.add_mesh("Plate" + std::to_string(k), {at(-1, -1), at(1, -1), at(1, 1), at(-1, 1)},
+               {0, 3, 2, 0, 2, 1});
+  }
+  const Scene scene = b.build();
+  const SnowMaps automatic = peel_layers(scene, settings_with_side(64, 4, "auto"));
+  const SnowMaps gpu = peel_layers(scene, settings_with_side(64, 4, "gpu"));
+  const SnowMaps cpu = peel_layers(scene, settings_with_side(64, 4, "cpu"));
+  ASSERT_EQ(automatic.ground.size(), gpu.ground.size());
+  EXPECT_EQ(
+      std::memcmp(automatic.ground.data(), gpu.ground.data(), gpu.ground.size() * sizeof(float)),
+      0);
+  // The two devices differ in the last bits of the heights, so the check above tells them apart.
+  ASSERT_EQ(cpu.ground.size(), gpu.ground.size());
+  EXPECT_NE(std::memcmp(cpu.ground.data(), gpu.ground.data(), gpu.ground.size() * sizeof(float)),
+            0);
+}
+
 }  // namespace
 }  // namespace snow

@@ -82,6 +82,23 @@ void validate_peel_settings(const PeelSettings& s) {
   }
 }
 
+// Texel centres that the triangles' xz boxes hold, summed (at most `cap`):
+// a bound on the hits the CPU peel stores.
+size_t box_texels(const Scene& scene, const MapGrid& grid, size_t cap) {
+  size_t sum = 0;
+  for (size_t t = 0; t < scene.triangle_count() && sum <= cap; ++t) {
+    const glm::vec3* c = &scene.positions[3 * t];
+    const double lo_x = std::min({c[0].x, c[1].x, c[2].x}),
+                 hi_x = std::max({c[0].x, c[1].x, c[2].x});
+    const double lo_z = std::min({c[0].z, c[1].z, c[2].z}),
+                 hi_z = std::max({c[0].z, c[1].z, c[2].z});
+    const double w = std::min(double(grid.width), (hi_x - lo_x) / grid.texel + 1.0);
+    const double h = std::min(double(grid.height), (hi_z - lo_z) / grid.texel + 1.0);
+    if (w > 0.0 && h > 0.0) sum += size_t(w * h);  // NaN boxes add nothing
+  }
+  return sum;
+}
+
 void warn_overflow(const SnowMaps& maps, int layers) {
   if (maps.overflow_columns > 0) {
     log_warn(std::to_string(maps.overflow_columns) + " map columns hold more than " +
@@ -200,9 +217,10 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
   const float scene_height = scene.bounds.empty() ? 0.0f : scene.bounds.size().y;
   check_memory_budget(grid, settings.layers, CoverageSettings{}, settings.memory_budget,
                       scene_height, scene.triangle_count());
-  if (settings.device == "cpu" || (settings.device == "auto" &&
-                                   grid.texels() * size_t(settings.layers) <= kCpuPeelLayerTexels &&
-                                   gl::renderer_is_software())) {
+  const size_t layer_texels = grid.texels() * size_t(settings.layers);
+  if (settings.device == "cpu" ||
+      (settings.device == "auto" && layer_texels <= kCpuPeelLayerTexels &&
+       box_texels(scene, grid, kCpuPeelHits) <= kCpuPeelHits && gl::renderer_is_software())) {
     log_debug("peel: a vertical ray per texel on the CPU");
     Progress progress("peel", 1);
     SnowMaps maps = reference::peel_layers(scene, grid, settings.layers, settings.merge_distance);

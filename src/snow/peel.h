@@ -22,10 +22,11 @@ struct PeelSettings {
                                  // the same layer (coplanar duplicates, decals); >= 0
   uint64_t memory_budget = 4ull << 30;  // bytes; peel_layers throws InputError before
                                         // allocating when estimate_memory exceeds it
-  std::string device = "auto";          // "gpu" (depth passes), "cpu" (a vertical ray per texel:
-                                // snow::reference::peel_layers) or "auto": the CPU for maps of
-                                // at most kCpuPeelLayerTexels layer texels where GL runs in
-                                // software, else the GPU
+  // "gpu" (depth passes), "cpu" (a vertical ray per texel:
+  // snow::reference::peel_layers) or "auto": the CPU for maps of at most
+  // kCpuPeelLayerTexels layer texels (and kCpuPeelHits) where GL runs in
+  // software, else the GPU.
+  std::string device = "auto";
 };
 
 /// Small maps peel faster on the CPU than in llvmpipe's passes, whose cost
@@ -33,6 +34,11 @@ struct PeelSettings {
 /// texels: 2 ms against 90 ms; a Kenney building at 110 texels: 6 ms
 /// against 35 ms); the courtyard at 1024 texels takes 0.9 s against 0.28 s.
 constexpr size_t kCpuPeelLayerTexels = size_t(1) << 18;
+/// The CPU peel keeps every hit of a texel's ray before sorting (8 bytes
+/// each); "auto" takes it only where the triangles' xz boxes hold at most
+/// this many texel centres (a scene of many large stacked triangles keeps
+/// the GPU's passes, which hold one surface per texel at a time).
+constexpr size_t kCpuPeelHits = size_t(1) << 22;
 
 /// The map grid over the scene's horizontal (x, z) bounds plus the margin,
 /// centred on them. With settings.texel > 0 the texel is that size; with 0
