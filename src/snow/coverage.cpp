@@ -459,10 +459,20 @@ std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& s) {
 
 // --- CoverageRenderer --------------------------------------------------------
 
-struct CoverageRenderer::Impl {
-  explicit Impl(const Scene& scene)
-      : bounds(scene.bounds),
-        shadow({"shadow.vert", "depth_only.frag"}),
+namespace {
+
+// The GL side of a CoverageRenderer: programs, the scene's buffers, shadow
+// maps and the passes' buffers. Made on the first compute that draws shadow
+// maps or casts rays on the GPU: runs whose rays are cast on the CPU upload
+// nothing (ToyCar: 0.04 s; a 1M-triangle terrain's shadow-pass vertices
+// and indices).
+struct GpuSide {
+  // One buffer of triangles in BVH leaf order, ray cast by the exact pass
+  // (storage buffer); the shadow passes draw the welded vertices through an
+  // index buffer in the same order.
+  GpuSide(const Bvh& bvh, const std::vector<glm::vec3>& vertices,
+          const std::vector<uint32_t>& indices)
+      : shadow({"shadow.vert", "depth_only.frag"}),
         shadow_snow({"shadow_snow.vert", "depth_only.frag"}),
         count({"coverage.comp"}),
         count_snow({"coverage_snow.comp"}),
@@ -470,26 +480,8 @@ struct CoverageRenderer::Impl {
         exact_snow({"coverage_exact_snow.comp"}),
         dispatch({"coverage_dispatch.comp"}),
         vao(gl::create_vertex_array()),
-        empty_vao(gl::create_vertex_array()) {
-    if (scene.triangle_count() * 3 > size_t(0x7fffffff)) {
-      throw InputError("scene has " + std::to_string(scene.triangle_count()) +
-                       " triangles, more than one draw call can take");
-    }
-    // One buffer of triangles in BVH leaf order: drawn into the shadow maps
-    // (vertex buffer) and ray cast by the exact pass (storage buffer). The
-    // shadow passes draw welded vertices through an index buffer: the vertex
-    // shader then runs once per vertex instead of once per corner. The weld
-    // runs beside the BVH build (1M triangles: 0.6 s each).
-    std::vector<glm::vec3> vertices;
-    std::vector<uint32_t> corner_vertex;  // per corner of the scene's soup
-    parallel_for(2, [&](size_t task) {
-      if (task == 0) {
-        bvh = Bvh(scene.positions);
-      } else {
-        weld_vertices(scene.positions, vertices, corner_vertex);
-      }
-    });
-    triangles = bvh.triangle_count();
+        empty_vao(gl::create_vertex_array()),
+        triangles(bvh.triangle_count()) {
     if (triangles == 0) return;
     triangle_buffer = gl::create_buffer();
     glNamedBufferStorage(triangle_buffer.id(), GLsizeiptr(bvh.corners().size() * sizeof(glm::vec3)),
@@ -500,12 +492,6 @@ struct CoverageRenderer::Impl {
     glNamedBufferStorage(node_buffer.id(), GLsizeiptr(nodes * sizeof(Bvh::Node)),
                          bvh.nodes().data(), 0);
     gl::check_error("coverage scene BVH");
-    std::vector<uint32_t> indices(3 * triangles);
-    for (size_t t = 0; t < triangles; ++t) {
-      for (size_t e = 0; e < 3; ++e)
-        indices[3 * t + e] = corner_vertex[3 * size_t(bvh.order()[t]) + e];
-    }
-    corner_vertex = {};
     vertex_buffer = gl::create_buffer();
     glNamedBufferStorage(vertex_buffer.id(), GLsizeiptr(vertices.size() * sizeof(glm::vec3)),
                          vertices.data(), 0);
@@ -521,9 +507,7 @@ struct CoverageRenderer::Impl {
     gl::check_error("coverage scene vertex array");
   }
 
-  Bounds bounds;
-  Bvh bvh;             // the scene's triangles in leaf order, for the exact pass and sky culling
-  gl::Program shadow;  // scene depth into a shadow map
+  gl::Program shadow;       // scene depth into a shadow map
   gl::Program shadow_snow;  // snow heightfield depth into a shadow map
   gl::Program count;        // pass 1: certain cases counted, the others queued
   gl::Program count_snow;   // the same with a snow surface in the shadow maps
@@ -547,9 +531,6 @@ struct CoverageRenderer::Impl {
   gl::Texture snow_surface;  // RG32F array (top, depth)
   glm::ivec3 snow_size{0};
   gl::Buffer receivers, counts, queue, dispatch_args;
-
-  Timings timings;
-  bool profiling = false;
 
   void draw_scene() const {
     if (triangles == 0) return;
@@ -575,6 +556,59 @@ struct CoverageRenderer::Impl {
       fbos.push_back(std::move(fbo));
     }
   }
+
+  static void upload(gl::Buffer& buffer, const void* data, size_t bytes, const char* what) {
+    if (!buffer) buffer = gl::create_buffer();
+    glNamedBufferData(buffer.id(), GLsizeiptr(std::max<size_t>(bytes, 4)), data, GL_DYNAMIC_DRAW);
+    gl::check_error(what);
+  }
+};
+
+}  // namespace
+
+struct CoverageRenderer::Impl {
+  explicit Impl(const Scene& scene) : bounds(scene.bounds) {
+    if (scene.triangle_count() * 3 > size_t(0x7fffffff)) {
+      throw InputError("scene has " + std::to_string(scene.triangle_count()) +
+                       " triangles, more than one draw call can take");
+    }
+    // The shadow passes draw welded vertices through an index buffer: the
+    // vertex shader then runs once per vertex instead of once per corner.
+    // The weld runs beside the BVH build (1M triangles: 0.6 s each).
+    std::vector<uint32_t> corner_vertex;  // per corner of the scene's soup
+    parallel_for(2, [&](size_t task) {
+      if (task == 0) {
+        bvh = Bvh(scene.positions);
+      } else {
+        weld_vertices(scene.positions, vertices, corner_vertex);
+      }
+    });
+    triangles = bvh.triangle_count();
+    indices.resize(3 * triangles);
+    for (size_t t = 0; t < triangles; ++t) {
+      for (size_t e = 0; e < 3; ++e)
+        indices[3 * t + e] = corner_vertex[3 * size_t(bvh.order()[t]) + e];
+    }
+  }
+
+  // The GL side, made (and the welded scene handed to it) on first use.
+  GpuSide& gpu() {
+    if (!gpu_side) {
+      gpu_side = std::make_unique<GpuSide>(bvh, vertices, indices);
+      vertices = {};
+      indices = {};
+    }
+    return *gpu_side;
+  }
+
+  Bounds bounds;
+  Bvh bvh;  // the scene's triangles in leaf order, for the exact pass, CPU rays and sky culling
+  size_t triangles = 0;
+  std::vector<glm::vec3> vertices;  // welded, until the GL side takes them
+  std::vector<uint32_t> indices;    // 3 per triangle, BVH leaf order, likewise
+  std::unique_ptr<GpuSide> gpu_side;
+  Timings timings;
+  bool profiling = false;
 
   // CoverageMethod::CpuRays: the reference's casts (reference::compute_coverage)
   // for the receivers left, on all cores; with a snow surface its triangles
@@ -611,12 +645,6 @@ struct CoverageRenderer::Impl {
       progress.update(double(dirs.size()) * double(first + per_round) / double(chunks));
     }
   }
-
-  static void upload(gl::Buffer& buffer, const void* data, size_t bytes, const char* what) {
-    if (!buffer) buffer = gl::create_buffer();
-    glNamedBufferData(buffer.id(), GLsizeiptr(std::max<size_t>(bytes, 4)), data, GL_DYNAMIC_DRAW);
-    gl::check_error(what);
-  }
 };
 
 CoverageRenderer::CoverageRenderer(const Scene& scene) {
@@ -631,7 +659,9 @@ CoverageRenderer::~CoverageRenderer() = default;
 
 const CoverageRenderer::Timings& CoverageRenderer::timings() const { return impl_->timings; }
 void CoverageRenderer::set_profiling(bool on) { impl_->profiling = on; }
-glm::ivec2 CoverageRenderer::shadow_map_size() const { return impl_->shadow_size; }
+glm::ivec2 CoverageRenderer::shadow_map_size() const {
+  return impl_->gpu_side ? impl_->gpu_side->shadow_size : glm::ivec2(0);
+}
 
 std::vector<float> CoverageRenderer::compute(const SnowMaps& maps, const CoverageSettings& settings,
                                              const std::vector<float>* snow_depth) {
@@ -891,6 +921,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     progress.finish();
     return coverage;
   }
+  GpuSide& gpu = im.gpu();
 
   // Shadow-map regions: each direction's map covers the remaining
   // receivers' box projected along it, origin jittered by a sub-texel offset.
@@ -931,16 +962,17 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
                          : shadow_batch(settings, double(size.x) * double(size.y));
 
   GlStateGuard state;
-  if (!rays) im.ensure_shadow_maps(size, batch);
-  Impl::upload(im.receivers, recv.data(), recv.size() * sizeof(glm::uvec4), "coverage receivers");
-  Impl::upload(im.counts, nullptr, recv.size() * sizeof(uint32_t), "coverage counts");
+  if (!rays) gpu.ensure_shadow_maps(size, batch);
+  GpuSide::upload(gpu.receivers, recv.data(), recv.size() * sizeof(glm::uvec4),
+                  "coverage receivers");
+  GpuSide::upload(gpu.counts, nullptr, recv.size() * sizeof(uint32_t), "coverage counts");
   const GLuint zero = 0;
-  glClearNamedBufferData(im.counts.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+  glClearNamedBufferData(gpu.counts.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
   // Queue of receivers with uncertain directions: a 16-byte header (the
   // count), then up to one (receiver, direction mask) entry per receiver.
-  Impl::upload(im.queue, nullptr, 16 + recv.size() * sizeof(glm::uvec2), "coverage queue");
+  GpuSide::upload(gpu.queue, nullptr, 16 + recv.size() * sizeof(glm::uvec2), "coverage queue");
   const GLuint dispatch_init[4] = {1, 1, 1, 0};
-  Impl::upload(im.dispatch_args, dispatch_init, sizeof dispatch_init, "coverage dispatch");
+  GpuSide::upload(gpu.dispatch_args, dispatch_init, sizeof dispatch_init, "coverage dispatch");
   if (!snowy_layers.empty()) {
     std::vector<glm::vec2> surface(total);
     for (size_t k = 0; k < total; ++k) {
@@ -949,29 +981,29 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
                                       : glm::vec2(top[k], std::isfinite(s) && s > 0.0f ? s : 0.0f);
     }
     const glm::ivec3 snow_size(grid.width, grid.height, maps.layers);
-    if (!im.snow_surface || im.snow_size != snow_size) {
-      im.snow_surface.reset();
-      im.snow_surface = gl::create_texture_2d_array(GL_RG32F, grid.width, grid.height, maps.layers,
-                                                    "coverage snow surface");
-      im.snow_size = snow_size;
+    if (!gpu.snow_surface || gpu.snow_size != snow_size) {
+      gpu.snow_surface.reset();
+      gpu.snow_surface = gl::create_texture_2d_array(GL_RG32F, grid.width, grid.height, maps.layers,
+                                                     "coverage snow surface");
+      gpu.snow_size = snow_size;
     }
-    glTextureSubImage3D(im.snow_surface.id(), 0, 0, 0, 0, grid.width, grid.height, maps.layers,
+    glTextureSubImage3D(gpu.snow_surface.id(), 0, 0, 0, 0, grid.width, grid.height, maps.layers,
                         GL_RG, GL_FLOAT, surface.data());
     gl::check_error("coverage snow surface upload");
   }
 
   const glm::vec2 map_extent(float(size.x * st), float(size.y * st));
-  for (gl::Program* p : {&im.shadow, &im.shadow_snow}) {
+  for (gl::Program* p : {&gpu.shadow, &gpu.shadow_snow}) {
     p->set("map_extent", map_extent);
     p->set("y_top", y_top);
     p->set("y_range", y_range);
   }
-  im.shadow_snow.set("grid_origin", grid.origin);
-  im.shadow_snow.set("texel", grid.texel);
-  im.shadow_snow.set("cut", kSnowSurfaceCutTexels * grid.texel);
+  gpu.shadow_snow.set("grid_origin", grid.origin);
+  gpu.shadow_snow.set("texel", grid.texel);
+  gpu.shadow_snow.set("cut", kSnowSurfaceCutTexels * grid.texel);
   const bool snow = !snowy_layers.empty();
-  gl::Program& count = snow ? im.count_snow : im.count;
-  gl::Program& exact = snow ? im.exact_snow : im.exact;
+  gl::Program& count = snow ? gpu.count_snow : gpu.count;
+  gl::Program& exact = snow ? gpu.exact_snow : gpu.exact;
   for (gl::Program* p : {&count, &exact}) {
     p->set("grid_origin", grid.origin);
     p->set("texel", grid.texel);
@@ -983,7 +1015,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     p->set("y_range", y_range);
   }
   count.set("receiver_count", int(recv.size()));
-  exact.set("node_count", int(im.nodes));
+  exact.set("node_count", int(gpu.nodes));
   if (snow) {
     exact.set("grid_size", glm::ivec2(grid.width, grid.height));
     exact.set("cut", kSnowSurfaceCutTexels * grid.texel);
@@ -1018,22 +1050,22 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
   for (size_t b0 = 0; b0 < k_count; b0 += size_t(batch)) {
     const int n = int(std::min(size_t(batch), k_count - b0));
     for (int k = 0; k < n && !rays; ++k) {
-      glBindFramebuffer(GL_FRAMEBUFFER, im.fbos[size_t(k)].id());
+      glBindFramebuffer(GL_FRAMEBUFFER, gpu.fbos[size_t(k)].id());
       const GLfloat clear_depth = 1.0f;
       glClearBufferfv(GL_DEPTH, 0, &clear_depth);
-      im.shadow.set("shear_origin", dir_params[b0 + size_t(k)]);
-      im.shadow.use();
-      im.draw_scene();
+      gpu.shadow.set("shear_origin", dir_params[b0 + size_t(k)]);
+      gpu.shadow.use();
+      gpu.draw_scene();
       if (!snowy_layers.empty()) {
-        im.shadow_snow.set("shear_origin", dir_params[b0 + size_t(k)]);
-        im.shadow_snow.use();
-        glBindTextureUnit(SNOW_SHADOW_SNOW_TEXTURE, im.snow_surface.id());
-        glBindVertexArray(im.empty_vao.id());
+        gpu.shadow_snow.set("shear_origin", dir_params[b0 + size_t(k)]);
+        gpu.shadow_snow.use();
+        glBindTextureUnit(SNOW_SHADOW_SNOW_TEXTURE, gpu.snow_surface.id());
+        glBindVertexArray(gpu.empty_vao.id());
         for (size_t m = 0; m < snowy_layers.size(); ++m) {
           const glm::ivec4& q = snowy_quads[m];
-          im.shadow_snow.set("layer", snowy_layers[m]);
-          im.shadow_snow.set("quad_origin", glm::ivec2(q.x, q.z));
-          im.shadow_snow.set("quad_columns", q.y - q.x);
+          gpu.shadow_snow.set("layer", snowy_layers[m]);
+          gpu.shadow_snow.set("quad_origin", glm::ivec2(q.x, q.z));
+          gpu.shadow_snow.set("quad_columns", q.y - q.x);
           glDrawArrays(GL_TRIANGLES, 0, 6 * (q.y - q.x) * (q.w - q.z));
         }
       }
@@ -1045,17 +1077,17 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
       im.timings.shadow += t - t_mark;
       t_mark = t;
     }
-    if (!rays) glBindTextureUnit(SNOW_COVERAGE_SHADOW_TEXTURE, im.shadow_depth.id());
-    if (snow) glBindTextureUnit(SNOW_COVERAGE_SNOW_TEXTURE, im.snow_surface.id());
+    if (!rays) glBindTextureUnit(SNOW_COVERAGE_SHADOW_TEXTURE, gpu.shadow_depth.id());
+    if (snow) glBindTextureUnit(SNOW_COVERAGE_SNOW_TEXTURE, gpu.snow_surface.id());
     if (im.triangles > 0) {
-      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_BVH_NODES, im.node_buffer.id());
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_BVH_NODES, gpu.node_buffer.id());
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_BVH_TRIANGLES,
-                       im.triangle_buffer.id());
+                       gpu.triangle_buffer.id());
     }
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_RECEIVERS, im.receivers.id());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_COUNTS, im.counts.id());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_QUEUE, im.queue.id());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_DISPATCH, im.dispatch_args.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_RECEIVERS, gpu.receivers.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_COUNTS, gpu.counts.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_QUEUE, gpu.queue.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_COVERAGE_DISPATCH, gpu.dispatch_args.id());
     if (rays) {
       // Every receiver queued with every direction of the batch.
       const uint32_t mask = n == 32 ? ~0u : (1u << n) - 1u;
@@ -1063,12 +1095,12 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
         std::vector<glm::uvec2> queue(2 + recv.size(), glm::uvec2(0u));  // 16-byte header
         queue[0].x = uint32_t(recv.size());
         for (size_t r = 0; r < recv.size(); ++r) queue[2 + r] = glm::uvec2(uint32_t(r), mask);
-        glNamedBufferSubData(im.queue.id(), 0, GLsizeiptr(queue.size() * sizeof(glm::uvec2)),
+        glNamedBufferSubData(gpu.queue.id(), 0, GLsizeiptr(queue.size() * sizeof(glm::uvec2)),
                              queue.data());
         queued_mask = mask;
       }
     } else {
-      glClearNamedBufferSubData(im.queue.id(), GL_R32UI, 0, 4, GL_RED_INTEGER, GL_UNSIGNED_INT,
+      glClearNamedBufferSubData(gpu.queue.id(), GL_R32UI, 0, 4, GL_RED_INTEGER, GL_UNSIGNED_INT,
                                 &zero);
       // Pass 1: certain cases counted, uncertain ones queued.
       count.use();
@@ -1081,7 +1113,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
         glDispatchCompute(groups, 1, 1);
       }
       glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-      im.dispatch.use();
+      gpu.dispatch.use();
       glDispatchCompute(1, 1, 1);
       glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_COMMAND_BARRIER_BIT);
     }
@@ -1092,7 +1124,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
       glDispatchCompute(
           GLuint(std::min<size_t>(max_groups, (recv.size() + kLocalSize - 1) / kLocalSize)), 1, 1);
     } else {
-      glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, im.dispatch_args.id());
+      glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, gpu.dispatch_args.id());
       glDispatchComputeIndirect(0);
       glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, 0);
     }
@@ -1101,7 +1133,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     im.timings.pairs += uint64_t(recv.size()) * uint64_t(n);
     if (im.profiling) {
       GLuint queued = 0;
-      glGetNamedBufferSubData(im.queue.id(), 0, sizeof queued, &queued);
+      glGetNamedBufferSubData(gpu.queue.id(), 0, sizeof queued, &queued);
       im.timings.queued += queued;
       const double t = now_seconds();
       im.timings.composite += t - t_mark;
@@ -1118,7 +1150,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
 
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
   std::vector<uint32_t> counts(recv.size());
-  glGetNamedBufferSubData(im.counts.id(), 0, GLsizeiptr(counts.size() * sizeof(uint32_t)),
+  glGetNamedBufferSubData(gpu.counts.id(), 0, GLsizeiptr(counts.size() * sizeof(uint32_t)),
                           counts.data());
   gl::check_error("coverage readback");
   glBindTextureUnit(SNOW_COVERAGE_SHADOW_TEXTURE, 0);

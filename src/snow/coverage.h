@@ -126,9 +126,11 @@ std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& settings);
 /// call, including destruction.
 class CoverageRenderer {
  public:
-  /// Builds the scene's BVH (CPU, O(n log n)) and uploads its triangles in
-  /// leaf order (the vertex buffer of the one draw call per shadow map, and
-  /// the exact pass's storage buffer) and nodes. Throws GLError when GL fails
+  /// Builds the scene's BVH (CPU, O(n log n)) and welds its vertices. The
+  /// first compute() that needs GL (shadow maps, or rays on the GPU) makes
+  /// the programs and uploads the triangles in leaf order (the vertex buffer
+  /// of the one draw call per shadow map, and the exact pass's storage
+  /// buffer) and nodes; compute() throws GLError when GL fails
   /// (GL_OUT_OF_MEMORY included).
   explicit CoverageRenderer(const Scene& scene);
   ~CoverageRenderer();
