@@ -317,7 +317,7 @@ struct Stabilizer::Impl {
   // measured, and the largest into the void.
   glm::vec2 largest_move() const;
   std::vector<glm::vec2> read_depth() const;
-  // pour_pressed_snow on the depth read back; uploads it when it changed.
+  // pour_pressed_snow on the depth read back; uploads it when snow was poured.
   bool pour_pressed();
   std::vector<float> read_channel(GLenum channel) const;
   StabilizeResult iterate(int passes);
@@ -862,14 +862,16 @@ int Stabilizer::Impl::route(bool drain) {
 }
 
 bool Stabilizer::Impl::pour_pressed() {
-  std::vector<glm::vec2> data = read_depth();
-  std::vector<float> s(data.size());
-  for (size_t k = 0; k < data.size(); ++k) s[k] = data[k].x;
+  // Most checks find nothing pressed: the depth alone is read, the lost snow
+  // only to upload both after a pour.
+  std::vector<float> s = read_channel(GL_RED);
   if (pour_pressed_snow(pour_cells.data(), s.data(), DepositGrid{width, height, layers, grid.texel},
                         settings.tolerance) == 0) {
     return false;
   }
-  for (size_t k = 0; k < data.size(); ++k) data[k].x = s[k];
+  const std::vector<float> lost = read_channel(GL_GREEN);
+  std::vector<glm::vec2> data(s.size());
+  for (size_t k = 0; k < data.size(); ++k) data[k] = glm::vec2(s[k], lost[k]);
   glTextureSubImage3D(depth[cur].id(), 0, 0, 0, 0, width, height, layers, GL_RG, GL_FLOAT,
                       data.data());
   gl::check_error("stabilize: pressed snow upload");
