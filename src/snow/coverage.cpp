@@ -42,7 +42,6 @@ constexpr float kNoSnowSurface = -3.0e38f;  // "no surface" in the snow-surface 
 constexpr int kLocalSize = 64;              // coverage.comp's local_size_x
 constexpr int kMaxShadowSide = 16384;       // texels, also capped by GL_MAX_TEXTURE_SIZE
 constexpr int kMaxBatch = 32;               // shadow maps per batch (a 32-bit direction mask)
-constexpr float kOwnSurface = 1e-4f;        // metres, the least of own_surface
 // Costs of choose_coverage_method, in triangles drawn into one shadow map.
 // On llvmpipe, 2-core EPYC, 2026-11-26: a drawn triangle 80 ns (ToyCar,
 // 109k triangles x 64 maps: 0.55 s); a shadow texel 2 ns (courtyard at
@@ -53,11 +52,6 @@ constexpr float kOwnSurface = 1e-4f;        // metres, the least of own_surface
 constexpr double kShadowTexelCost = 1.0 / 40.0;
 constexpr double kGpuRayCost = 16.0;
 constexpr double kCpuRayCost = 2.0;
-
-/// Metres: a surface less than this above a receiver at height y is its own
-/// (a line of fall that hits it does not count), as in
-/// snow::reference::compute_coverage.
-float own_surface(float y) { return kOwnSurface + 1e-6f * std::abs(y); }
 
 /// splitmix64 (Steele, Lea and Flood 2014): tiny, fast, same stream everywhere.
 class SplitMix64 {
@@ -628,13 +622,8 @@ struct CoverageRenderer::Impl {
         const glm::vec2 xz = maps.grid.center(int(recv[r].x & 0xffffu), int(recv[r].x >> 16));
         float y;
         std::memcpy(&y, &recv[r].y, sizeof y);
-        const glm::vec3 p(xz.x, y, xz.y);
-        int lit = 0;
-        for (const glm::vec3& d : dirs) {
-          const float t_min = own_surface(y) / -d.y;  // d.y < -0.2: checked by compute_checked
-          lit += !bvh.occluded(p, -d, t_min, kOpenSky) &&
-                 !(snow_bvh && snow_bvh->occluded(p, -d, t_min, kOpenSky));
-        }
+        const int lit =
+            reference::open_directions({&bvh, snow_bvh.get()}, glm::vec3(xz.x, y, xz.y), dirs);
         coverage[recv_index[r]] = float(lit) / float(dirs.size());
       }
     };
@@ -832,9 +821,9 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
       if (r == 0 || band_of(r) != band_of(r - 1)) bands.push_back(r);
     }
     bands.push_back(recv.size());
-    // Surfaces less than own_surface(y) above a receiver are its own, as for
-    // the reference's rays, so rays give the reference's result (the tiles'
-    // lists take its lowest value, a superset). Culling
+    // Surfaces less than reference::own_surface(y) above a receiver are its
+    // own, as for the reference's rays, so rays give the reference's result
+    // (the tiles' lists take its lowest value, at y = 0: a superset). Culling
     // with the shadow maps' bias (a quarter texel) instead kept fewer
     // receivers only where a surface lies that close above one: 125462
     // against 125791 of 3.9M on the 1M-triangle terrain at 2048.
@@ -861,13 +850,14 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
           y_min = std::min(y_min, y);
         }
         leaves.clear();
-        candidate_leaves(im.bvh, lo, hi, Cone(lo, y_min, kOwnSurface, cot_max), leaves);
+        candidate_leaves(im.bvh, lo, hi, Cone(lo, y_min, reference::own_surface(0.0f), cot_max),
+                         leaves);
         for (; a < e; ++a) {
           const glm::uvec4& rc = recv[order[a]];
           float y;
           std::memcpy(&y, &rc.y, sizeof y);
           const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
-          const Cone cone(p, y, own_surface(y), cot_max);
+          const Cone cone(p, y, reference::own_surface(y), cot_max);
           open[order[a]] =
               leaves_open(im.bvh, leaves, cone) && (!snow_bound || snow_bound->open(cone));
         }

@@ -62,6 +62,21 @@ std::vector<glm::vec3> snow_surface_triangles(const SnowMaps& maps,
   return out;
 }
 
+int open_directions(std::initializer_list<const Bvh*> occluders, const glm::vec3& p,
+                    const std::vector<glm::vec3>& directions) {
+  const float eps = own_surface(p.y);
+  int lit = 0;
+  for (const glm::vec3& d : directions) {
+    const float rise = -d.y;  // height gained per unit of t along -d
+    if (!(rise > 0.0f)) continue;
+    bool open = true;
+    for (const Bvh* bvh : occluders)
+      open = open && !(bvh && bvh->occluded(p, -d, eps / rise, kOpenSky));
+    lit += open;
+  }
+  return lit;
+}
+
 std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
                                     const std::vector<glm::vec3>& directions,
                                     const std::vector<float>* snow_depth) {
@@ -83,14 +98,7 @@ std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
       const float s = snow_depth ? clean_depth((*snow_depth)[k]) : 0.0f;
       const glm::vec2 xz = grid.center(i, j);
       const glm::vec3 p(xz.x, maps.ground[k] + s, xz.y);
-      const float eps = 1e-4f + 1e-6f * std::abs(p.y);
-      int lit = 0;
-      for (const glm::vec3& d : directions) {
-        const float rise = -d.y;  // height gained per unit of t along -d
-        if (!(rise > 0.0f)) continue;
-        if (!bvh.occluded(p, -d, eps / rise, kOpenSky)) ++lit;
-      }
-      coverage[k] = float(lit) / float(directions.size());
+      coverage[k] = float(open_directions({&bvh}, p, directions)) / float(directions.size());
     }
   });
   return coverage;

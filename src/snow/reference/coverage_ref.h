@@ -1,10 +1,13 @@
 #pragma once
 // CPU reference of the coverage pass (snow/coverage.h), for tests.
+#include <cmath>
+#include <initializer_list>
 #include <vector>
 
 #include <glm/glm.hpp>
 
 #include "scene/scene.h"
+#include "snow/bvh.h"
 #include "snow/maps.h"
 
 namespace snow::reference {
@@ -19,6 +22,17 @@ namespace snow::reference {
 std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
                                     const std::vector<glm::vec3>& directions,
                                     const std::vector<float>* snow_depth = nullptr);
+
+/// Metres: a surface less than this above a point at height y is the
+/// point's own (a ray towards the sky that hits it there does not count).
+inline float own_surface(float y) { return 1e-4f + 1e-6f * std::abs(y); }
+
+/// How many of `directions` (unit, pointing down) see the sky from p: the
+/// ray towards the sky (-d) hits no triangle of the occluders (null ones
+/// are skipped) higher than own_surface(p.y) above p. The reference's
+/// test, also the CPU rays of snow::CoverageRenderer.
+int open_directions(std::initializer_list<const Bvh*> occluders, const glm::vec3& p,
+                    const std::vector<glm::vec3>& directions);
 
 /// The snow surface as triangles (a soup, 3 corners each), the rule the GPU
 /// shadow pass (shaders/shadow_snow.vert) mirrors: per layer, a heightfield
