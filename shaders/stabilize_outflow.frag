@@ -55,13 +55,13 @@ void main() {
   float s = texelFetch(u_depth, ivec3(c, u_layer), 0).r;
   float he = free_top(cell, s);  // snow above the ceiling is pressed out
   float over = (cell.x + s) - he;
+  // A strided pass moves only snow that a single step moves: snow at rest
+  // for single steps stays (the active tiles rely on it).
   if ((int(cell.w) & kCellSurface) != 0 && s > 0.0 &&
       (u_stride == 1 || single_step_moves(c, cell, s, he, over))) {
     float w[8];
     float wsum = 0.0, wmax = 0.0;
     int voids = 0;
-    float wmax1 = 0.0;  // strided passes: the largest excess of a single step
-    int voids1 = 0;     // and the single steps into the void
     for (int n = 0; n < 8; ++n) {
       w[n] = 0.0;
       // Strided passes: a path of single steps, each landing by the rule and
@@ -76,12 +76,7 @@ void main() {
         nc = c + m * kDir[n];
         land_l = landing(nc, path_h, path_g, false, mc, top);
         path_tan += step_tan;
-        if (u_stride == 1) break;
-        if (m == 1) {
-          if (land_l == kLandVoid) ++voids1;
-          if (land_l >= 0) wmax1 = max(wmax1, he - top - dir_distance(n) * path_tan);
-        }
-        if (land_l < 0) break;
+        if (u_stride == 1 || land_l < 0) break;
         if (path_h - top > u_rise) {
           land_l = kLandBlocked;
           break;
@@ -102,11 +97,6 @@ void main() {
         wmax = max(wmax, w[n]);
       }
     }
-    // A strided pass moves only snow that a single step moves: snow at rest
-    // for single steps stays (the active tiles rely on it).
-    bool single_moves =
-        voids1 > 0 || (wmax1 > 0.0 && min(s, max(0.5 * wmax1, over)) >= u_min_move);
-    if (u_stride > 1 && !single_moves) wmax = 0.0;
     if (voids > 0) {
       // An edge of the world: everything falls off, shared by the void directions.
       float share = s / float(voids);

@@ -271,12 +271,12 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   const float h = cell.x + s;
   const float he = free_top(cell, s);  // snow above the ceiling is pressed out
   const float over = h - he;
+  // A strided pass moves only snow that a single step moves: snow at rest
+  // for single steps stays, which the GPU passes' active tiles rely on.
   if (stride > 1 && !single_step_moves(i, j, cell, s, he, over)) return 0.0f;
   float w[8];
   float wsum = 0.0f, wmax = 0.0f;
   int voids = 0;
-  float wmax1 = 0.0f;  // strided passes: the largest excess of a single step
-  int voids1 = 0;      // and the single steps into the void
   for (int n = 0; n < 8; ++n) {
     w[n] = 0.0f;
     // A strided pass moves snow `stride` columns at once along a path of
@@ -294,12 +294,9 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
       nj = j + m * kDirJ[n];
       land_l = land(ni, nj, path_h, path_g, rise_);
       path_tan += step_tan;
-      if (stride == 1) break;
-      if (m == 1 && land_l == kLandVoid) ++voids1;
-      if (land_l < 0) break;
+      if (stride == 1 || land_l < 0) break;
       const size_t km = index(land_l, ni, nj);
       const float top = cells_[km].x + depth_[km];
-      if (m == 1) wmax1 = std::max(wmax1, he - top - distance_[n] * path_tan);
       if (path_h - top > rise_) {
         land_l = kLandBlocked;
         break;
@@ -322,13 +319,6 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
       wmax = std::max(wmax, w[n]);
     }
   }
-  // A strided pass moves only snow that a single step moves (the
-  // stride-1 rule below on the first steps): snow at rest for single
-  // steps stays, which the GPU passes' active tiles rely on.
-  const bool single_moves =
-      voids1 > 0 ||
-      (wmax1 > 0.0f && std::min(s, std::max(0.5f * wmax1, over)) >= settings_.min_move);
-  if (stride > 1 && !single_moves) wmax = 0.0f;
   if (voids > 0) {
     // An edge of the world: everything falls off, shared by the void directions.
     const float share = s / float(voids);
