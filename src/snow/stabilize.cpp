@@ -291,6 +291,7 @@ struct Stabilizer::Impl {
     glBindTextureUnit(unit, texture.id());
   }
   void upload_depth(const std::vector<float>& depth);
+  void write_depth(const std::vector<glm::vec2>& data);  // depth and lost snow, every texel
   void add_snow(const std::vector<float>& add);
   // The routing; with `drain`, only the excess on its way into the void
   // leaves (drain_due). Returns the erosion plus jump passes run.
@@ -651,6 +652,10 @@ void Stabilizer::Impl::per_column(const gl::Program& program) {
 void Stabilizer::Impl::upload_depth(const std::vector<float>& d) {
   std::vector<glm::vec2> data(d.size());
   for (size_t k = 0; k < d.size(); ++k) data[k] = glm::vec2(d[k], 0.0f);
+  write_depth(data);
+}
+
+void Stabilizer::Impl::write_depth(const std::vector<glm::vec2>& data) {
   glTextureSubImage3D(depth[cur].id(), 0, 0, 0, 0, width, height, layers, GL_RG, GL_FLOAT,
                       data.data());
   gl::check_error("stabilize: depth upload");
@@ -852,9 +857,7 @@ int Stabilizer::Impl::route(bool drain) {
     if (deposit_piles(pour_cells.data(), s.data(), arrive.data(),
                       DepositGrid{width, height, layers, grid.texel}) > 0) {
       for (size_t k = 0; k < data.size(); ++k) data[k].x = s[k];
-      glTextureSubImage3D(depth[cur].id(), 0, 0, 0, 0, width, height, layers, GL_RG, GL_FLOAT,
-                          data.data());
-      gl::check_error("stabilize: piles upload");
+      write_depth(data);
     }
   }
   gl::check_error("stabilize: routing");
@@ -872,9 +875,7 @@ bool Stabilizer::Impl::pour_pressed() {
   const std::vector<float> lost = read_channel(GL_GREEN);
   std::vector<glm::vec2> data(s.size());
   for (size_t k = 0; k < data.size(); ++k) data[k] = glm::vec2(s[k], lost[k]);
-  glTextureSubImage3D(depth[cur].id(), 0, 0, 0, 0, width, height, layers, GL_RG, GL_FLOAT,
-                      data.data());
-  gl::check_error("stabilize: pressed snow upload");
+  write_depth(data);
   return true;
 }
 
