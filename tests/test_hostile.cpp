@@ -259,14 +259,15 @@ TEST_F(Hostile, GlAllocationFailureAndContextLossExitThree) {
     std::string needle;
   };
   // The first GL check (the peel's first allocation), the first in
-  // coverage and the first in the stabilizer (on the GPU: on llvmpipe it
+  // coverage and the first in the stabilizer (on the GPU: on llvmpipe both
   // would run on the CPU).
   for (const Case& c :
        {Case{"gl-alloc", "out of GPU memory"}, Case{"gl-alloc:coverage", "out of GPU memory"},
         Case{"gl-alloc:stabilize", "out of GPU memory"}, Case{"context-loss", "context lost"},
         Case{"context-loss:coverage", "context lost"},
         Case{"context-loss:stabilize", "context lost"}}) {
-    const RunResult r = run("snow " + q(kCourtyard) + kTiny + " --stabilizer gpu -o " +
+    const RunResult r = run("snow " + q(kCourtyard) + kTiny +
+                                " --stabilizer gpu --coverage-method shadow-maps -o " +
                                 q(out_ / "x.glb") + " --preview " + q(out_ / "x.png"),
                             "SNOWMODEL_FAULT=" + c.fault);
     expect_refused(r, 3, c.needle, out_, c.fault);

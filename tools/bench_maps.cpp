@@ -6,8 +6,8 @@
 //
 // Usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]
 //                             [--big-side N] [--big-triangles T] [--no-big | --big-only]
-//                             [--method auto|shadow-maps|rays|cpu-rays] [--accuracy]
-//                             [scene.glb|scene.gltf ...]
+//                             [--method auto|shadow-maps|rays|cpu-rays|cpu-shadow-maps]
+//                             [--accuracy] [scene.glb|scene.gltf ...]
 // Without scene arguments it runs the bundled courtyard, a few scenes from
 // ../shared/scenes (when present) and a generated scene of about
 // --big-triangles triangles (default 1M) at --big-side (default 2048).
@@ -130,7 +130,9 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
         double(std::max<uint64_t>(1, t.culled + t.pairs / uint64_t(std::max(1, cs.directions))));
     r.method = t.method;
     r.queued_share =
-        t.method != snow::CoverageMethod::ShadowMaps
+        t.method == snow::CoverageMethod::CpuShadowMaps
+            ? double(t.queued) / double(std::max<uint64_t>(1, t.pairs))  // uncertain pairs
+        : t.method != snow::CoverageMethod::ShadowMaps
             ? 1.0
             : double(t.queued) /
                   double(std::max<uint64_t>(
@@ -140,7 +142,8 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
   }
   // Cast as rays (snow::choose_coverage_method), no shadow maps were drawn:
   // the raw passes at the maps' size.
-  const bool rays = r.method != snow::CoverageMethod::ShadowMaps;
+  const bool rays =
+      r.method == snow::CoverageMethod::GpuRays || r.method == snow::CoverageMethod::CpuRays;
   r.shadow = rays ? glm::ivec2(r.width, r.height) : renderer.shadow_map_size();
   if (o.accuracy) {
     const double t0 = seconds();
@@ -178,9 +181,10 @@ void print(const Row& r, const Options& o) {
       "| %s | %zu | %dx%d | %d | %.2f | %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | "
       "%.2f | %.2f | %.2f | %.0f%% | %.1f%% |",
       r.name.c_str(), r.triangles, r.width, r.height, r.layers_found, r.peel,
-      r.method == snow::CoverageMethod::GpuRays ? "GPU rays"
-      : r.method == snow::CoverageMethod::CpuRays
-          ? "CPU rays"
+      r.method == snow::CoverageMethod::GpuRays   ? "GPU rays"
+      : r.method == snow::CoverageMethod::CpuRays ? "CPU rays"
+      : r.method == snow::CoverageMethod::CpuShadowMaps
+          ? (std::to_string(r.shadow.x) + "x" + std::to_string(r.shadow.y) + " CPU").c_str()
           : (std::to_string(r.shadow.x) + "x" + std::to_string(r.shadow.y)).c_str(),
       r.setup, r.shadow_s, r.composite, r.readback, total, r.raw_peel, r.raw_grid, r.raw_shadow,
       total / raw, r.coverage_cpu, 100.0 * r.culled_share, 100.0 * r.queued_share);
@@ -221,7 +225,7 @@ int main(int argc, char** argv) {
       std::printf(
           "usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]\n"
           "  [--big-side N] [--big-triangles T] [--no-big | --big-only] [--repeat R]\n"
-          "  [--method auto|shadow-maps|rays|cpu-rays] [--accuracy]\n"
+          "  [--method auto|shadow-maps|rays|cpu-rays|cpu-shadow-maps] [--accuracy]\n"
           "  [scene.glb|scene.gltf ...]\n");
       return 0;
     } else if (a.rfind("--", 0) == 0) {

@@ -30,7 +30,8 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
       std::printf("Peel (--peel-device auto): %s\n",
                   software ? "the CPU for small maps, else the GPU's passes" : "the GPU's passes");
       std::printf("Coverage (--coverage-method auto): %s\n",
-                  software ? "shadow maps, or rays on the CPU where they cost less"
+                  software ? "shadow maps or rays on the CPU, or GL's shadow maps, whichever costs "
+                             "less"
                            : "shadow maps, or rays on the GPU where they cost less");
     }
     if (!options->json) std::printf("Huge pages for the heap: %s\n", huge_pages_status().c_str());

@@ -438,9 +438,10 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
       "%d passes on the %s",
       total, timing.c_str(), peak_memory_mib(), scene.triangle_count(), triangles_out,
       patches.size(), snow.volume, snow.fallen_volume, snow.lost_volume,
-      snow.coverage_method == CoverageMethod::CpuRays   ? "rays on the CPU"
-      : snow.coverage_method == CoverageMethod::GpuRays ? "rays on the GPU"
-                                                        : "shadow maps",
+      snow.coverage_method == CoverageMethod::CpuRays         ? "rays on the CPU"
+      : snow.coverage_method == CoverageMethod::GpuRays       ? "rays on the GPU"
+      : snow.coverage_method == CoverageMethod::CpuShadowMaps ? "shadow maps on the CPU"
+                                                              : "shadow maps",
       snow.iterations, snow.stabilized_on_cpu ? "CPU" : "GPU");
   log_info(summary);
 }

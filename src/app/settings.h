@@ -68,9 +68,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("coverage.bias", "--shadow-bias", "Shadow depth bias in metres (negative = automatic)",
     s.coverage.bias);
   v("coverage.method", "--coverage-method",
-    "How lines of fall are tested: shadow-maps, rays (each cast exactly on the GPU, no shadow "
-    "maps), cpu-rays (the same on the CPU cores) or auto (the cheapest for the scene and the "
-    "renderer)",
+    "How lines of fall are tested: shadow-maps, cpu-shadow-maps (the same drawn and counted on "
+    "the CPU cores), rays (each cast exactly on the GPU, no shadow maps), cpu-rays (the same on "
+    "the CPU cores) or auto (the cheapest for the scene and the renderer)",
     s.coverage.method);
   // Accumulation and stabilizer.
   v("snow.depth", "--depth", "Fresh snow that falls, metres", s.accumulate.fall_depth);

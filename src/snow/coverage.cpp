@@ -49,9 +49,23 @@ constexpr int kMaxBatch = 32;               // shadow maps per batch (a 32-bit d
 // 0.5-1.3 us (building-small-a 2.2M rays: 1.2 s; SheenChair 0.5M: 0.65 s),
 // on the CPU's 2 cores 95-240 ns (terrains of 10k and 100k triangles at 512
 // texels, 1.9M and 2.2M rays: 0.18 and 0.27 s; SheenChair 0.54M: 0.13 s).
+// Counting a receiver on the shadow maps (the classification, and the
+// exact casts of the few uncertain pairs): on llvmpipe 16-45 ns per
+// direction (building-garage and grass-trees-tall at 1024: 2.8M and 2.1M
+// receivers, 3.1 and 4.2 s), on the CPU 26 ns; and llvmpipe spends about
+// 0.9 ms per direction on its passes however small the maps (road-straight-
+// lightposts at 364 texels, 32k receivers: 0.14 s against 0.06 s on the
+// CPU). A triangle drawn into a CPU shadow map: 60 ns (SheenChair, 40k
+// triangles on maps of 323 x 241, 71k receivers: 0.28 s).
 constexpr double kShadowTexelCost = 1.0 / 40.0;
 constexpr double kGpuRayCost = 16.0;
 constexpr double kCpuRayCost = 2.0;
+constexpr double kGpuCountCost = 0.4;
+constexpr double kGpuPassCost = 11000.0;
+constexpr double kCpuCountCost = 0.33;
+constexpr double kCpuTriangleCost = 0.75;
+// CPU shadow maps in flight at once take at most this much memory (a map each).
+constexpr double kCpuShadowBytes = 256.0 * 1024 * 1024;
 
 /// splitmix64 (Steele, Lea and Flood 2014): tiny, fast, same stream everywhere.
 class SplitMix64 {
@@ -89,10 +103,12 @@ void validate(const CoverageSettings& s) {
   }
   if (!std::isfinite(s.bias)) throw InputError("shadow bias must be finite");
   if (s.method != "auto" && s.method != "shadow-maps" && s.method != "rays" &&
-      s.method != "cpu-rays") {
-    throw InputError("coverage method must be auto, shadow-maps, rays or cpu-rays, got '" +
-                     s.method + "'");
+      s.method != "cpu-rays" && s.method != "cpu-shadow-maps") {
+    throw InputError(
+        "coverage method must be auto, shadow-maps, rays, cpu-rays or cpu-shadow-maps, got '" +
+        s.method + "'");
   }
+
   const glm::dvec3 m(mean_fall_direction(s));
   const double tilt = std::acos(std::clamp(-m.y, -1.0, 1.0)) * 180.0 / kPi;
   if (tilt + s.flutter_deg > kMaxFallAngleDeg) {
@@ -388,14 +404,25 @@ CoverageMethod choose_coverage_method(const CoverageSettings& settings, const Co
   if (settings.method == "shadow-maps") return CoverageMethod::ShadowMaps;
   if (settings.method == "rays") return CoverageMethod::GpuRays;
   if (settings.method == "cpu-rays") return CoverageMethod::CpuRays;
-  // Per direction: shadow maps draw the triangles and clear and sample the
-  // maps' texels; rays cost per receiver (a snow surface adds a walk of
-  // each snowy layer's heightfield to a GPU ray).
-  const double shadow = w.triangles + w.shadow_texels * kShadowTexelCost;
-  const double gpu_rays = double(w.receivers) * kGpuRayCost * (w.snow ? 2.0 : 1.0);
-  const double cpu_rays = double(w.receivers) * kCpuRayCost;
-  if (w.software && !w.snow && cpu_rays < std::min(shadow, gpu_rays)) {
-    return CoverageMethod::CpuRays;
+  if (settings.method == "cpu-shadow-maps") return CoverageMethod::CpuShadowMaps;
+  // Per direction: shadow maps draw the triangles, clear and sample the
+  // maps' texels and count the receivers; rays cost per receiver (a snow
+  // surface adds a walk of each snowy layer's heightfield to a GPU ray).
+  // The CPU methods are not chosen with a snow surface: they would build a
+  // BVH of its triangles, two per snowy texel.
+  const double receivers = double(w.receivers);
+  const double texels = w.shadow_texels * kShadowTexelCost;
+  const double shadow =
+      w.triangles + texels + receivers * kGpuCountCost + (w.software ? kGpuPassCost : 0.0);
+  const double gpu_rays = receivers * kGpuRayCost * (w.snow ? 2.0 : 1.0);
+  const double gpu = std::min(shadow, gpu_rays);
+  if (w.software && !w.snow) {
+    // CPU shadow maps take a map per core; beyond kCpuShadowBytes fewer cores.
+    const bool maps_fit = 4.0 * w.shadow_texels * default_threads() <= kCpuShadowBytes;
+    const double cpu_shadow = w.triangles * kCpuTriangleCost + texels + receivers * kCpuCountCost;
+    const double cpu_rays = receivers * kCpuRayCost;
+    if (cpu_rays < gpu && (cpu_rays <= cpu_shadow || !maps_fit)) return CoverageMethod::CpuRays;
+    if (maps_fit && cpu_shadow < gpu) return CoverageMethod::CpuShadowMaps;
   }
   return gpu_rays < shadow ? CoverageMethod::GpuRays : CoverageMethod::ShadowMaps;
 }
@@ -449,6 +476,106 @@ std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& s) {
     j = glm::min(j, glm::vec2(std::nextafter(1.0f, 0.0f)));
   }
   return out;
+}
+
+// --- Shadow maps on the CPU (CoverageMethod::CpuShadowMaps) ------------------
+
+constexpr float kNoShadow = -std::numeric_limits<float>::infinity();  // no surface drawn
+
+/// Where a direction's shadow map lies: (a, b, u0, v0) as in shadow.vert
+/// (shadow-map metres u = x - a y - u0, v = z - b y - v0), texels of st
+/// metres, `size` texels.
+struct ShadowFrame {
+  glm::dvec4 params;
+  double st;
+  glm::ivec2 size;
+  double inv_st = 1.0 / st;
+  glm::dvec2 texel_of(const glm::vec3& q) const {  // texel coordinates (centres at i + 0.5)
+    return glm::dvec2((double(q.x) - params.z - double(q.y) * params.x) * inv_st,
+                      (double(q.z) - params.w - double(q.y) * params.y) * inv_st);
+  }
+};
+
+/// Draws a soup of triangles into a CPU shadow map: each texel keeps the
+/// highest surface at its centre along the direction's lines of fall (the
+/// depth test of the GL pass). A centre is drawn when it is inside or on
+/// the triangle's edges; the height is the triangle's plane in the sheared
+/// space, as GL interpolates depth. Triangles seen edge-on draw nothing.
+void draw_cpu_shadow_map(const std::vector<glm::vec3>& corners, const ShadowFrame& f,
+                         std::vector<float>& height) {
+  for (size_t t = 0; t + 2 < corners.size(); t += 3) {
+    glm::dvec2 q[3];
+    double h[3];
+    for (int e = 0; e < 3; ++e) {
+      q[e] = f.texel_of(corners[t + size_t(e)]);
+      h[e] = corners[t + size_t(e)].y;
+    }
+    const glm::dvec2 e1 = q[1] - q[0], e2 = q[2] - q[0];
+    const double area = e1.x * e2.y - e1.y * e2.x;
+    if (!(std::abs(area) > 0.0)) continue;  // edge-on, or not finite
+    const glm::dvec2 lo = glm::min(q[0], glm::min(q[1], q[2]));
+    const glm::dvec2 hi = glm::max(q[0], glm::max(q[1], q[2]));
+    const int i0 = int(std::max(0.0, std::ceil(lo.x - 0.5)));
+    const int j0 = int(std::max(0.0, std::ceil(lo.y - 0.5)));
+    const int i1 = int(std::min(double(f.size.x - 1), std::floor(hi.x - 0.5)));
+    const int j1 = int(std::min(double(f.size.y - 1), std::floor(hi.y - 0.5)));
+    if (i0 > i1 || j0 > j1) continue;
+    // Height h0 + gx (x - q0.x) + gy (y - q0.y); edge functions A x + B y +
+    // C, >= 0 inside whichever way the triangle winds.
+    const double gx = ((h[1] - h[0]) * e2.y - (h[2] - h[0]) * e1.y) / area;
+    const double gy = ((h[2] - h[0]) * e1.x - (h[1] - h[0]) * e2.x) / area;
+    const double sign = area > 0.0 ? 1.0 : -1.0;
+    double ea[3], eb[3], ec[3];
+    for (int e = 0; e < 3; ++e) {
+      const glm::dvec2& a = q[e];
+      const glm::dvec2& b = q[(e + 1) % 3];
+      ea[e] = -(b.y - a.y) * sign;
+      eb[e] = (b.x - a.x) * sign;
+      ec[e] = -(ea[e] * a.x + eb[e] * a.y);
+    }
+    for (int j = j0; j <= j1; ++j) {
+      const double y = j + 0.5;
+      float* row = height.data() + size_t(j) * size_t(f.size.x);
+      for (int i = i0; i <= i1; ++i) {
+        const double x = i + 0.5;
+        if (ea[0] * x + eb[0] * y + ec[0] < 0.0 || ea[1] * x + eb[1] * y + ec[1] < 0.0 ||
+            ea[2] * x + eb[2] * y + ec[2] < 0.0) {
+          continue;
+        }
+        const float v = float(h[0] + gx * (x - q[0].x) + gy * (y - q[0].y));
+        row[i] = std::max(row[i], v);
+      }
+    }
+  }
+}
+
+/// classify() of shaders/coverage_common.glsl on a CPU shadow map, for the
+/// receiver at p with normal n and n_dot_p = n.p: 0 lit, 1 blocked, 2
+/// uncertain. The plane test h > own + bias, own = (n.p - n.x u - n.z v) /
+/// D, is made without the division: (h - bias) D against n.p - n.x u - n.z v,
+/// the comparison turned over where D < 0.
+int classify_on_cpu(const std::vector<float>& height, const ShadowFrame& f, const glm::vec3& p,
+                    const glm::vec3& n, double n_dot_p, float bias) {
+  const glm::dvec2 c = f.texel_of(p) - 0.5;
+  const int i0 = std::clamp(int(std::floor(c.x)), 0, f.size.x - 2);
+  const int j0 = std::clamp(int(std::floor(c.y)), 0, f.size.y - 2);
+  const float* row0 = height.data() + size_t(j0) * size_t(f.size.x) + size_t(i0);
+  const float* row1 = row0 + f.size.x;
+  const double h[4] = {row0[0], row0[1], row1[0],
+                       row1[1]};  // (i0, j0), (i1, j0), (i0, j1), (i1, j1)
+  int above = 0;
+  const double plane_d = double(n.x) * f.params.x + double(n.y) + double(n.z) * f.params.y;
+  if (std::abs(plane_d) > 1e-3) {
+    const double u0 = f.params.z + (i0 + 0.5) * f.st, v0 = f.params.w + (j0 + 0.5) * f.st;
+    const double g00 = n_dot_p - n.x * u0 - n.z * v0;
+    const double du = -n.x * f.st, dv = -n.z * f.st;
+    const double g[4] = {g00, g00 + du, g00 + dv, g00 + du + dv};
+    const double sign = plane_d > 0.0 ? 1.0 : -1.0;
+    for (int e = 0; e < 4; ++e) above += (h[e] - bias) * plane_d * sign > g[e] * sign;
+  } else {
+    for (int e = 0; e < 4; ++e) above += h[e] > double(p.y) + bias;
+  }
+  return above == 0 ? 0 : (above == 4 ? 1 : 2);
 }
 
 // --- CoverageRenderer --------------------------------------------------------
@@ -602,6 +729,7 @@ struct CoverageRenderer::Impl {
   std::vector<uint32_t> indices;    // 3 per triangle, BVH leaf order, likewise
   std::unique_ptr<GpuSide> gpu_side;
   Timings timings;
+  glm::ivec2 shadow_size{0};  // of the last compute's shadow maps (0 without)
   bool profiling = false;
 
   // CoverageMethod::CpuRays: the reference's casts (reference::compute_coverage)
@@ -634,6 +762,88 @@ struct CoverageRenderer::Impl {
       progress.update(double(dirs.size()) * double(first + per_round) / double(chunks));
     }
   }
+
+  // CoverageMethod::CpuShadowMaps: the shadow-map method on all cores. Each
+  // worker draws a direction's map (the scene, and the snow surface's
+  // triangles), classifies every receiver on it (classify_on_cpu) and casts
+  // the uncertain pairs exactly (reference::sees_sky, as CPU rays). Returns
+  // the uncertain pairs.
+  uint64_t shadow_maps_on_cpu(const SnowMaps& maps, const std::vector<glm::vec3>& dirs,
+                              const std::vector<ShadowFrame>& frames, float bias,
+                              const std::vector<float>* snow_depth,
+                              const std::vector<glm::uvec4>& recv,
+                              const std::vector<uint32_t>& recv_index, std::vector<float>& coverage,
+                              Progress& progress) const {
+    std::vector<glm::vec3> snow_triangles;
+    std::unique_ptr<Bvh> snow_bvh;
+    if (snow_depth) {
+      snow_triangles = reference::snow_surface_triangles(maps, *snow_depth);
+      snow_bvh = std::make_unique<Bvh>(snow_triangles);
+    }
+    struct Point {
+      glm::vec3 p, n;
+      double n_dot_p;
+    };
+    std::vector<Point> points(recv.size());
+    for (size_t r = 0; r < recv.size(); ++r) {
+      const glm::vec2 xz = maps.grid.center(int(recv[r].x & 0xffffu), int(recv[r].x >> 16));
+      float y;
+      std::memcpy(&y, &recv[r].y, sizeof y);
+      const glm::vec2 nxy = glm::unpackHalf2x16(recv[r].z);
+      const glm::vec3 p(xz.x, y, xz.y), n(nxy, glm::unpackHalf2x16(recv[r].w).x);
+      points[r] = {p, n, double(n.x) * p.x + double(n.y) * p.y + double(n.z) * p.z};
+    }
+    // A map and a count per receiver for each worker (at most 4096
+    // directions: 16 bits each).
+    const glm::ivec2 size = frames.front().size;
+    const double map_bytes = 4.0 * double(size.x) * double(size.y);
+    const size_t workers =
+        size_t(std::clamp(kCpuShadowBytes / map_bytes, 1.0,
+                          double(std::min<size_t>(default_threads(), dirs.size()))));
+    std::vector<std::vector<float>> height(workers);
+    std::vector<std::vector<uint16_t>> lit(workers);
+    std::vector<uint64_t> uncertain(workers, 0);
+    try {
+      for (size_t w = 0; w < workers; ++w) {
+        height[w].resize(size_t(size.x) * size_t(size.y));
+        lit[w].assign(recv.size(), 0);
+      }
+    } catch (const std::bad_alloc&) {
+      throw InputError("coverage: out of memory for shadow maps of " + std::to_string(size.x) +
+                       " x " + std::to_string(size.y) + " texels; use a coarser texel size");
+    }
+    const size_t per_round = 4 * workers;  // progress between rounds (Progress is not thread-safe)
+    for (size_t k0 = 0; k0 < dirs.size(); k0 += per_round) {
+      const size_t k1 = std::min(dirs.size(), k0 + per_round);
+      parallel_for(
+          workers,
+          [&](size_t w) {
+            for (size_t k = k0 + w; k < k1; k += workers) {
+              std::fill(height[w].begin(), height[w].end(), kNoShadow);
+              draw_cpu_shadow_map(bvh.corners(), frames[k], height[w]);
+              draw_cpu_shadow_map(snow_triangles, frames[k], height[w]);
+              for (size_t r = 0; r < points.size(); ++r) {
+                const int state = classify_on_cpu(height[w], frames[k], points[r].p, points[r].n,
+                                                  points[r].n_dot_p, bias);
+                if (state == 2) {
+                  ++uncertain[w];
+                  lit[w][r] += reference::sees_sky({&bvh, snow_bvh.get()}, points[r].p, dirs[k]);
+                } else {
+                  lit[w][r] += state == 0;
+                }
+              }
+            }
+          },
+          unsigned(workers));
+      progress.update(double(k1));
+    }
+    for (size_t r = 0; r < recv.size(); ++r) {
+      uint32_t sum = 0;
+      for (size_t w = 0; w < workers; ++w) sum += lit[w][r];
+      coverage[recv_index[r]] = float(sum) / float(dirs.size());
+    }
+    return std::accumulate(uncertain.begin(), uncertain.end(), uint64_t(0));
+  }
 };
 
 CoverageRenderer::CoverageRenderer(const Scene& scene) {
@@ -648,9 +858,7 @@ CoverageRenderer::~CoverageRenderer() = default;
 
 const CoverageRenderer::Timings& CoverageRenderer::timings() const { return impl_->timings; }
 void CoverageRenderer::set_profiling(bool on) { impl_->profiling = on; }
-glm::ivec2 CoverageRenderer::shadow_map_size() const {
-  return impl_->gpu_side ? impl_->gpu_side->shadow_size : glm::ivec2(0);
-}
+glm::ivec2 CoverageRenderer::shadow_map_size() const { return impl_->shadow_size; }
 
 std::vector<float> CoverageRenderer::compute(const SnowMaps& maps, const CoverageSettings& settings,
                                              const std::vector<float>* snow_depth) {
@@ -679,6 +887,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
                                                      const std::vector<float>* snow_depth) {
   Impl& im = *impl_;
   im.timings = Timings{};
+  im.shadow_size = glm::ivec2(0);
   const double t_start = now_seconds();
   validate(settings);
   if (dirs.empty() || jitter.size() != dirs.size()) {
@@ -911,12 +1120,12 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     progress.finish();
     return coverage;
   }
-  GpuSide& gpu = im.gpu();
+  const bool on_cpu = method == CoverageMethod::CpuShadowMaps;
 
   // Shadow-map regions: each direction's map covers the remaining
   // receivers' box projected along it, origin jittered by a sub-texel offset.
   GLint max_texture = 0;
-  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_texture);
+  if (!on_cpu) glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_texture);
   const int limit = std::min(kMaxShadowSide, max_texture > 0 ? int(max_texture) : kMaxShadowSide);
   const double gx0 = grid.origin.x + double(texel_box.x) * grid.texel;
   const double gz0 = grid.origin.y + double(texel_box.y) * grid.texel;
@@ -935,19 +1144,31 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
   if (longest / st + 2 > limit) st = longest / (limit - 2);
   const glm::ivec2 size(int(std::ceil(span_u / st)) + 2, int(std::ceil(span_v / st)) + 2);
   std::vector<glm::vec4> dir_params(k_count);
+  std::vector<ShadowFrame> frames(k_count);
   for (size_t k = 0; k < k_count; ++k) {
     const double a = shear[k].x, b = shear[k].y;
     const double u_min = gx0 - std::max(a * y_lo, a * y_hi);
     const double v_min = gz0 - std::max(b * y_lo, b * y_hi);
     dir_params[k] = glm::vec4(float(a), float(b), float(u_min - jitter[k].x * st),
                               float(v_min - jitter[k].y * st));
+    frames[k] = ShadowFrame{glm::dvec4(dir_params[k]), st, size};
   }
+  if (method != CoverageMethod::GpuRays) im.shadow_size = size;
   const bool rays = method == CoverageMethod::GpuRays;
   log_debug("coverage: " + std::to_string(recv.size()) + " receivers not open to the sky, " +
             std::to_string(size_t(work.triangles)) + " triangles per shadow map: " +
             (rays ? "every line cast by the GPU"
                   : "shadow maps of " + std::to_string(size.x) + " x " + std::to_string(size.y) +
-                        " texels"));
+                        " texels" + (on_cpu ? " drawn on the CPU" : "")));
+  if (on_cpu) {
+    im.timings.queued = im.shadow_maps_on_cpu(maps, dirs, frames, bias, snow_depth, recv,
+                                              recv_index, coverage, progress);
+    im.timings.shadow = now_seconds() - t_start;
+    im.timings.pairs = uint64_t(recv.size()) * uint64_t(k_count);
+    progress.finish();
+    return coverage;
+  }
+  GpuSide& gpu = im.gpu();
   const int batch = rays ? std::min(kMaxBatch, settings.directions)
                          : shadow_batch(settings, double(size.x) * double(size.y));
 

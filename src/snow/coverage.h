@@ -28,7 +28,10 @@
 // Where the receivers left are few against the scene's triangles (see
 // choose_coverage_method), no shadow maps are drawn: every pair is cast
 // exactly, by the exact pass or on the CPU, and the result is the
-// reference's.
+// reference's. Where GL runs in software, the shadow-map method may run on
+// the CPU cores instead: each core draws a direction's map (the highest
+// surface at each texel centre), classifies every receiver on it as the
+// compute pass does and casts the uncertain pairs; no GL is used.
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -62,9 +65,10 @@ struct CoverageSettings {
 
 /// How a coverage pass tests the lines of fall (settings.method).
 enum class CoverageMethod {
-  ShadowMaps,  // a depth map per direction; exact GPU ray casts only near silhouettes
-  GpuRays,     // every (receiver, direction) pair cast exactly by the GPU's compute pass
-  CpuRays,     // the same casts on all CPU cores (snow::Bvh::occluded)
+  ShadowMaps,     // a depth map per direction; exact GPU ray casts only near silhouettes
+  GpuRays,        // every (receiver, direction) pair cast exactly by the GPU's compute pass
+  CpuRays,        // the same casts on all CPU cores (snow::Bvh::occluded)
+  CpuShadowMaps,  // the shadow maps drawn, classified and cast on the CPU cores
 };
 
 /// What a coverage pass costs each way, in triangles drawn into one shadow
@@ -80,16 +84,19 @@ struct CoverageWork {
   bool software = false;
 };
 
-/// The method settings.method asks for: "shadow-maps", "rays" (GpuRays),
-/// "cpu-rays", or "auto": the cheapest by the costs measured on llvmpipe
-/// (tools/RESULTS.md). A shadow map draws every triangle however small the
-/// map (80 ns each on llvmpipe), a ray walks the BVH (75-100 ns on a CPU
-/// core, 0.5-1.3 us in llvmpipe's compute pass). So small, dense models
-/// (a 109k-triangle toy car mapped at 16 x 16 texels: 84 receivers left)
-/// and terrains (most receivers culled) cast rays, on the CPU where GL runs
-/// in software (never with a snow surface, which only the GPU pass walks as
-/// a heightfield), and scenes mapped finer than their triangles (a 440-
-/// triangle building at 110 texels: 35k receivers) draw shadow maps.
+/// The method settings.method asks for: "shadow-maps", "cpu-shadow-maps",
+/// "rays" (GpuRays), "cpu-rays", or "auto": the cheapest by the costs
+/// measured on llvmpipe (tools/RESULTS.md). A shadow map draws every
+/// triangle however small the map (80 ns each on llvmpipe), a ray walks the
+/// BVH (75-100 ns on a CPU core, 0.5-1.3 us in llvmpipe's compute pass). So
+/// small, dense models (a 109k-triangle toy car mapped at 16 x 16 texels: 84
+/// receivers left) and terrains (most receivers culled) cast rays, and
+/// scenes mapped finer than their triangles (a 440-triangle building at 110
+/// texels: 35k receivers) draw shadow maps. Where GL runs in software, both
+/// are done on the CPU cores when that costs less (llvmpipe's passes cost
+/// about 1 ms per direction however small the maps), never with a snow
+/// surface (its triangles would need a BVH of their own), nor where a
+/// shadow map per core would take more than 256 MiB.
 CoverageMethod choose_coverage_method(const CoverageSettings& settings, const CoverageWork& work);
 
 /// Shadow maps per batch for maps of `shadow_texels` texels: settings.batch,
@@ -172,7 +179,8 @@ class CoverageRenderer {
     double composite = 0;  // counting: classification and exact ray casts (compute passes)
     double readback = 0;   // one readback of the counts
     uint64_t culled = 0;   // receivers open to the sky along every direction (no GPU work)
-    uint64_t queued = 0;   // receivers sent to the exact pass, summed over batches (profiling)
+    uint64_t queued = 0;   // receivers sent to the exact pass, summed over batches (profiling;
+                           // CPU shadow maps: the uncertain pairs cast exactly)
     uint64_t pairs = 0;    // (receiver, direction) pairs classified
     CoverageMethod method = CoverageMethod::ShadowMaps;
   };

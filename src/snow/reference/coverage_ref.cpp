@@ -62,18 +62,20 @@ std::vector<glm::vec3> snow_surface_triangles(const SnowMaps& maps,
   return out;
 }
 
+bool sees_sky(std::initializer_list<const Bvh*> occluders, const glm::vec3& p, const glm::vec3& d) {
+  const float rise = -d.y;  // height gained per unit of t along -d
+  if (!(rise > 0.0f)) return false;
+  const float t_min = own_surface(p.y) / rise;
+  for (const Bvh* bvh : occluders) {
+    if (bvh && bvh->occluded(p, -d, t_min, kOpenSky)) return false;
+  }
+  return true;
+}
+
 int open_directions(std::initializer_list<const Bvh*> occluders, const glm::vec3& p,
                     const std::vector<glm::vec3>& directions) {
-  const float eps = own_surface(p.y);
   int lit = 0;
-  for (const glm::vec3& d : directions) {
-    const float rise = -d.y;  // height gained per unit of t along -d
-    if (!(rise > 0.0f)) continue;
-    bool open = true;
-    for (const Bvh* bvh : occluders)
-      open = open && !(bvh && bvh->occluded(p, -d, eps / rise, kOpenSky));
-    lit += open;
-  }
+  for (const glm::vec3& d : directions) lit += sees_sky(occluders, p, d);
   return lit;
 }
 

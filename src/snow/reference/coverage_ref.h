@@ -27,10 +27,15 @@ std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
 /// point's own (a ray towards the sky that hits it there does not count).
 inline float own_surface(float y) { return 1e-4f + 1e-6f * std::abs(y); }
 
+/// Whether p sees the sky along d (unit, pointing down): the ray towards the
+/// sky (-d) hits no triangle of the occluders (null ones are skipped) higher
+/// than own_surface(p.y) above p. The reference's test, also the exact casts
+/// of snow::CoverageRenderer's CPU methods.
+bool sees_sky(std::initializer_list<const Bvh*> occluders, const glm::vec3& p, const glm::vec3& d);
+
 /// How many of `directions` (unit, pointing down) see the sky from p: the
 /// ray towards the sky (-d) hits no triangle of the occluders (null ones
-/// are skipped) higher than own_surface(p.y) above p. The reference's
-/// test, also the CPU rays of snow::CoverageRenderer.
+/// are skipped) higher than own_surface(p.y) above p: sees_sky per direction.
 int open_directions(std::initializer_list<const Bvh*> occluders, const glm::vec3& p,
                     const std::vector<glm::vec3>& directions);
 
