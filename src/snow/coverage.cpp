@@ -50,17 +50,18 @@ constexpr int kMaxBatch = 32;               // shadow maps per batch (a 32-bit d
 // on the CPU's 2 cores 95-240 ns (terrains of 10k and 100k triangles at 512
 // texels, 1.9M and 2.2M rays: 0.18 and 0.27 s; SheenChair 0.54M: 0.13 s).
 // Counting a receiver on the shadow maps (the classification, and the
-// exact casts of the few uncertain pairs): on llvmpipe 16-45 ns per
-// direction (building-garage and grass-trees-tall at 1024: 2.8M and 2.1M
-// receivers, 3.1 and 4.2 s), on the CPU 26 ns; and llvmpipe spends about
-// 0.9 ms per direction on its passes however small the maps (road-straight-
-// lightposts at 364 texels, 32k receivers: 0.14 s against 0.06 s on the
-// CPU). A triangle drawn into a CPU shadow map: 60 ns (SheenChair, 40k
-// triangles on maps of 323 x 241, 71k receivers: 0.28 s).
+// exact casts of the few uncertain pairs), per direction: on llvmpipe 16-45
+// ns (building-garage, the courtyard and grass-trees-tall at 1024: 2.8M,
+// 1.4M and 2.1M receivers, 3.1, 1.9 and 4.2 s), on the CPU 15-26 ns (2.7,
+// 2.3 and 3.6 s); and llvmpipe spends about 0.9 ms per direction on its
+// passes however small the maps (road-straight-lightposts at 364 texels,
+// 32k receivers: 0.14 s against 0.06 s on the CPU). A triangle drawn into
+// a CPU shadow map: 60 ns (SheenChair, 40k triangles on maps of 323 x 241,
+// 71k receivers: 0.28 s).
 constexpr double kShadowTexelCost = 1.0 / 40.0;
 constexpr double kGpuRayCost = 16.0;
 constexpr double kCpuRayCost = 2.0;
-constexpr double kGpuCountCost = 0.4;
+constexpr double kGpuCountCost = 0.28;
 constexpr double kGpuPassCost = 11000.0;
 constexpr double kCpuCountCost = 0.33;
 constexpr double kCpuTriangleCost = 0.75;
