@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -167,6 +169,44 @@ TEST(GlContext, EnvironmentOverridesAuto) {
   setenv("SNOWMODEL_GL_BACKEND", "no-such-backend", 1);
   EXPECT_THROW(create_context({}), InputError);
   unsetenv("SNOWMODEL_GL_BACKEND");
+}
+
+// The probe tells what a context would render with, without making one: it
+// agrees with the renderer of the context the same options then give.
+TEST(GlContext, ProbeForeseesTheRenderer) {
+  EXPECT_EQ(probe_software(ContextOptions{Backend::OSMesa}), std::optional<bool>(true));
+  EXPECT_EQ(probe_software(ContextOptions{Backend::Glfw}), std::nullopt);
+  const std::optional<bool> software = probe_software();
+  if (!software) GTEST_SKIP() << "EGL cannot list its devices";
+  auto context = create_context();
+  EXPECT_EQ(*software, renderer_is_software()) << context->description();
+}
+
+// An on-demand context is made by the first pass that needs GL, and not
+// before: until then it answers renderer_is_software() with what it was
+// told; it is released with the object.
+TEST(GlContext, OnDemandContextIsMadeByTheFirstPassThatNeedsIt) {
+  int made = 0;
+  {
+    OnDemandContext on_demand(
+        [&made] {
+          ++made;
+          return create_context();
+        },
+        true);
+    EXPECT_FALSE(on_demand.made());
+    EXPECT_TRUE(renderer_is_software());
+    EXPECT_THROW(OnDemandContext([] { return create_context(); }, false), std::logic_error);
+    require_context();
+    require_context();
+    EXPECT_TRUE(on_demand.made());
+    EXPECT_EQ(made, 1);
+    expect_triangle(render_triangle());
+  }
+  require_context();  // none installed: nothing to make
+  EXPECT_EQ(made, 1);
+  OnDemandContext other([] { return create_context(); }, false);  // installable again
+  EXPECT_FALSE(renderer_is_software());
 }
 
 TEST(GlContext, ContextsOfDifferentBackendsLiveTogether) {

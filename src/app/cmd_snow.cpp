@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <future>
 #include <map>
+#include <optional>
 
 #include <glm/glm.hpp>
 
@@ -113,15 +114,17 @@ void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth) {
 /// Creating the first llvmpipe context loads and relocates the driver (about
 /// 0.1 s). A throwaway context made on another thread while the scene loads
 /// does that ahead: EGL displays stay initialized for the process, so the
-/// peel's own context then takes milliseconds (SheenChair, whose glTF loads
-/// in 0.07 s: 0.45-0.52 -> 0.39-0.42 s). Any GL trouble is reported when the
-/// peel makes its context. Wait for the future before any GL call (its
-/// destructor also waits). None for GLFW, which must start on the main
-/// thread.
-std::future<void> warm_up_gl(const GlobalOptions& global) {
+/// first stage's own context then takes milliseconds (SheenChair, whose glTF
+/// loads in 0.07 s: 0.45-0.52 -> 0.39-0.42 s). Any GL trouble is reported
+/// when a stage makes its context. Wait for the future before any GL call
+/// (its destructor also waits). None for GLFW, which must start on the main
+/// thread, nor where GL is known to render in software (`software`): there
+/// small scenes need no GL at all, and the other thread would take a core
+/// from their CPU passes.
+std::future<void> warm_up_gl(const GlobalOptions& global, std::optional<bool> software) {
   const char* env = std::getenv("SNOWMODEL_GL_BACKEND");
   if (global.gl_backend == "glfw" ||
-      (global.gl_backend == "auto" && env && std::string(env) == "glfw")) {
+      (global.gl_backend == "auto" && env && std::string(env) == "glfw") || software == true) {
     return {};
   }
   return std::async(std::launch::async, [&global] {
@@ -338,10 +341,19 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   check_stabilize_settings(s.stabilize);  // before minutes of peeling and shadows
   fall_directions(s.coverage);            // checks the coverage settings
 
-  std::future<void> warm_gl = warm_up_gl(global);
+  // Where the automatic backend is known to render in software, each GL
+  // stage makes its context only when a pass needs it (gl::OnDemandContext):
+  // small scenes then run on the CPU alone and never load the driver. A
+  // backend named by --gl-backend or SNOWMODEL_GL_BACKEND is always started
+  // (and a missing one reported).
+  const char* env_backend = std::getenv("SNOWMODEL_GL_BACKEND");
+  const std::optional<bool> software =
+      gl::parse_backend(global.gl_backend) == gl::Backend::Auto && !(env_backend && *env_backend)
+          ? gl::probe_software()
+          : std::nullopt;
+  std::future<void> warm_gl = warm_up_gl(global, software);
   Scene scene;
   stage("load", [&] { scene = load_scene(o.input, s.load); });
-  if (warm_gl.valid()) warm_gl.wait();
   warn_unmatched(scene, s.ignore, "--ignore");
   warn_unmatched(scene, s.no_snow_on, "--no-snow-on");
   const Scene snow_scene = without_ignored(scene, s.ignore);
@@ -353,14 +365,22 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   // Mesa keeps much of what a stage deleted allocated in the context (llvmpipe:
   // 900 MiB after the stabilizer on a 1M-triangle terrain at 2048 texels), and
   // the stages after it would run on top of that.
-  auto gl_context = [&global](bool first) {
+  bool described = false;
+  auto gl_context = [&] {
+    if (warm_gl.valid()) warm_gl.wait();
     auto context = make_headless_context(global);
-    if (first) log_info("OpenGL: " + context->description());
+    if (!described) log_info("OpenGL: " + context->description());
+    described = true;
+    return context;
+  };
+  auto stage_context = [&] {
+    auto context = std::make_unique<gl::OnDemandContext>(gl_context, software.value_or(false));
+    if (!software) context->make();  // only a context can tell what renders
     return context;
   };
   SnowMaps maps;
   stage("peel", [&] {
-    const auto context = gl_context(true);
+    const auto context = stage_context();
     maps = peel_layers(snow_scene, s.peel);
   });
   log_info("maps: " + std::to_string(maps.grid.width) + " x " + std::to_string(maps.grid.height) +
@@ -369,7 +389,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_if_deep_in_texels(maps, s.accumulate.fall_depth);
   SnowResult snow;
   stage("snowfall", [&] {
-    const auto context = gl_context(false);
+    const auto context = stage_context();
     snow = accumulate(snow_scene, maps, s.coverage, s.stabilize, s.accumulate, receives);
   });
   warn_if_unsettled(snow, s.stabilize);
@@ -412,7 +432,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   });
   if (!o.preview.empty()) {
     stage("preview", [&] {
-      const auto context = gl_context(false);
+      const auto context = gl_context();
       write_preview(snow_scene, patches, o.preview);
     });
     log_info("wrote " + o.preview);

@@ -5,7 +5,9 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/error.h"
@@ -91,7 +93,54 @@ std::string Context::description() const {
          gl_string(GL_VERSION);
 }
 
+namespace {
+thread_local OnDemandContext* t_on_demand = nullptr;  // this thread's, if installed
+}  // namespace
+
+OnDemandContext::OnDemandContext(std::function<std::unique_ptr<Context>()> make, bool software)
+    : make_(std::move(make)), software_(software) {
+  if (t_on_demand) throw std::logic_error("an OnDemandContext is already installed");
+  t_on_demand = this;
+}
+
+OnDemandContext::~OnDemandContext() {
+  context_.reset();
+  t_on_demand = nullptr;
+}
+
+void OnDemandContext::make() {
+  if (!context_) context_ = make_();
+}
+
+void require_context() {
+  if (t_on_demand) t_on_demand->make();
+}
+
+std::optional<bool> probe_software(const ContextOptions& options) {
+  Backend backend = options.backend;
+  const char* env = std::getenv("SNOWMODEL_GL_BACKEND");
+  if (backend == Backend::Auto && env && *env) {
+    try {
+      backend = parse_backend(env);
+    } catch (const InputError& e) {
+      throw InputError(std::string("SNOWMODEL_GL_BACKEND: ") + e.what());
+    }
+  }
+  switch (backend) {
+    case Backend::OSMesa:
+      return true;
+    case Backend::Glfw:
+      return std::nullopt;
+    default: {
+      const std::optional<bool> hardware = detail::egl_lists_hardware_device();
+      if (!hardware) return std::nullopt;
+      return !*hardware;
+    }
+  }
+}
+
 bool renderer_is_software() {
+  if (t_on_demand && !t_on_demand->made()) return t_on_demand->software();
   const std::string renderer = gl_string(GL_RENDERER);
   for (const char* name : {"llvmpipe", "softpipe", "swrast", "Software Rasterizer"}) {
     if (renderer.find(name) != std::string::npos) return true;

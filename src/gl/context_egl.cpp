@@ -240,6 +240,25 @@ std::unique_ptr<Context> create_egl_device_context(const ContextOptions& options
   throw GLError("no EGL device worked:" + reasons);
 }
 
+std::optional<bool> egl_lists_hardware_device() {
+  const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+  if (!has_extension(client, "EGL_EXT_device_enumeration")) return std::nullopt;
+  auto query_devices = egl_function<PFNEGLQUERYDEVICESEXTPROC>("eglQueryDevicesEXT");
+  auto query_device_string =
+      egl_function<PFNEGLQUERYDEVICESTRINGEXTPROC>("eglQueryDeviceStringEXT");
+  if (!query_devices || !query_device_string) return std::nullopt;
+  EGLDeviceEXT devices[16];
+  EGLint count = 0;
+  if (!query_devices(16, devices, &count) || count < 1) return std::nullopt;
+  for (EGLint i = 0; i < count; ++i) {
+    if (!has_extension(query_device_string(devices[i], EGL_EXTENSIONS),
+                       "EGL_MESA_device_software")) {
+      return true;
+    }
+  }
+  return false;
+}
+
 std::unique_ptr<Context> create_egl_surfaceless_context(const ContextOptions& options) {
   const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
   if (!has_extension(client, "EGL_MESA_platform_surfaceless")) {

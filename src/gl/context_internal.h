@@ -3,6 +3,7 @@
 // OSMesa or GLFW header, so each backend file can include its own native
 // headers without clashing with glad.
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,10 @@ bool want_debug(const ContextOptions& options);
 /// <reason>; <backend>: <reason>...") with the same list in log().
 std::unique_ptr<Context> try_backends(const std::vector<Backend>& order,
                                       const ContextOptions& options);
+
+/// Whether EGL lists a hardware device (one without EGL_MESA_device_software),
+/// without creating a display; empty where EGL cannot list devices.
+std::optional<bool> egl_lists_hardware_device();
 
 /// Backend factories: create, make current and init_new_context(), or throw
 /// GLError whose message is the short reason (used in the Auto summary).

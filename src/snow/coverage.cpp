@@ -1126,7 +1126,10 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
   // Shadow-map regions: each direction's map covers the remaining
   // receivers' box projected along it, origin jittered by a sub-texel offset.
   GLint max_texture = 0;
-  if (!on_cpu) glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_texture);
+  if (!on_cpu) {
+    gl::require_context();
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_texture);
+  }
   const int limit = std::min(kMaxShadowSide, max_texture > 0 ? int(max_texture) : kMaxShadowSide);
   const double gx0 = grid.origin.x + double(texel_box.x) * grid.texel;
   const double gz0 = grid.origin.y + double(texel_box.y) * grid.texel;

@@ -228,6 +228,7 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
     warn_overflow(maps, settings.layers);
     return maps;
   }
+  gl::require_context();
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
   if (max_size > 0 && (grid.width > max_size || grid.height > max_size)) {

@@ -326,6 +326,7 @@ struct Stabilizer::Impl {
 
 Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     : settings(s), grid(maps.grid), layers(maps.layers) {
+  gl::require_context();
   width = grid.width;
   height = grid.height;
   reduce_width = (width + kReduceBlock - 1) / kReduceBlock;
