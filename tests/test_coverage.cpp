@@ -85,6 +85,22 @@ Difference compare(const SnowMaps& maps, const std::vector<float>& a, const std:
   return d;
 }
 
+// Coverage by `method` (the renderer must take it), and how it differs from
+// the reference's.
+std::pair<std::vector<float>, Difference> coverage_by(CoverageRenderer& renderer,
+                                                      const SnowMaps& maps, CoverageSettings s,
+                                                      const char* method, CoverageMethod expected,
+                                                      const std::vector<float>& reference,
+                                                      const char* scene) {
+  s.method = method;
+  std::vector<float> coverage = renderer.compute(maps, s);
+  EXPECT_EQ(renderer.timings().method, expected) << method;
+  const Difference d = compare(maps, coverage, reference);
+  std::printf("%-14s %-15s mean |coverage - reference| %.5f, max %.3f over %zu layer texels\n",
+              scene, method, d.mean, d.max, d.count);
+  return {std::move(coverage), d};
+}
+
 // --- Directions ---------------------------------------------------------------
 
 TEST(FallDirections, UnitDownwardInsideTheCone) {
@@ -352,12 +368,7 @@ TEST(Coverage, ShadowMapsMatchRayCastReference) {
     for (const auto& [method, expected] :
          {std::make_pair("shadow-maps", CoverageMethod::ShadowMaps),
           std::make_pair("cpu-shadow-maps", CoverageMethod::CpuShadowMaps)}) {
-      s.method = method;
-      const std::vector<float> maps_coverage = renderer.compute(maps, s);
-      EXPECT_EQ(renderer.timings().method, expected);
-      const Difference d = compare(maps, maps_coverage, cpu);
-      std::printf("%-14s %-15s mean |maps - reference| %.4f, max %.3f over %zu layer texels\n",
-                  c.name, method, d.mean, d.max, d.count);
+      const auto [maps_coverage, d] = coverage_by(renderer, maps, s, method, expected, cpu, c.name);
       EXPECT_GT(d.count, 1000u);
       EXPECT_LT(d.mean, 0.02);
       EXPECT_LT(d.max, 0.1f);
@@ -389,12 +400,7 @@ TEST(Coverage, RaysMatchTheRayCastReference) {
     CoverageRenderer renderer(c.scene);
     for (const auto& [method, expected] : {std::make_pair("rays", CoverageMethod::GpuRays),
                                            std::make_pair("cpu-rays", CoverageMethod::CpuRays)}) {
-      s.method = method;
-      const std::vector<float> rays = renderer.compute(maps, s);
-      EXPECT_EQ(renderer.timings().method, expected);
-      const Difference d = compare(maps, rays, cpu);
-      std::printf("%-14s %-8s: mean |rays - reference| %.5f, max %.3f over %zu layer texels\n",
-                  c.name, method, d.mean, d.max, d.count);
+      const Difference d = coverage_by(renderer, maps, s, method, expected, cpu, c.name).second;
       EXPECT_GT(d.count, 1000u);
       EXPECT_LT(d.max, 0.5f / 64.0f);
     }
