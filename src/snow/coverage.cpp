@@ -518,10 +518,11 @@ void draw_cpu_shadow_map(const std::vector<glm::vec3>& corners, const ShadowFram
     if (!(std::abs(area) > 0.0)) continue;  // edge-on, or not finite
     const glm::dvec2 lo = glm::min(q[0], glm::min(q[1], q[2]));
     const glm::dvec2 hi = glm::max(q[0], glm::max(q[1], q[2]));
-    const int i0 = int(std::max(0.0, std::ceil(lo.x - 0.5)));
-    const int j0 = int(std::max(0.0, std::ceil(lo.y - 0.5)));
-    const int i1 = int(std::min(double(f.size.x - 1), std::floor(hi.x - 0.5)));
-    const int j1 = int(std::min(double(f.size.y - 1), std::floor(hi.y - 0.5)));
+    // Clamped before the conversion: triangles far outside the map.
+    const int i0 = int(std::clamp(std::ceil(lo.x - 0.5), 0.0, double(f.size.x)));
+    const int j0 = int(std::clamp(std::ceil(lo.y - 0.5), 0.0, double(f.size.y)));
+    const int i1 = int(std::clamp(std::floor(hi.x - 0.5), -1.0, double(f.size.x - 1)));
+    const int j1 = int(std::clamp(std::floor(hi.y - 0.5), -1.0, double(f.size.y - 1)));
     if (i0 > i1 || j0 > j1) continue;
     // Height h0 + gx (x - q0.x) + gy (y - q0.y); edge functions A x + B y +
     // C, >= 0 inside whichever way the triangle winds.
@@ -560,8 +561,8 @@ void draw_cpu_shadow_map(const std::vector<glm::vec3>& corners, const ShadowFram
 int classify_on_cpu(const std::vector<float>& height, const ShadowFrame& f, const glm::vec3& p,
                     const glm::vec3& n, double n_dot_p, float bias) {
   const glm::dvec2 c = f.texel_of(p) - 0.5;
-  const int i0 = std::clamp(int(std::floor(c.x)), 0, f.size.x - 2);
-  const int j0 = std::clamp(int(std::floor(c.y)), 0, f.size.y - 2);
+  const int i0 = int(std::clamp(std::floor(c.x), 0.0, double(f.size.x - 2)));
+  const int j0 = int(std::clamp(std::floor(c.y), 0.0, double(f.size.y - 2)));
   const float* row0 = height.data() + size_t(j0) * size_t(f.size.x) + size_t(i0);
   const float* row1 = row0 + f.size.x;
   const double h[4] = {row0[0], row0[1], row1[0],
