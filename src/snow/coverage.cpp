@@ -110,7 +110,6 @@ void validate(const CoverageSettings& s) {
         "coverage method must be auto, shadow-maps, rays, cpu-rays or cpu-shadow-maps, got '" +
         s.method + "'");
   }
-
   const glm::dvec3 m(mean_fall_direction(s));
   const double tilt = std::acos(std::clamp(-m.y, -1.0, 1.0)) * 180.0 / kPi;
   if (tilt + s.flutter_deg > kMaxFallAngleDeg) {
@@ -565,8 +564,8 @@ int classify_on_cpu(const std::vector<float>& height, const ShadowFrame& f, cons
   const int j0 = int(std::clamp(std::floor(c.y), 0.0, double(f.size.y - 2)));
   const float* row0 = height.data() + size_t(j0) * size_t(f.size.x) + size_t(i0);
   const float* row1 = row0 + f.size.x;
-  const double h[4] = {row0[0], row0[1], row1[0],
-                       row1[1]};  // (i0, j0), (i1, j0), (i0, j1), (i1, j1)
+  // Texels (i0, j0), (i1, j0), (i0, j1), (i1, j1).
+  const double h[4] = {row0[0], row0[1], row1[0], row1[1]};
   int above = 0;
   const double plane_d = double(n.x) * f.params.x + double(n.y) + double(n.z) * f.params.y;
   if (std::abs(plane_d) > 1e-3) {
