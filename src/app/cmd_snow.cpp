@@ -377,7 +377,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   };
   auto stage_context = [&] {
     auto context = std::make_unique<gl::OnDemandContext>(gl_context, software.value_or(false));
-    if (!software) context->make();  // only a context can tell what renders
+    if (!software.has_value()) context->make();  // only a context can tell what renders
     return context;
   };
   SnowMaps maps;
