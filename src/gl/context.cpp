@@ -56,6 +56,17 @@ void GLAD_API_PTR debug_callback(GLenum source, GLenum type, GLuint id, GLenum s
   }
 }
 
+// options.backend, or for Auto the one SNOWMODEL_GL_BACKEND names (if set).
+Backend requested_backend(const ContextOptions& options) {
+  const char* env = std::getenv("SNOWMODEL_GL_BACKEND");
+  if (options.backend != Backend::Auto || !env || !*env) return options.backend;
+  try {
+    return parse_backend(env);
+  } catch (const InputError& e) {
+    throw InputError(std::string("SNOWMODEL_GL_BACKEND: ") + e.what());
+  }
+}
+
 const char* gl_string(GLenum name) {
   const GLubyte* s = glGetString(name);
   return s ? reinterpret_cast<const char*>(s) : "?";
@@ -117,16 +128,7 @@ void require_context() {
 }
 
 std::optional<bool> probe_software(const ContextOptions& options) {
-  Backend backend = options.backend;
-  const char* env = std::getenv("SNOWMODEL_GL_BACKEND");
-  if (backend == Backend::Auto && env && *env) {
-    try {
-      backend = parse_backend(env);
-    } catch (const InputError& e) {
-      throw InputError(std::string("SNOWMODEL_GL_BACKEND: ") + e.what());
-    }
-  }
-  switch (backend) {
+  switch (requested_backend(options)) {
     case Backend::OSMesa:
       return true;
     case Backend::Glfw:
@@ -237,18 +239,7 @@ std::unique_ptr<Context> try_backends(const std::vector<Backend>& order,
 }  // namespace detail
 
 std::unique_ptr<Context> create_context(const ContextOptions& options) {
-  Backend backend = options.backend;
-  if (backend == Backend::Auto) {
-    const char* env = std::getenv("SNOWMODEL_GL_BACKEND");
-    if (env && *env) {
-      try {
-        backend = parse_backend(env);
-      } catch (const InputError& e) {
-        throw InputError(std::string("SNOWMODEL_GL_BACKEND: ") + e.what());
-      }
-    }
-  }
-
+  const Backend backend = requested_backend(options);
   if (backend == Backend::Auto) {
     return detail::try_backends({Backend::EglDevice, Backend::EglSurfaceless, Backend::OSMesa},
                                 options);
