@@ -480,6 +480,20 @@ std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& s) {
   return out;
 }
 
+// A receiver as packed for the passes (coverage_common.glsl's Receivers):
+// its texel, its height and its point.
+glm::ivec2 receiver_texel(const glm::uvec4& r) { return {int(r.x & 0xffffu), int(r.x >> 16)}; }
+float receiver_height(const glm::uvec4& r) {
+  float y;
+  std::memcpy(&y, &r.y, sizeof y);
+  return y;
+}
+glm::vec3 receiver_point(const MapGrid& grid, const glm::uvec4& r) {
+  const glm::ivec2 t = receiver_texel(r);
+  const glm::vec2 xz = grid.center(t.x, t.y);
+  return {xz.x, receiver_height(r), xz.y};
+}
+
 // --- Shadow maps on the CPU (CoverageMethod::CpuShadowMaps) ------------------
 
 constexpr float kNoShadow = -std::numeric_limits<float>::infinity();  // no surface drawn
@@ -750,11 +764,8 @@ struct CoverageRenderer::Impl {
     constexpr size_t kChunk = 256, kRounds = 16;
     const auto cast_chunk = [&](size_t c) {
       for (size_t r = c * kChunk; r < std::min(recv.size(), (c + 1) * kChunk); ++r) {
-        const glm::vec2 xz = maps.grid.center(int(recv[r].x & 0xffffu), int(recv[r].x >> 16));
-        float y;
-        std::memcpy(&y, &recv[r].y, sizeof y);
-        const int lit =
-            reference::open_directions({&bvh, snow_bvh.get()}, glm::vec3(xz.x, y, xz.y), dirs);
+        const int lit = reference::open_directions({&bvh, snow_bvh.get()},
+                                                   receiver_point(maps.grid, recv[r]), dirs);
         coverage[recv_index[r]] = float(lit) / float(dirs.size());
       }
     };
@@ -789,11 +800,8 @@ struct CoverageRenderer::Impl {
     };
     std::vector<Point> points(recv.size());
     for (size_t r = 0; r < recv.size(); ++r) {
-      const glm::vec2 xz = maps.grid.center(int(recv[r].x & 0xffffu), int(recv[r].x >> 16));
-      float y;
-      std::memcpy(&y, &recv[r].y, sizeof y);
-      const glm::vec2 nxy = glm::unpackHalf2x16(recv[r].z);
-      const glm::vec3 p(xz.x, y, xz.y), n(nxy, glm::unpackHalf2x16(recv[r].w).x);
+      const glm::vec3 p = receiver_point(maps.grid, recv[r]);
+      const glm::vec3 n(glm::unpackHalf2x16(recv[r].z), glm::unpackHalf2x16(recv[r].w).x);
       points[r] = {p, n, double(n.x) * p.x + double(n.y) * p.y + double(n.z) * p.z};
     }
     // A map and a count per receiver for each worker (at most 4096
@@ -1053,57 +1061,46 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
         glm::vec2 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
         float y_min = kOpenSky;
         for (; e < order.size() && tile_of(order[e]) == tile_of(order[a]); ++e) {
-          const glm::uvec4& rc = recv[order[e]];
-          const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
-          float y;
-          std::memcpy(&y, &rc.y, sizeof y);
-          lo = glm::min(lo, p);
-          hi = glm::max(hi, p);
-          y_min = std::min(y_min, y);
+          const glm::vec3 p = receiver_point(grid, recv[order[e]]);
+          lo = glm::min(lo, glm::vec2(p.x, p.z));
+          hi = glm::max(hi, glm::vec2(p.x, p.z));
+          y_min = std::min(y_min, p.y);
         }
         leaves.clear();
         candidate_leaves(im.bvh, lo, hi, Cone(lo, y_min, reference::own_surface(0.0f), cot_max),
                          leaves);
         for (; a < e; ++a) {
-          const glm::uvec4& rc = recv[order[a]];
-          float y;
-          std::memcpy(&y, &rc.y, sizeof y);
-          const glm::vec2 p = grid.center(int(rc.x & 0xffffu), int(rc.x >> 16));
-          const Cone cone(p, y, reference::own_surface(y), cot_max);
+          const glm::vec3 p = receiver_point(grid, recv[order[a]]);
+          const Cone cone(glm::vec2(p.x, p.z), p.y, reference::own_surface(p.y), cot_max);
           open[order[a]] =
               leaves_open(im.bvh, leaves, cone) && (!snow_bound || snow_bound->open(cone));
         }
       }
     });
-    // The method, from the receivers left and their box's texels (about a
-    // shadow map's).
-    glm::ivec4 box(grid.width, grid.height, -1, -1);
-    for (size_t r = 0; r < recv.size(); ++r) {
-      if (open[r]) continue;
-      ++work.receivers;
-      const int i = int(recv[r].x & 0xffffu), j = int(recv[r].x >> 16);
-      box = glm::ivec4(std::min(box.x, i), std::min(box.y, j), std::max(box.z, i),
-                       std::max(box.w, j));
-    }
-    work.shadow_texels =
-        double(std::max(box.z - box.x + 1, 0)) * double(std::max(box.w - box.y + 1, 0));
-    method = choose_coverage_method(settings, work);
-    size_t kept = 0;
+    // The receivers left: their count, heights and texel box (about a
+    // shadow map's), from which the method is chosen.
     y_lo = kOpenSky;
     y_hi = -kOpenSky;
     texel_box = glm::ivec4(grid.width, grid.height, -1, -1);
+    for (size_t r = 0; r < recv.size(); ++r) {
+      if (open[r]) continue;
+      ++work.receivers;
+      const float y = receiver_height(recv[r]);
+      y_lo = std::min(y_lo, y);
+      y_hi = std::max(y_hi, y);
+      const glm::ivec2 t = receiver_texel(recv[r]);
+      texel_box = glm::ivec4(glm::min(glm::ivec2(texel_box), t),
+                             glm::max(glm::ivec2(texel_box.z, texel_box.w), t));
+    }
+    work.shadow_texels = double(std::max(texel_box.z - texel_box.x + 1, 0)) *
+                         double(std::max(texel_box.w - texel_box.y + 1, 0));
+    method = choose_coverage_method(settings, work);
+    size_t kept = 0;
     for (size_t r = 0; r < recv.size(); ++r) {
       if (open[r]) {
         coverage[recv_index[r]] = 1.0f;
         continue;
       }
-      float y;
-      std::memcpy(&y, &recv[r].y, sizeof y);
-      y_lo = std::min(y_lo, y);
-      y_hi = std::max(y_hi, y);
-      const int i = int(recv[r].x & 0xffffu), j = int(recv[r].x >> 16);
-      texel_box = glm::ivec4(std::min(texel_box.x, i), std::min(texel_box.y, j),
-                             std::max(texel_box.z, i), std::max(texel_box.w, j));
       recv[kept] = recv[r];
       recv_index[kept] = recv_index[r];
       ++kept;
