@@ -45,7 +45,8 @@ void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
 /// chunks, as Stabilizer::run, for progress reports; on the GPU, or on the
 /// CPU as stabilize.device says). Objects
 /// with receives[object] == 0 get no fresh snow (snow sliding onto them
-/// still rests there). Reports progress. Needs a current GL context. Throws
+/// still rests there). Reports progress. Needs a current GL context, or a
+/// gl::OnDemandContext that the passes make when they use GL. Throws
 /// InputError for bad settings, GLError for GL trouble.
 SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSettings& coverage,
                       const StabilizeSettings& stabilize, const AccumulateSettings& settings,

@@ -128,9 +128,10 @@ std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& settings);
 
 /// Shadow-map renderer kept between calls (the live preview recomputes
 /// coverage every few frames while snow accumulates): owns the uploaded
-/// scene, the shadow-map array, the programs and the receiver buffers. Needs
-/// the GL context that was current at construction to be current in every
-/// call, including destruction.
+/// scene, the shadow-map array, the programs and the receiver buffers. Once
+/// a compute has used GL (made through gl::require_context where a
+/// gl::OnDemandContext is installed), that context must be current in every
+/// later call, including destruction; the CPU methods use none.
 class CoverageRenderer {
  public:
   /// Builds the scene's BVH (CPU, O(n log n)) and welds its vertices. The
@@ -200,7 +201,8 @@ class CoverageRenderer {
 };
 
 /// One-off coverage: CoverageRenderer(scene).compute(maps, settings,
-/// snow_depth). Needs a current GL context.
+/// snow_depth). Needs a current GL context, or a gl::OnDemandContext, unless
+/// a CPU method runs.
 std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
                                     const CoverageSettings& settings,
                                     const std::vector<float>* snow_depth = nullptr);

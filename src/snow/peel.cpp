@@ -220,7 +220,7 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
   const size_t layer_texels = grid.texels() * size_t(settings.layers);
   if (settings.device == "cpu" ||
       (settings.device == "auto" && layer_texels <= kCpuPeelLayerTexels &&
-       box_texels(scene, grid, kCpuPeelHits) <= kCpuPeelHits && gl::renderer_is_software())) {
+       gl::renderer_is_software() && box_texels(scene, grid, kCpuPeelHits) <= kCpuPeelHits)) {
     log_debug("peel: a vertical ray per texel on the CPU");
     Progress progress("peel", 1);
     SnowMaps maps = reference::peel_layers(scene, grid, settings.layers, settings.merge_distance);

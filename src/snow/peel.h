@@ -72,7 +72,8 @@ void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings
 /// Depth peeling, by the GPU's passes or, where settings.device picks the
 /// CPU, snow::reference::peel_layers (the same maps up to ties on triangle
 /// edges, which the GPU resolves by its fill rule). Needs a current GL
-/// context (snow::gl::create_context) unless the device is "cpu".
+/// context (snow::gl::create_context), or a gl::OnDemandContext that the
+/// GPU's passes make, unless the device is "cpu".
 /// Makes the grid with make_grid, checks the memory budget (with default
 /// CoverageSettings) before allocating anything, then renders L+1 passes of
 /// the scene from straight above: pass l keeps, per texel, the highest

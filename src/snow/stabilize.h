@@ -233,7 +233,7 @@ double snow_volume(const SnowMaps& maps, const std::vector<float>& depth);
 
 /// Where settings.device puts the passes: true for the CPU ("cpu", or "auto"
 /// where the current GL renderer is software), false for the GPU. Needs a
-/// current GL context when the device is "auto".
+/// current GL context, or a gl::OnDemandContext, when the device is "auto".
 bool stabilizes_on_cpu(const StabilizeSettings& settings);
 
 /// Stabilizes `depth` (metres per layer texel, maps' layout; NaN, negative
