@@ -121,12 +121,9 @@ void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth) {
 /// thread, nor where GL is known to render in software (`software`): there
 /// small scenes need no GL at all, and the other thread would take a core
 /// from their CPU passes.
-std::future<void> warm_up_gl(const GlobalOptions& global, std::optional<bool> software) {
-  const char* env = std::getenv("SNOWMODEL_GL_BACKEND");
-  if (global.gl_backend == "glfw" ||
-      (global.gl_backend == "auto" && env && std::string(env) == "glfw") || software == true) {
-    return {};
-  }
+std::future<void> warm_up_gl(const GlobalOptions& global, gl::Backend backend,
+                             std::optional<bool> software) {
+  if (backend == gl::Backend::Glfw || software == true) return {};
   return std::async(std::launch::async, [&global] {
     const QuietThread quiet;
     try {
@@ -346,12 +343,12 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   // small scenes then run on the CPU alone and never load the driver. A
   // backend named by --gl-backend or SNOWMODEL_GL_BACKEND is always started
   // (and a missing one reported).
-  const char* env_backend = std::getenv("SNOWMODEL_GL_BACKEND");
+  gl::ContextOptions context_options;
+  context_options.backend = gl::parse_backend(global.gl_backend);
+  const gl::Backend backend = gl::requested_backend(context_options);
   const std::optional<bool> software =
-      gl::parse_backend(global.gl_backend) == gl::Backend::Auto && !(env_backend && *env_backend)
-          ? gl::probe_software()
-          : std::nullopt;
-  std::future<void> warm_gl = warm_up_gl(global, software);
+      backend == gl::Backend::Auto ? gl::probe_software(context_options) : std::nullopt;
+  std::future<void> warm_gl = warm_up_gl(global, backend, software);
   // Textures only show in the preview (ToyCar's: 0.03 s to decode).
   s.load.load_images = !o.preview.empty();
   Scene scene;

@@ -56,17 +56,6 @@ void GLAD_API_PTR debug_callback(GLenum source, GLenum type, GLuint id, GLenum s
   }
 }
 
-// options.backend, or for Auto the one SNOWMODEL_GL_BACKEND names (if set).
-Backend requested_backend(const ContextOptions& options) {
-  const char* env = std::getenv("SNOWMODEL_GL_BACKEND");
-  if (options.backend != Backend::Auto || !env || !*env) return options.backend;
-  try {
-    return parse_backend(env);
-  } catch (const InputError& e) {
-    throw InputError(std::string("SNOWMODEL_GL_BACKEND: ") + e.what());
-  }
-}
-
 const char* gl_string(GLenum name) {
   const GLubyte* s = glGetString(name);
   return s ? reinterpret_cast<const char*>(s) : "?";
@@ -125,6 +114,16 @@ void OnDemandContext::make() {
 
 void require_context() {
   if (t_on_demand) t_on_demand->make();
+}
+
+Backend requested_backend(const ContextOptions& options) {
+  const char* env = std::getenv("SNOWMODEL_GL_BACKEND");
+  if (options.backend != Backend::Auto || !env || !*env) return options.backend;
+  try {
+    return parse_backend(env);
+  } catch (const InputError& e) {
+    throw InputError(std::string("SNOWMODEL_GL_BACKEND: ") + e.what());
+  }
 }
 
 std::optional<bool> probe_software(const ContextOptions& options) {

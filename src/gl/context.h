@@ -61,6 +61,10 @@ bool renderer_is_software();
 /// GLError whose message lists each backend tried and why it failed.
 std::unique_ptr<Context> create_context(const ContextOptions& options = {});
 
+/// The backend create_context(options) tries: options.backend, or for Auto
+/// the one SNOWMODEL_GL_BACKEND names (if set; InputError for a bad name).
+Backend requested_backend(const ContextOptions& options);
+
 /// Whether create_context(options) would give a software renderer, found
 /// without creating a context: OSMesa always; Auto (and SNOWMODEL_GL_BACKEND),
 /// egl-device and egl-surfaceless when EGL lists devices and none is
