@@ -37,6 +37,12 @@ const ivec2 kDir[8] = ivec2[8](ivec2(1, 0), ivec2(-1, 0), ivec2(0, 1), ivec2(0, 
 
 float dir_distance(int n) { return n < 4 ? u_distance.x : u_distance.y; }
 
+// a / b rounded as the CPU's IEEE division. GLSL may divide through an
+// approximate reciprocal (NVIDIA's does: a unit in the last place off); the
+// quotient of two floats in double precision, rounded to float, is the
+// correctly rounded one.
+float divide(float a, float b) { return float(double(a) / double(b)); }
+
 bool in_map(ivec2 c) { return all(greaterThanEqual(c, ivec2(0))) && all(lessThan(c, u_size)); }
 
 // The snow surface as far as it is free to move: ground + depth, kept

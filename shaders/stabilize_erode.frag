@@ -35,7 +35,8 @@ void main() {
       if (land_l == kLandVoid) {
         hs = cell.x;
       } else if (land_l >= 0) {
-        hs = min(hs, land_top + dir_distance(n) * cell.z);
+        precise float reach = land_top + dir_distance(n) * cell.z;  // not fused, as the CPU
+        hs = min(hs, reach);
       }
     }
     hs = max(hs, cell.x);

@@ -38,7 +38,8 @@ bool single_step_moves(ivec2 c, vec4 cell, float s, float he, float over) {
     float top;
     int land_l = landing(c + kDir[n], he, cell.x, false, mc, top);
     if (land_l == kLandVoid) return true;
-    if (land_l >= 0) wmax1 = max(wmax1, he - top - dir_distance(n) * (0.0 + cell.z));
+    precise float e = he - top - dir_distance(n) * (0.0 + cell.z);  // not fused, as the CPU
+    if (land_l >= 0) wmax1 = max(wmax1, e);
   }
   return wmax1 > 0.0 && min(s, max(0.5 * wmax1, over)) >= u_min_move;
 }
@@ -54,7 +55,7 @@ void main() {
   vec4 cell = texelFetch(u_cells, ivec3(c, u_layer), 0);
   float s = texelFetch(u_depth, ivec3(c, u_layer), 0).r;
   float he = free_top(cell, s);  // snow above the ceiling is pressed out
-  float over = (cell.x + s) - he;
+  precise float over = (cell.x + s) - he;
   // A strided pass moves only snow that a single step moves: snow at rest
   // for single steps stays (the active tiles rely on it).
   if ((int(cell.w) & kCellSurface) != 0 && s > 0.0 &&
@@ -91,7 +92,7 @@ void main() {
         ++voids;
       } else if (land_l >= 0) {
         code[n] = uint(land_l);
-        float e = he - top - dir_distance(n) * path_tan;
+        precise float e = he - top - dir_distance(n) * path_tan;  // not fused, as the CPU
         w[n] = max(e, 0.0);
         wsum += w[n];
         wmax = max(wmax, w[n]);
@@ -99,7 +100,7 @@ void main() {
     }
     if (voids > 0) {
       // An edge of the world: everything falls off, shared by the void directions.
-      float share = s / float(voids);
+      float share = divide(s, float(voids));
       float left = s;
       int seen = 0;
       for (int n = 0; n < 8; ++n) {
@@ -111,12 +112,12 @@ void main() {
     } else if (wmax > 0.0) {
       float total = min(s, max(0.5 * wmax, over));  // half the largest excess, split by excess
       if (total < u_min_move) total = 0.0;
-      for (int n = 0; n < 8; ++n) amount[n] = total * (w[n] / wsum);
+      for (int n = 0; n < 8; ++n) amount[n] = total * divide(w[n], wsum);
     } else if (over > 0.0 && u_stride == 1) {
       // Snow deeper than its gap with nowhere downhill to go is squeezed out
       // sideways into the neighbouring columns' gaps at that height.
-      float p[8];
-      float psum = 0.0;
+      precise float p[8];  // no fused or reassociated arithmetic, as the CPU
+      precise float psum = 0.0;
       for (int n = 0; n < 8; ++n) {
         p[n] = 0.0;
         code[n] = kCodeNone;
@@ -128,14 +129,14 @@ void main() {
         } else if (gap >= 0) {
           code[n] = uint(gap);
           vec4 tc = texelFetch(u_cells, ivec3(nc, gap), 0);
-          float room =
+          precise float room =
               (tc.y - kCeilingClearance) - (tc.x + texelFetch(u_depth, ivec3(nc, gap), 0).r);
           p[n] = min(max(0.5 * (over + room), 0.0), over);
         }
         psum += p[n];
       }
       if (psum > 0.0) {
-        float scale = min(1.0, over / psum);
+        float scale = min(1.0, divide(over, psum));
         for (int n = 0; n < 8; ++n) amount[n] = p[n] * scale;
       }
     }

@@ -35,7 +35,7 @@ void main() {
       }
       if (land_l < 0) continue;
       float hn = texelFetch(u_stable, ivec3(nc, land_l), 0).r;
-      float via = hn + dir_distance(n) * cell.z;
+      precise float via = hn + dir_distance(n) * cell.z;  // no fused multiply-add: as the CPU
       if (hn < hs && (p == self_index || via < best)) {
         best = via;
         p = texel_index(nc, land_l);
