@@ -2,6 +2,7 @@
 // peeling against the CPU reference (src/snow/reference/peel_ref.h).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -10,6 +11,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "gl/context.h"
+#include "gl/gl.h"
 #include "scene/builder.h"
 #include "snow/gpu_scene.h"
 #include "snow/peel.h"
@@ -300,7 +302,14 @@ TEST(Peel, GpuMatchesReferenceOnCannedScenes) {
     EXPECT_GT(a.compared, 1000u);
     // Ties on triangle edges may differ (fill rule); nothing else may.
     EXPECT_LE(double(a.mismatched), 0.005 * double(a.compared)) << a.mismatched;
-    EXPECT_LT(a.max_height_error, 1e-4f);
+    // llvmpipe interpolates the height at the texel centre from the exact
+    // vertices. A GPU snaps the vertices to its sub-pixel grid first, which
+    // tilts a 45-degree roof by up to a sub-pixel in height (NVIDIA H200:
+    // 2.0e-4 m on the house at 96 texels).
+    GLint subpixel_bits = 4;
+    glGetIntegerv(GL_SUBPIXEL_BITS, &subpixel_bits);
+    const float snapping = gpu.grid.texel / float(1 << std::clamp(subpixel_bits, 4, 16));
+    EXPECT_LT(a.max_height_error, gl::renderer_is_software() ? 1e-4f : 1e-4f + 2.0f * snapping);
     EXPECT_EQ(gpu.overflow_columns, cpu.overflow_columns);
   }
 }
