@@ -123,7 +123,7 @@ void run_on_new_threads(Loop& loop, unsigned helpers) {
 
 }  // namespace
 
-unsigned default_threads() { return std::clamp(std::thread::hardware_concurrency(), 1u, 8u); }
+unsigned default_threads() { return std::clamp(std::thread::hardware_concurrency(), 1u, 32u); }
 
 void parallel_for(size_t count, const std::function<void(size_t)>& fn, unsigned threads) {
   if (threads == 0) threads = default_threads();

@@ -6,7 +6,7 @@
 
 namespace snow {
 
-/// Worker threads parallel_for uses by default: one per hardware thread, 1..8.
+/// Worker threads parallel_for uses by default: one per hardware thread, 1..32.
 unsigned default_threads();
 
 /// Calls fn(i) once for every i in [0, count), on up to `threads` threads

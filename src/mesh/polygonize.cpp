@@ -408,6 +408,9 @@ struct PatchField {
   size_t at(int wi, int wj) const { return size_t(wj) * size_t(w) + size_t(wi); }
 };
 
+// Texels per task of build_field's parallel loops.
+constexpr size_t kFieldChunk = 1 << 14;
+
 PatchField build_field(const SnowMaps& maps, const std::vector<float>& depth,
                        const PatchTexels& patch) {
   PatchField f;
@@ -431,18 +434,29 @@ PatchField build_field(const SnowMaps& maps, const std::vector<float>& depth,
   f.g.assign(count, kNoSurface);
   f.gx.assign(count, 0.0f);
   f.gz.assign(count, 0.0f);
-  for (size_t k : patch.texels) {
+  // Each step below writes each sample once and reads only what the steps
+  // before wrote, so it runs on all cores in chunks with the serial result.
+  const size_t texels = patch.texels.size();
+  const size_t chunks = (texels + kFieldChunk - 1) / kFieldChunk;
+  auto each_texel = [&](const std::function<void(size_t)>& fn) {
+    parallel_for(chunks, [&](size_t q) {
+      for (size_t t = q * kFieldChunk; t < std::min(texels, (q + 1) * kFieldChunk); ++t) {
+        fn(patch.texels[t]);
+      }
+    });
+  };
+  each_texel([&](size_t k) {
     const TexelCoord c = coord_of(maps, k);
     const size_t a = f.at(c.i - f.i0, c.j - f.j0);
     f.member[a] = 1;
     f.s[a] = depth[k];
     f.g[a] = maps.ground[k];
-  }
+  });
   // Ground slope of members: from the surface normal where it is not too
   // steep, else from differences with member neighbours.
   const float texel = maps.grid.texel;
   const float kMaxSlope = 4.0f;
-  for (size_t k : patch.texels) {
+  each_texel([&](size_t k) {
     const TexelCoord c = coord_of(maps, k);
     const int wi = c.i - f.i0, wj = c.j - f.j0;
     const size_t a = f.at(wi, wj);
@@ -466,10 +480,11 @@ PatchField build_field(const SnowMaps& maps, const std::vector<float>& depth,
     }
     f.gx[a] = std::clamp(sx, -kMaxSlope, kMaxSlope);
     f.gz[a] = std::clamp(sz, -kMaxSlope, kMaxSlope);
-  }
+  });
   // Ground of non-member samples next to members: the members' ground planes
   // extrapolated to the sample, averaged.
-  for (int wj = 0; wj < f.h; ++wj) {
+  parallel_for(size_t(f.h), [&](size_t row) {
+    const int wj = int(row);
     for (int wi = 0; wi < f.w; ++wi) {
       const size_t a = f.at(wi, wj);
       if (f.member[a]) continue;
@@ -487,33 +502,51 @@ PatchField build_field(const SnowMaps& maps, const std::vector<float>& depth,
       }
       if (n > 0) f.g[a] = float(sum / n);
     }
-  }
+  });
   return f;
 }
 
 /// Mass-conserving smoothing of the snow surface g + s: explicit diffusion
 /// between 4-neighbour members, each flux limited so no member falls under
 /// min_thickness.
+///
+/// Each sample gathers its four fluxes, on all cores, in the order a serial
+/// sweep over the rows would add them: from the member above, from the one
+/// to the left, then its own to the right and down.
 void smooth_field(PatchField& f, int iterations, float min_thickness) {
   const float kRate = 0.125f;
-  std::vector<float> delta(f.s.size());
+  // The flux from member a to member b.
+  auto flux = [&](size_t a, size_t b) {
+    const float flow = kRate * ((f.g[a] + f.s[a]) - (f.g[b] + f.s[b]));  // a -> b
+    return std::clamp(flow, -0.25f * std::max(f.s[b] - min_thickness, 0.0f),
+                      0.25f * std::max(f.s[a] - min_thickness, 0.0f));
+  };
+  std::vector<float> next(f.s.size());
   for (int it = 0; it < iterations; ++it) {
-    std::fill(delta.begin(), delta.end(), 0.0f);
-    for (int wj = 0; wj < f.h - 1; ++wj) {
-      for (int wi = 0; wi < f.w - 1; ++wi) {
+    parallel_for(size_t(f.h), [&](size_t row) {
+      const int wj = int(row);
+      for (int wi = 0; wi < f.w; ++wi) {
         const size_t a = f.at(wi, wj);
-        if (!f.member[a]) continue;
-        for (const size_t b : {f.at(wi + 1, wj), f.at(wi, wj + 1)}) {
-          if (!f.member[b]) continue;
-          float flux = kRate * ((f.g[a] + f.s[a]) - (f.g[b] + f.s[b]));  // a -> b
-          flux = std::clamp(flux, -0.25f * std::max(f.s[b] - min_thickness, 0.0f),
-                            0.25f * std::max(f.s[a] - min_thickness, 0.0f));
-          delta[a] -= flux;
-          delta[b] += flux;
+        float delta = 0.0f;
+        // The pairs a serial sweep visits: a sample with a right and a lower
+        // neighbour in the window sends to both, if both are members.
+        auto sends = [&](int i, int j) { return i < f.w - 1 && j < f.h - 1; };
+        if (f.member[a]) {
+          if (wj > 0 && sends(wi, wj - 1) && f.member[f.at(wi, wj - 1)]) {
+            delta += flux(f.at(wi, wj - 1), a);
+          }
+          if (wi > 0 && sends(wi - 1, wj) && f.member[f.at(wi - 1, wj)]) {
+            delta += flux(f.at(wi - 1, wj), a);
+          }
+          if (sends(wi, wj)) {
+            if (f.member[f.at(wi + 1, wj)]) delta -= flux(a, f.at(wi + 1, wj));
+            if (f.member[f.at(wi, wj + 1)]) delta -= flux(a, f.at(wi, wj + 1));
+          }
         }
+        next[a] = f.s[a] + delta;
       }
-    }
-    for (size_t a = 0; a < f.s.size(); ++a) f.s[a] += delta[a];
+    });
+    f.s.swap(next);
   }
 }
 

@@ -42,7 +42,11 @@ struct PolygonizeSettings {
   /// decimation is decimated in pieces of about this many, side by side
   /// along x, on all cores; the seams between pieces keep their full-grid
   /// vertices. 0: never split. Same patch, same pieces on any machine.
-  size_t piece_triangles = 100000;
+  /// 25k: the 1M-triangle terrain's ground at 2048 texels (182k triangles)
+  /// goes in 8 pieces, enough for a many-core machine; decimating pieces of
+  /// 25k rather than 100k also halved the time on 2 cores, for 1.9 % more
+  /// triangles out (10k: 5 %, little faster).
+  size_t piece_triangles = 25000;
 };
 
 /// One connected snow patch as a mesh.
