@@ -6,13 +6,16 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <memory>
+#include <random>
 #include <string>
 
 #include "core/error.h"
 #include "gl/context.h"
 #include "scene/builder.h"
 #include "scene/load_gltf.h"
+#include "snow/bvh.h"
 #include "snow/coverage.h"
 #include "snow/peel.h"
 #include "snow/reference/coverage_ref.h"
@@ -628,6 +631,77 @@ TEST(Coverage, RejectsMismatchedSnowDepth) {
   CoverageSettings bad;
   bad.batch = 33;
   EXPECT_THROW(compute_coverage(scene, maps, bad), InputError);
+}
+
+// Moller-Trumbore in double precision: does the ray from `o` along `d` hit
+// triangle (a, b, c) for some t > 0?
+bool ray_hits(glm::dvec3 o, glm::dvec3 d, glm::dvec3 a, glm::dvec3 b, glm::dvec3 c) {
+  const glm::dvec3 e1 = b - a, e2 = c - a, p = glm::cross(d, e2);
+  const double det = glm::dot(e1, p);
+  if (det == 0.0) return false;
+  const glm::dvec3 s = o - a, q = glm::cross(s, e1);
+  const double u = glm::dot(s, p) / det, v = glm::dot(d, q) / det;
+  return u >= 0.0 && v >= 0.0 && u + v <= 1.0 && glm::dot(e2, q) / det > 0.0;
+}
+
+// A BVH large enough to be built on several threads (its top splits build
+// their halves beside each other, spliced into one pre-order array): the
+// spliced skip links and boxes hold for every node, the leaves cover every
+// triangle once in order, and rays find what a walk over all triangles finds.
+TEST(Bvh, ParallelBuildIsOneValidTree) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> where(-50.0f, 50.0f), size(-0.3f, 0.3f);
+  const size_t n = 300000;  // two halves built apart
+  std::vector<glm::vec3> corners;
+  corners.reserve(3 * n);
+  for (size_t t = 0; t < n; ++t) {
+    const glm::vec3 c(where(rng), 0.2f * where(rng), where(rng));
+    for (int k = 0; k < 3; ++k) corners.push_back(c + glm::vec3(size(rng), size(rng), size(rng)));
+  }
+  const Bvh bvh(corners);
+  const std::vector<Bvh::Node>& nodes = bvh.nodes();
+  ASSERT_FALSE(nodes.empty());
+  uint32_t next_triangle = 0;
+  size_t bad = 0;
+  // Checks the subtree at node i inside box (lo, hi); returns the node after it.
+  std::function<uint32_t(uint32_t, glm::vec3, glm::vec3)> walk = [&](uint32_t i, glm::vec3 lo,
+                                                                     glm::vec3 hi) -> uint32_t {
+    const Bvh::Node& node = nodes.at(i);
+    bad += glm::any(glm::lessThan(node.min, lo)) || glm::any(glm::greaterThan(node.max, hi));
+    if (node.count > 0) {
+      bad += node.first != next_triangle;
+      for (uint32_t t = node.first; t < node.first + node.count; ++t) {
+        for (int k = 0; k < 3; ++k) {
+          const glm::vec3 p = bvh.corners()[3 * size_t(t) + size_t(k)];
+          bad += glm::any(glm::lessThan(p, node.min)) || glm::any(glm::greaterThan(p, node.max));
+        }
+      }
+      next_triangle = node.first + node.count;
+      return i + 1;
+    }
+    const uint32_t right = walk(i + 1, node.min, node.max);
+    const uint32_t end = walk(right, node.min, node.max);
+    bad += node.first != end;  // the skip link
+    return end;
+  };
+  const float inf = std::numeric_limits<float>::infinity();
+  EXPECT_EQ(walk(0, glm::vec3(-inf), glm::vec3(inf)), nodes.size());
+  EXPECT_EQ(next_triangle, n);
+  ASSERT_EQ(bad, 0u);  // (a bad skip link can send the walk below in circles)
+  // Vertical rays through random points, against every triangle.
+  size_t hits = 0, differ = 0;
+  for (int r = 0; r < 100; ++r) {
+    const glm::vec3 origin(where(rng), 20.0f, where(rng));
+    const glm::vec3 down(0.01f * size(rng), -1.0f, 0.01f * size(rng));
+    bool any = false;
+    for (size_t t = 0; t < n && !any; ++t) {
+      any = ray_hits(origin, down, corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]);
+    }
+    hits += any;
+    differ += any != bvh.occluded(origin, down, 0.0f, 1e9f);
+  }
+  EXPECT_GT(hits, 5u);
+  EXPECT_EQ(differ, 0u);
 }
 
 }  // namespace

@@ -42,7 +42,12 @@ class Bvh {
   const std::vector<uint32_t>& order() const { return order_; }
 
  private:
-  uint32_t build(uint32_t first, uint32_t count, std::vector<glm::vec3>& centroids);
+  // Builds the subtree over order_[first, first + count) into `out`, pre-order
+  // from out.size(); its skip links index `out`. The two halves of the top
+  // `parallel_levels` splits are built on two threads each, into vectors of
+  // their own, and spliced in: the same nodes as a serial build.
+  void build(uint32_t first, uint32_t count, const std::vector<glm::vec3>& centroids,
+             std::vector<Node>& out, int parallel_levels);
 
   std::vector<glm::vec3> corners_;
   std::vector<uint32_t> order_;

@@ -606,8 +606,8 @@ namespace {
 // and indices).
 struct GpuSide {
   // One buffer of triangles in BVH leaf order, ray cast by the exact pass
-  // (storage buffer); the shadow passes draw the welded vertices through an
-  // index buffer in the same order.
+  // (storage buffer); the shadow passes draw `vertices` (welded, or those
+  // corners) through an index buffer in the same order.
   GpuSide(const Bvh& bvh, const std::vector<glm::vec3>& vertices,
           const std::vector<uint32_t>& indices)
       : shadow({"shadow.vert", "depth_only.frag"}),
@@ -656,7 +656,7 @@ struct GpuSide {
   gl::VertexArray empty_vao;
   gl::Buffer triangle_buffer;  // float[9] per triangle, BVH leaf order (exact pass)
   gl::Buffer node_buffer;      // Bvh::Node per node
-  gl::Buffer vertex_buffer;    // welded vertices (shadow passes)
+  gl::Buffer vertex_buffer;    // the shadow passes' vertices
   gl::Buffer index_buffer;     // 3 per triangle, BVH leaf order
   size_t triangles = 0;
   size_t nodes = 0;
@@ -710,31 +710,27 @@ struct CoverageRenderer::Impl {
       throw InputError("scene has " + std::to_string(scene.triangle_count()) +
                        " triangles, more than one draw call can take");
     }
-    // The shadow passes draw welded vertices through an index buffer: the
-    // vertex shader then runs once per vertex instead of once per corner.
-    // The weld runs beside the BVH build (1M triangles: 0.6 s each).
-    std::vector<uint32_t> corner_vertex;  // per corner of the scene's soup
-    parallel_for(2, [&](size_t task) {
-      if (task == 0) {
-        bvh = Bvh(scene.positions);
-      } else {
-        weld_vertices(scene.positions, vertices, corner_vertex);
-      }
-    });
+    bvh = Bvh(scene.positions);
     triangles = bvh.triangle_count();
-    indices.resize(3 * triangles);
-    for (size_t t = 0; t < triangles; ++t) {
-      for (size_t e = 0; e < 3; ++e)
-        indices[3 * t + e] = corner_vertex[3 * size_t(bvh.order()[t]) + e];
-    }
   }
 
-  // The GL side, made (and the welded scene handed to it) on first use.
+  // The GL side, made on first use. The shadow passes draw the triangles in
+  // leaf order through an index buffer. llvmpipe runs the vertex shader once
+  // per index, so in software the corners are welded first (a third of the
+  // shader runs); a GPU shades the 3 corners of each triangle faster than
+  // the CPU welds them (1M triangles: 0.6 s on one core).
   GpuSide& gpu() {
     if (!gpu_side) {
-      gpu_side = std::make_unique<GpuSide>(bvh, vertices, indices);
-      vertices = {};
-      indices = {};
+      std::vector<glm::vec3> welded;
+      std::vector<uint32_t> indices;
+      const bool weld = gl::renderer_is_software();
+      if (weld) {
+        weld_vertices(bvh.corners(), welded, indices);
+      } else {
+        indices.resize(bvh.corners().size());
+        std::iota(indices.begin(), indices.end(), 0u);
+      }
+      gpu_side = std::make_unique<GpuSide>(bvh, weld ? welded : bvh.corners(), indices);
     }
     return *gpu_side;
   }
@@ -742,8 +738,6 @@ struct CoverageRenderer::Impl {
   Bounds bounds;
   Bvh bvh;  // the scene's triangles in leaf order, for the exact pass, CPU rays and sky culling
   size_t triangles = 0;
-  std::vector<glm::vec3> vertices;  // welded, until the GL side takes them
-  std::vector<uint32_t> indices;    // 3 per triangle, BVH leaf order, likewise
   std::unique_ptr<GpuSide> gpu_side;
   Timings timings;
   glm::ivec2 shadow_size{0};  // of the last compute's shadow maps (0 without)
