@@ -378,10 +378,13 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     glTextureSubImage3D(cells.id(), 0, 0, 0, 0, width, height, layers, GL_RGBA, GL_FLOAT,
                         cell_data.data());
     if (s.route_steep && s.deposit_piles) {
+      // Rows on all cores (4M columns of 3 layers: 0.19 s on one core).
       pour_cells = ZeroedArray<glm::vec4>(cell_data.size());
-      for (size_t k = 0; k < cell_data.size(); ++k) {
-        if (surface[k]) pour_cells[k] = cell_data[k];
-      }
+      parallel_for(size_t(layers) * size_t(height), [&](size_t row) {
+        for (size_t k = row * size_t(width); k < (row + 1) * size_t(width); ++k) {
+          if (surface[k]) pour_cells[k] = cell_data[k];
+        }
+      });
     }
   }
   for (int x = 0; x < 2; ++x) {
