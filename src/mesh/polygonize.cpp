@@ -521,6 +521,9 @@ void smooth_field(PatchField& f, int iterations, float min_thickness) {
     return std::clamp(flow, -0.25f * std::max(f.s[b] - min_thickness, 0.0f),
                       0.25f * std::max(f.s[a] - min_thickness, 0.0f));
   };
+  // The pairs a serial sweep visits: a sample with a right and a lower
+  // neighbour in the window sends to both, if both are members.
+  auto sends = [&](int i, int j) { return i < f.w - 1 && j < f.h - 1; };
   std::vector<float> next(f.s.size());
   for (int it = 0; it < iterations; ++it) {
     parallel_for(size_t(f.h), [&](size_t row) {
@@ -528,9 +531,6 @@ void smooth_field(PatchField& f, int iterations, float min_thickness) {
       for (int wi = 0; wi < f.w; ++wi) {
         const size_t a = f.at(wi, wj);
         float delta = 0.0f;
-        // The pairs a serial sweep visits: a sample with a right and a lower
-        // neighbour in the window sends to both, if both are members.
-        auto sends = [&](int i, int j) { return i < f.w - 1 && j < f.h - 1; };
         if (f.member[a]) {
           if (wj > 0 && sends(wi, wj - 1) && f.member[f.at(wi, wj - 1)]) {
             delta += flux(f.at(wi, wj - 1), a);
