@@ -525,14 +525,26 @@ TEST(Polygonize, SmallPatchesAreDroppedAndBadInputRejected) {
   }
   depth[maps.index(0, 2, 20)] = std::numeric_limits<float>::quiet_NaN();
   depth[maps.index(0, 3, 20)] = -1.0f;
+  depth[maps.index(0, 5, 9)] = 0.1f;  // and two more single texels
+  depth[maps.index(0, 9, 5)] = 0.1f;
   PolygonizeSettings settings;
   settings.min_patch_area = 0.1f;
+  // The small patches dropped are reported in one line, not one each.
+  const LogLevel level = log_level();
+  set_log_level(LogLevel::Debug);
+  testing::internal::CaptureStderr();
   const auto patches = polygonize(maps, depth, names_scene({"Floor"}), settings);
+  const std::string log = testing::internal::GetCapturedStderr();
+  set_log_level(level);
+  EXPECT_NE(log.find("dropped 3 snow patches under the smallest area kept, 0.1 m^2"),
+            std::string::npos)
+      << log;
+  EXPECT_EQ(log.find("dropped", log.find("dropped") + 1), std::string::npos) << log;
   ASSERT_EQ(patches.size(), 1u);
   EXPECT_EQ(patches[0].texels, 16u * 16u);
   settings.min_patch_area = 0.0f;
   const auto all = polygonize(maps, depth, names_scene({"Floor"}), settings);
-  ASSERT_EQ(all.size(), 2u);
+  ASSERT_EQ(all.size(), 4u);
   for (const auto& p : all) expect_closed(p);
 
   std::vector<float> short_depth(10, 0.1f);

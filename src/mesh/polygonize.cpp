@@ -22,6 +22,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <deque>
 #include <functional>
 #include <limits>
@@ -1129,11 +1130,13 @@ std::string unique_name(const std::string& base, std::set<std::string>& used) {
 }
 
 // Meshes one patch: its top surface, the closed solid, decimation; nullopt
-// when it is too small or degenerate. Named after its object in mesh.name,
-// made unique by the caller. Safe to run for several patches at once.
+// when it is degenerate, or too small (its plan area then in *small_area).
+// Named after its object in mesh.name, made unique by the caller. Safe to
+// run for several patches at once.
 std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const std::vector<float>& d,
                                     const Scene& scene, const PolygonizeSettings& settings,
-                                    float min_thickness, const PatchTexels& texels) {
+                                    float min_thickness, const PatchTexels& texels,
+                                    double* small_area) {
   const float texel = maps.grid.texel;
   SnowPatch patch;
   patch.texels = texels.texels.size();
@@ -1185,8 +1188,7 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const std::vector<floa
   smooth_outline(top, settings.smooth_iterations, texel);
   patch.area = top_plan_area(top);
   if (patch.area < double(settings.min_patch_area)) {
-    log_debug("polygonize: dropping a " + std::to_string(patch.area) + " m^2 snow patch on " +
-              base);
+    *small_area = patch.area;
     return std::nullopt;
   }
 
@@ -1262,15 +1264,33 @@ std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>
     return found[a].texels.size() > found[b].texels.size();
   });
   std::vector<std::optional<SnowPatch>> meshed(found.size());
+  std::vector<double> small_area(found.size(), -1.0);  // of each patch dropped as too small
   Progress progress("polygonize", double(found.size()));
   std::mutex progress_mutex;
   size_t done = 0;
   parallel_for(order.size(), [&](size_t q) {
     const size_t p = order[q];
-    meshed[p] = mesh_patch(maps, d, scene, settings, min_thickness, found[p]);
+    meshed[p] = mesh_patch(maps, d, scene, settings, min_thickness, found[p], &small_area[p]);
     std::lock_guard<std::mutex> lock(progress_mutex);
     progress.update(double(++done));
   });
+  // One line for all the small patches (a building's fringe can leave
+  // hundreds of single texels).
+  size_t small = 0;
+  double largest_small = 0.0;
+  for (const double area : small_area) {
+    if (area < 0.0) continue;
+    ++small;
+    largest_small = std::max(largest_small, area);
+  }
+  if (small > 0) {
+    char line[160];
+    std::snprintf(line, sizeof line,
+                  "polygonize: dropped %zu snow patches under the smallest area kept, %.3g m^2 "
+                  "(the largest %.3g m^2)",
+                  small, double(settings.min_patch_area), largest_small);
+    log_debug(line);
+  }
   std::vector<SnowPatch> out;
   std::set<std::string> used_names;
   for (std::optional<SnowPatch>& patch : meshed) {
