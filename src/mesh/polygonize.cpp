@@ -411,6 +411,11 @@ struct PatchField {
 
 // Texels per task of build_field's parallel loops.
 constexpr size_t kFieldChunk = 1 << 14;
+// Patches are meshed on all cores already: a loop inside one (build_field,
+// smooth_field) starts threads of its own, which pays only for large
+// patches (a building's hundreds of single-texel patches: 0.05 -> 0.08 s).
+constexpr size_t kParallelSamples = 1 << 16;
+unsigned threads_for(size_t samples) { return samples >= kParallelSamples ? 0u : 1u; }
 
 PatchField build_field(const SnowMaps& maps, const std::vector<float>& depth,
                        const PatchTexels& patch) {
@@ -439,12 +444,16 @@ PatchField build_field(const SnowMaps& maps, const std::vector<float>& depth,
   // before wrote, so it runs on all cores in chunks with the serial result.
   const size_t texels = patch.texels.size();
   const size_t chunks = (texels + kFieldChunk - 1) / kFieldChunk;
+  const unsigned threads = threads_for(count);
   auto each_texel = [&](const std::function<void(size_t)>& fn) {
-    parallel_for(chunks, [&](size_t q) {
-      for (size_t t = q * kFieldChunk; t < std::min(texels, (q + 1) * kFieldChunk); ++t) {
-        fn(patch.texels[t]);
-      }
-    });
+    parallel_for(
+        chunks,
+        [&](size_t q) {
+          for (size_t t = q * kFieldChunk; t < std::min(texels, (q + 1) * kFieldChunk); ++t) {
+            fn(patch.texels[t]);
+          }
+        },
+        threads);
   };
   each_texel([&](size_t k) {
     const TexelCoord c = coord_of(maps, k);
@@ -484,26 +493,29 @@ PatchField build_field(const SnowMaps& maps, const std::vector<float>& depth,
   });
   // Ground of non-member samples next to members: the members' ground planes
   // extrapolated to the sample, averaged.
-  parallel_for(size_t(f.h), [&](size_t row) {
-    const int wj = int(row);
-    for (int wi = 0; wi < f.w; ++wi) {
-      const size_t a = f.at(wi, wj);
-      if (f.member[a]) continue;
-      double sum = 0.0;
-      int n = 0;
-      for (int dj = -1; dj <= 1; ++dj) {
-        for (int di = -1; di <= 1; ++di) {
-          const int ni = wi + di, nj = wj + dj;
-          if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) continue;
-          const size_t b = f.at(ni, nj);
-          if (!f.member[b]) continue;
-          sum += f.g[b] - (f.gx[b] * float(di) + f.gz[b] * float(dj)) * texel;
-          ++n;
+  parallel_for(
+      size_t(f.h),
+      [&](size_t row) {
+        const int wj = int(row);
+        for (int wi = 0; wi < f.w; ++wi) {
+          const size_t a = f.at(wi, wj);
+          if (f.member[a]) continue;
+          double sum = 0.0;
+          int n = 0;
+          for (int dj = -1; dj <= 1; ++dj) {
+            for (int di = -1; di <= 1; ++di) {
+              const int ni = wi + di, nj = wj + dj;
+              if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) continue;
+              const size_t b = f.at(ni, nj);
+              if (!f.member[b]) continue;
+              sum += f.g[b] - (f.gx[b] * float(di) + f.gz[b] * float(dj)) * texel;
+              ++n;
+            }
+          }
+          if (n > 0) f.g[a] = float(sum / n);
         }
-      }
-      if (n > 0) f.g[a] = float(sum / n);
-    }
-  });
+      },
+      threads);
   return f;
 }
 
@@ -527,26 +539,29 @@ void smooth_field(PatchField& f, int iterations, float min_thickness) {
   auto sends = [&](int i, int j) { return i < f.w - 1 && j < f.h - 1; };
   std::vector<float> next(f.s.size());
   for (int it = 0; it < iterations; ++it) {
-    parallel_for(size_t(f.h), [&](size_t row) {
-      const int wj = int(row);
-      for (int wi = 0; wi < f.w; ++wi) {
-        const size_t a = f.at(wi, wj);
-        float delta = 0.0f;
-        if (f.member[a]) {
-          if (wj > 0 && sends(wi, wj - 1) && f.member[f.at(wi, wj - 1)]) {
-            delta += flux(f.at(wi, wj - 1), a);
+    parallel_for(
+        size_t(f.h),
+        [&](size_t row) {
+          const int wj = int(row);
+          for (int wi = 0; wi < f.w; ++wi) {
+            const size_t a = f.at(wi, wj);
+            float delta = 0.0f;
+            if (f.member[a]) {
+              if (wj > 0 && sends(wi, wj - 1) && f.member[f.at(wi, wj - 1)]) {
+                delta += flux(f.at(wi, wj - 1), a);
+              }
+              if (wi > 0 && sends(wi - 1, wj) && f.member[f.at(wi - 1, wj)]) {
+                delta += flux(f.at(wi - 1, wj), a);
+              }
+              if (sends(wi, wj)) {
+                if (f.member[f.at(wi + 1, wj)]) delta -= flux(a, f.at(wi + 1, wj));
+                if (f.member[f.at(wi, wj + 1)]) delta -= flux(a, f.at(wi, wj + 1));
+              }
+            }
+            next[a] = f.s[a] + delta;
           }
-          if (wi > 0 && sends(wi - 1, wj) && f.member[f.at(wi - 1, wj)]) {
-            delta += flux(f.at(wi - 1, wj), a);
-          }
-          if (sends(wi, wj)) {
-            if (f.member[f.at(wi + 1, wj)]) delta -= flux(a, f.at(wi + 1, wj));
-            if (f.member[f.at(wi, wj + 1)]) delta -= flux(a, f.at(wi, wj + 1));
-          }
-        }
-        next[a] = f.s[a] + delta;
-      }
-    });
+        },
+        threads_for(f.s.size()));
     f.s.swap(next);
   }
 }
