@@ -417,6 +417,19 @@ constexpr size_t kFieldChunk = 1 << 14;
 constexpr size_t kParallelSamples = 1 << 16;
 unsigned threads_for(size_t samples) { return samples >= kParallelSamples ? 0u : 1u; }
 
+// Calls fn(wi, wj, sample) for every window sample of f, rows on `threads`
+// threads (parallel_for's count).
+void each_sample(const PatchField& f, unsigned threads,
+                 const std::function<void(int, int, size_t)>& fn) {
+  parallel_for(
+      size_t(f.h),
+      [&](size_t row) {
+        const int wj = int(row);
+        for (int wi = 0; wi < f.w; ++wi) fn(wi, wj, f.at(wi, wj));
+      },
+      threads);
+}
+
 PatchField build_field(const SnowMaps& maps, const std::vector<float>& depth,
                        const PatchTexels& patch) {
   PatchField f;
@@ -493,29 +506,22 @@ PatchField build_field(const SnowMaps& maps, const std::vector<float>& depth,
   });
   // Ground of non-member samples next to members: the members' ground planes
   // extrapolated to the sample, averaged.
-  parallel_for(
-      size_t(f.h),
-      [&](size_t row) {
-        const int wj = int(row);
-        for (int wi = 0; wi < f.w; ++wi) {
-          const size_t a = f.at(wi, wj);
-          if (f.member[a]) continue;
-          double sum = 0.0;
-          int n = 0;
-          for (int dj = -1; dj <= 1; ++dj) {
-            for (int di = -1; di <= 1; ++di) {
-              const int ni = wi + di, nj = wj + dj;
-              if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) continue;
-              const size_t b = f.at(ni, nj);
-              if (!f.member[b]) continue;
-              sum += f.g[b] - (f.gx[b] * float(di) + f.gz[b] * float(dj)) * texel;
-              ++n;
-            }
-          }
-          if (n > 0) f.g[a] = float(sum / n);
-        }
-      },
-      threads);
+  each_sample(f, threads, [&](int wi, int wj, size_t a) {
+    if (f.member[a]) return;
+    double sum = 0.0;
+    int n = 0;
+    for (int dj = -1; dj <= 1; ++dj) {
+      for (int di = -1; di <= 1; ++di) {
+        const int ni = wi + di, nj = wj + dj;
+        if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) continue;
+        const size_t b = f.at(ni, nj);
+        if (!f.member[b]) continue;
+        sum += f.g[b] - (f.gx[b] * float(di) + f.gz[b] * float(dj)) * texel;
+        ++n;
+      }
+    }
+    if (n > 0) f.g[a] = float(sum / n);
+  });
   return f;
 }
 
@@ -539,29 +545,22 @@ void smooth_field(PatchField& f, int iterations, float min_thickness) {
   auto sends = [&](int i, int j) { return i < f.w - 1 && j < f.h - 1; };
   std::vector<float> next(f.s.size());
   for (int it = 0; it < iterations; ++it) {
-    parallel_for(
-        size_t(f.h),
-        [&](size_t row) {
-          const int wj = int(row);
-          for (int wi = 0; wi < f.w; ++wi) {
-            const size_t a = f.at(wi, wj);
-            float delta = 0.0f;
-            if (f.member[a]) {
-              if (wj > 0 && sends(wi, wj - 1) && f.member[f.at(wi, wj - 1)]) {
-                delta += flux(f.at(wi, wj - 1), a);
-              }
-              if (wi > 0 && sends(wi - 1, wj) && f.member[f.at(wi - 1, wj)]) {
-                delta += flux(f.at(wi - 1, wj), a);
-              }
-              if (sends(wi, wj)) {
-                if (f.member[f.at(wi + 1, wj)]) delta -= flux(a, f.at(wi + 1, wj));
-                if (f.member[f.at(wi, wj + 1)]) delta -= flux(a, f.at(wi, wj + 1));
-              }
-            }
-            next[a] = f.s[a] + delta;
-          }
-        },
-        threads_for(f.s.size()));
+    each_sample(f, threads_for(f.s.size()), [&](int wi, int wj, size_t a) {
+      float delta = 0.0f;
+      if (f.member[a]) {
+        if (wj > 0 && sends(wi, wj - 1) && f.member[f.at(wi, wj - 1)]) {
+          delta += flux(f.at(wi, wj - 1), a);
+        }
+        if (wi > 0 && sends(wi - 1, wj) && f.member[f.at(wi - 1, wj)]) {
+          delta += flux(f.at(wi - 1, wj), a);
+        }
+        if (sends(wi, wj)) {
+          if (f.member[f.at(wi + 1, wj)]) delta -= flux(a, f.at(wi + 1, wj));
+          if (f.member[f.at(wi, wj + 1)]) delta -= flux(a, f.at(wi, wj + 1));
+        }
+      }
+      next[a] = f.s[a] + delta;
+    });
     f.s.swap(next);
   }
 }
