@@ -38,8 +38,10 @@ bool single_step_moves(ivec2 c, vec4 cell, float s, float he, float over) {
     float top;
     int land_l = landing(c + kDir[n], he, cell.x, false, mc, top);
     if (land_l == kLandVoid) return true;
-    precise float e = he - top - dir_distance(n) * (0.0 + cell.z);  // not fused, as the CPU
-    if (land_l >= 0) wmax1 = max(wmax1, e);
+    if (land_l >= 0) {
+      precise float e = he - top - dir_distance(n) * (0.0 + cell.z);  // not fused, as the CPU
+      wmax1 = max(wmax1, e);
+    }
   }
   return wmax1 > 0.0 && min(s, max(0.5 * wmax1, over)) >= u_min_move;
 }
