@@ -736,7 +736,7 @@ TEST(StabilizeGpu, MatchesReference) {
       SCOPED_TRACE(adaptive);
       SCOPED_TRACE(passes);
       EXPECT_EQ(rg.iterations, rc.iterations);
-      EXPECT_EQ(rg.route_passes, rc.route_passes);
+      // (Not the routing's passes: the CPU erodes in place, in fewer rounds.)
       EXPECT_EQ(rg.residual, rc.residual);  // the largest move of the last pass, bit for bit
       EXPECT_NEAR(rg.lost_volume, rc.lost_volume, 1e-4);
       EXPECT_NEAR(rg.volume, rc.volume, 1e-4);
@@ -760,7 +760,7 @@ TEST(StabilizeGpu, PilesMatchReference) {
   const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
   const StabilizeResult rg = stabilize(maps, gpu, settings);
   EXPECT_GT(rc.routed_volume, 0.0);
-  EXPECT_EQ(rg.route_passes, rc.route_passes);
+  EXPECT_NEAR(rg.routed_volume, rc.routed_volume, 1e-6);
   EXPECT_LT(*std::max_element(cpu.begin(), cpu.end()), 0.2f + 0.3f);  // poured, no spike
   EXPECT_EQ(gpu, cpu);
 }
@@ -777,7 +777,6 @@ TEST(StabilizeGpu, DrainingMatchesReference) {
   const StabilizeResult rg = stabilize(maps, gpu, settings);
   EXPECT_GE(rc.drains, 1);
   EXPECT_EQ(rg.drains, rc.drains);
-  EXPECT_EQ(rg.route_passes, rc.route_passes);
   EXPECT_EQ(rg.iterations, rc.iterations);
   EXPECT_EQ(gpu, cpu);
 }
@@ -844,8 +843,7 @@ TEST(StabilizeGpu, RoutingPressesSnowOutFromUnderACeiling) {
   settings.active_tiles = false;
   const StabilizeResult rf = stabilize(maps, full, settings);
   EXPECT_GT(rc.routed_volume, 0.0);
-  EXPECT_EQ(rt.route_passes, rc.route_passes);
-  EXPECT_EQ(rf.route_passes, rc.route_passes);
+  EXPECT_EQ(rt.route_passes, rf.route_passes);
   expect_same(tiled, cpu, 1e-6f);
   expect_identical(tiled, full);
   // Under the shelf's edge (texel column 16 is its first), the snow reaches

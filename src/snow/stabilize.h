@@ -114,7 +114,8 @@ struct StabilizeResult {
   int iterations = 0;          // relaxation passes run (outflow + gather pairs), count
   float residual = 0.0f;       // metres, largest move (snow leaving one texel) in the last pass
   bool converged = false;      // residual < tolerance was seen at a check after a single step
-  int route_passes = 0;        // erosion plus pointer-jumping passes of the routing, count
+  int route_passes = 0;        // erosion passes (CPU: rounds) plus pointer-jumping passes of
+                               // the routing, count
   double routed_volume = 0.0;  // m^3 moved by routing (not drains: their snow is lost_volume)
   int drains = 0;              // draining routings run (drain_due), count
   int pours = 0;               // pours of pressed snow (pressed_snow_due), count

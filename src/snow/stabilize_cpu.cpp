@@ -512,17 +512,53 @@ float CpuStabilizer::erode_texel(int l, int i, int j) const {
   return hs;
 }
 
-int CpuStabilizer::route(double* routed_volume, bool drain) {
-  const size_t count = cells_.size();
-  // Erosion passes (shaders/stabilize_erode.frag): the highest snow surface
-  // each texel can keep, from H = min(ground + depth, ceiling), until
-  // nothing changes (shaders/stabilize_erode_check.frag). A pass computes
-  // the tiles next to one that changed in the pass before (the first: all)
-  // into `next`, then copies them back, so each pass reads the last one's
-  // heights only.
-  // Both only hold layer texels with a surface: free_top is 0 on the others.
-  stable_ = ZeroedArray<float>(count);
-  ZeroedArray<float> next(count);
+// The erosion's kept heights are the greatest fixed point of erode_texel
+// below the free tops. erode_texel is monotone: it never raises a texel, and
+// lower neighbours never raise it (one that falls under the texel's snow top
+// is landed on, one more term of the minimum), with float sums that are
+// monotone too. So any order of in-place updates ends at the same fixed
+// point, bit for bit, as the GPU's passes, which compute every texel from the
+// pass before until none changes. Here the tiles are updated in place in four
+// colours (a tile's colour is the parity of its column and row of tiles), and
+// a tile reads only its own columns and the next column around it, which
+// belong to tiles of other colours: the tiles of one colour run in parallel
+// with the same result as one after another. Each tile is swept until it is
+// stable, so a change crosses several tiles in one round, where a GPU pass
+// moves it one texel (courtyard at 1024: 132 passes -> 24 rounds, erosion
+// 0.3 -> 0.12 s on 2 cores). A tile is computed again only when a
+// neighbour tile changed since (with active tiles off: every tile every
+// round).
+bool CpuStabilizer::erode_tile(int t) {
+  const Tile b = tile(t);
+  bool changed = false;
+  for (int sweep = 0;; ++sweep) {
+    bool any = false;
+    const bool forward = sweep % 2 == 0;
+    for (int jj = b.j0; jj < b.j1; ++jj) {
+      const int j = forward ? jj : b.j1 - 1 - (jj - b.j0);
+      for (int ii = b.i0; ii < b.i1; ++ii) {
+        const int i = forward ? ii : b.i1 - 1 - (ii - b.i0);
+        const int col_layers = column_layers_[size_t(j) * width_ + i];
+        for (int l = 0; l < col_layers; ++l) {
+          const size_t k = index(l, i, j);
+          const float v = erode_texel(l, i, j);
+          if (v != stable_[k]) {
+            stable_[k] = v;
+            any = true;
+          }
+        }
+      }
+    }
+    if (!any) return changed;
+    changed = true;
+  }
+}
+
+int CpuStabilizer::erode() {
+  // The highest snow surface each texel can keep, from H = min(ground +
+  // depth, ceiling). Only layer texels with a surface are set: free_top is 0
+  // on the others.
+  stable_ = ZeroedArray<float>(cells_.size());
   for_tiles(surface_tiles_, [&](int t, size_t) {
     const Tile b = tile(t);
     for (int j = b.j0; j < b.j1; ++j) {
@@ -535,49 +571,53 @@ int CpuStabilizer::route(double* routed_volume, bool drain) {
       }
     }
   });
-  // The tiles that changed in the last pass (the first: every tile).
-  std::vector<int> moved = surface_tiles_;
-  int passes = 0;
-  for (;;) {
-    if (settings_.active_tiles) {
-      for (int t : moved) add_near(near_, t, 1);
-    }
-    work_ = settings_.active_tiles ? near_.list : surface_tiles_;
-    near_.clear();
-    const std::vector<int>& active = work_;
-    for_tiles(active, [&](int t, size_t) {
-      const Tile b = tile(t);
-      bool changed = false;
-      for (int j = b.j0; j < b.j1; ++j) {
-        for (int i = b.i0; i < b.i1; ++i) {
-          const int col_layers = column_layers_[size_t(j) * width_ + i];
-          for (int l = 0; l < col_layers; ++l) {
-            const size_t k = index(l, i, j);
-            next[k] = erode_texel(l, i, j);
-            changed |= next[k] != stable_[k];
+  const bool active = settings_.active_tiles;
+  TileSet& pending = near_;  // the tiles to compute (a neighbour changed since their last sweep)
+  pending.clear();
+  for (int t : surface_tiles_) pending.add(t);
+  std::vector<int> colour_tiles;
+  int rounds = 0;
+  while (!pending.list.empty()) {
+    bool round_changed = false;
+    for (int colour = 0; colour < 4; ++colour) {
+      colour_tiles.clear();
+      size_t kept = 0;
+      for (int t : pending.list) {
+        if ((t % tiles_x_) % 2 + 2 * ((t / tiles_x_) % 2) == colour) {
+          colour_tiles.push_back(t);
+          pending.in[size_t(t)] = 0;
+        } else {
+          pending.list[kept++] = t;
+        }
+      }
+      pending.list.resize(kept);
+      for_tiles(colour_tiles, [&](int t, size_t) { changed_[size_t(t)] = erode_tile(t); });
+      for (int t : colour_tiles) {
+        if (!changed_[size_t(t)]) continue;
+        round_changed = true;
+        if (!active) continue;
+        const int ti = t % tiles_x_, tj = t / tiles_x_;
+        for (int b = std::max(0, tj - 1); b <= std::min(tiles_y_ - 1, tj + 1); ++b) {
+          for (int a = std::max(0, ti - 1); a <= std::min(tiles_x_ - 1, ti + 1); ++a) {
+            const int u = b * tiles_x_ + a;
+            if (u != t && has_surface_[size_t(u)]) pending.add(u);
           }
         }
       }
-      changed_[size_t(t)] = changed;
-    });
-    for_tiles(active, [&](int t, size_t) {
-      if (!changed_[size_t(t)]) return;
-      const Tile b = tile(t);
-      for (int j = b.j0; j < b.j1; ++j) {
-        for (int i = b.i0; i < b.i1; ++i) {
-          const int col_layers = column_layers_[size_t(j) * width_ + i];
-          for (int l = 0; l < col_layers; ++l) stable_[index(l, i, j)] = next[index(l, i, j)];
-        }
-      }
-    });
-    ++passes;
-    moved.clear();
-    for (int t : active) {
-      if (changed_[size_t(t)]) moved.push_back(t);
     }
-    if (moved.empty()) break;
+    if (!round_changed) break;
+    ++rounds;
+    if (!active) {
+      for (int t : surface_tiles_) pending.add(t);
+    }
   }
-  next = ZeroedArray<float>();
+  pending.clear();
+  return rounds;
+}
+
+int CpuStabilizer::route(double* routed_volume, bool drain) {
+  const size_t count = cells_.size();
+  const int passes = erode();
   // Receiver pass (shaders/stabilize_receiver.frag): a texel holding more
   // than it can keep sends the excess towards the neighbour that limits it
   // (the void when one neighbour is the void); H falls strictly along these

@@ -3,7 +3,10 @@
 // gather, erosion, receiver, jump, scatter and apply passes as the GPU
 // fragment passes, in the same order and with the same float math, on the
 // cells of snow::stabilize_cells (zeros where there is no surface: only the
-// flags of those are read), so the two agree bit for bit.
+// flags of those are read), so the two agree bit for bit. The erosion alone
+// runs differently, in place (CpuStabilizer::erode), to the same kept
+// heights in fewer rounds than the GPU's passes; StabilizeResult's
+// route_passes counts those rounds.
 //
 // Two uses:
 //  - the reference that the GPU passes are tested against (with
@@ -69,8 +72,8 @@ class CpuStabilizer {
   /// += own outflow to kCodeVoid. `stride` is the last outflow's.
   void gather_pass(int stride);
   /// Routing (erosion until stable, receiver, jumps until every pointer
-  /// reaches a terminal, scatter, apply); returns the erosion plus jump passes
-  /// run. Adds the routed volume (m^3) to *routed_volume. With `drain`
+  /// reaches a terminal, scatter, apply); returns the erosion rounds plus
+  /// jump passes run. Adds the routed volume (m^3) to *routed_volume. With `drain`
   /// (drain_due; routed_volume unused), only the texels whose path ends in
   /// the void give up their excess.
   int route(double* routed_volume, bool drain = false);
@@ -88,6 +91,12 @@ class CpuStabilizer {
   bool gather_column(int i, int j, int stride);
   /// Erosion of one layer texel: its next kept height from stable_.
   float erode_texel(int l, int i, int j) const;
+  /// stable_ from free_top, eroded until no texel changes; returns the
+  /// rounds that changed a texel.
+  int erode();
+  /// Erosion sweeps over tile t in place until none changes a texel; true
+  /// when one did.
+  bool erode_tile(int t);
   /// A set of tiles: a flag per tile and the list of those set.
   struct TileSet {
     std::vector<uint8_t> in;
