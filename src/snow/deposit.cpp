@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <functional>
 #include <limits>
 #include <queue>
@@ -35,7 +36,9 @@ class Pourer {
         per_layer_(size_t(grid.width) * size_t(grid.height)),
         rise_(kSurfaceContinuityTexels * grid.texel),
         seen_(per_layer_ * size_t(grid.layers)),
-        dist_(per_layer_ * size_t(grid.layers)) {
+        dist_(per_layer_ * size_t(grid.layers)),
+        void_pour_(per_layer_),
+        void_under_(per_layer_) {
     for (int n = 0; n < 8; ++n)
       step_[n] = n < 4 ? grid.texel : float(double(grid.texel) * std::sqrt(2.0));
   }
@@ -72,17 +75,37 @@ class Pourer {
     return cells_[k].y < kCellOpenSky ? double(cells_[k].y) - double(kCeilingClearance)
                                       : std::numeric_limits<double>::infinity();
   }
-  // Snow on layer texel k of column (i, j) would slide off into the void.
-  bool sheds(size_t k, int i, int j) const {
+  // Snow on layer texel k of column (i, j) would slide off into the void:
+  // land_in_column gives kLandVoid in a neighbour column.
+  bool sheds(size_t k, int i, int j) {
     const float h = top(k);
     for (int n = 0; n < 8; ++n) {
       const int ni = i + kDirI[n], nj = j + kDirJ[n];
-      if (!on_map(ni, nj) ||
-          land_in_column(Column{*this, ni, nj}, g_.layers, h, cells_[k].x, rise_) == kLandVoid) {
-        return true;
-      }
+      if (!on_map(ni, nj) || h < void_under(ni, nj)) return true;
     }
     return false;
+  }
+  // The heights h at which land_in_column gives kLandVoid in column (i, j)
+  // are those under this one: it walks past every layer (h under its ground,
+  // its snow top and its ceiling) to an end that is no wall (an empty
+  // column, or a lowest surface facing down, with fewer than L layers).
+  // The support and rise only decide between a landing and a wall. Kept
+  // per column for one pour, in which no depth changes.
+  float void_under(int i, int j) {
+    const size_t c = size_t(j) * size_t(g_.width) + size_t(i);
+    if (void_pour_[c] == pours_) return void_under_[c];
+    const Column col{*this, i, j};
+    int count = 0;
+    float under = std::numeric_limits<float>::infinity();
+    for (; count < g_.layers && col.has(count); ++count) {
+      under = std::min({under, col.ground(count), col.top(count), col.ceiling(count)});
+    }
+    if (count == g_.layers || (count > 0 && !col.faces_down(count - 1))) {
+      under = -std::numeric_limits<float>::infinity();
+    }
+    void_pour_[c] = pours_;
+    void_under_[c] = under;
+    return under;
   }
   // The layer of column (i, j) whose gap contains h, or -1 (none, or the
   // inside of a solid): where a pile rising at h spreads to.
@@ -108,11 +131,15 @@ class Pourer {
   ZeroedArray<uint32_t> seen_;
   ZeroedArray<float> dist_;
   uint32_t growths_ = 0;
+  uint32_t pours_ = 0;               // pours so far (counted from 1)
+  ZeroedArray<uint32_t> void_pour_;  // per column: the pour void_under_ was found in
+  ZeroedArray<float> void_under_;    // per column: void_under() in that pour
   size_t covered_total_ = 0;
   std::vector<std::pair<uint32_t, float>> covered_;  // texel, path cost
 };
 
 void Pourer::pour(uint32_t p, float volume) {
+  ++pours_;
   const int pi = int((p % per_layer_) % size_t(g_.width));
   const int pj = int((p % per_layer_) / size_t(g_.width));
   if (sheds(p, pi, pj)) {  // as before: on the terminal
@@ -154,14 +181,31 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
   ++growths_;
   const uint32_t reached = 2 * growths_, done = 2 * growths_ + 1;
   // Frontier by the height at which the rising cone covers a texel: its
-  // top plus its path cost; ties in texel order.
+  // top plus its path cost; ties in texel order. An entry is that height's
+  // bits, ordered as unsigned integers, over the texel: one integer compare
+  // orders both. The path cost is dist_ when the texel is taken: later entries
+  // of a texel come with a lower cost, so a lower height, and are taken
+  // first (the others are then stale).
+  std::priority_queue<uint64_t, std::vector<uint64_t>, std::greater<uint64_t>> frontier;
   struct Entry {
-    float key, dist;
+    float dist;
     uint32_t k;
-    bool operator<(const Entry& o) const { return key > o.key || (key == o.key && k > o.k); }
   };
-  std::priority_queue<Entry> frontier;
-  frontier.push({top(p), 0.0f, p});
+  auto entry = [](float key, uint32_t k) {
+    uint32_t bits;
+    const float positive_zero = key + 0.0f;  // -0 as +0: equal keys, equal bits
+    std::memcpy(&bits, &positive_zero, sizeof bits);
+    bits = (bits & 0x80000000u) != 0 ? ~bits : bits | 0x80000000u;
+    return uint64_t(bits) << 32 | k;
+  };
+  auto entry_key = [](uint64_t e) {
+    uint32_t bits = uint32_t(e >> 32);
+    bits = (bits & 0x80000000u) != 0 ? bits & 0x7fffffffu : ~bits;
+    float key;
+    std::memcpy(&key, &bits, sizeof key);
+    return key;
+  };
+  frontier.push(entry(top(p), p));
   seen_[p] = reached;
   dist_[p] = 0.0f;
   covered_.clear();
@@ -177,8 +221,9 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
   const double inf = std::numeric_limits<double>::infinity();
   double cone = inf;  // height of the cone's apex (m); infinite: every texel full
   for (;;) {
-    const double next_key =
-        frontier.empty() || covered_.size() >= kMaxPileTexels ? inf : double(frontier.top().key);
+    const double next_key = frontier.empty() || covered_.size() >= kMaxPileTexels
+                                ? inf
+                                : double(entry_key(frontier.top()));
     const double next_full = saturations.empty() ? inf : saturations.top().first;
     const double next = std::min(next_key, next_full);
     // The cone at the height of the next event holds enough: it ends below.
@@ -195,10 +240,11 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
       full += cap(k) - double(top(k));
       continue;
     }
-    const Entry e = frontier.top();
+    const uint32_t k = uint32_t(frontier.top());
     frontier.pop();
-    if (seen_[e.k] == done || e.dist > dist_[e.k]) continue;  // stale entry
-    seen_[e.k] = done;
+    if (seen_[k] == done) continue;  // stale entry
+    seen_[k] = done;
+    const Entry e{dist_[k], k};
     const int i = int((e.k % per_layer_) % size_t(g_.width));
     const int j = int((e.k % per_layer_) / size_t(g_.width));
     if (e.k != p && sheds(e.k, i, j)) continue;
@@ -221,7 +267,7 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
       if (seen_[b] == done || (seen_[b] == reached && dist_[b] <= d)) continue;
       seen_[b] = reached;
       dist_[b] = d;
-      frontier.push({top(b) + d, d, b});
+      frontier.push(entry(top(b) + d, b));
     }
   }
   return cone;
