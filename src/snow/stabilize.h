@@ -48,9 +48,9 @@
 // that have a surface there
 // (settings.active_tiles); a skipped tile would repeat a pass that moved
 // nothing there, so the result is bit for bit that of full passes. The CPU
-// stabilizer skips tiles by the same rule (stabilize_cpu.h), and the batch
-// job runs it where the GL renderer is a software rasterizer
-// (settings.device).
+// stabilizer skips tiles by the same rule (stabilize_cpu.h), erodes in place
+// to the same kept heights in fewer rounds, and the batch job runs it where
+// the GL renderer is a software rasterizer (settings.device).
 #include <cstdint>
 #include <memory>
 #include <string>

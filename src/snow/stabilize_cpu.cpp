@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <new>
 #include <string>
 #include <utility>
@@ -198,26 +199,27 @@ double CpuStabilizer::lost_volume() const {
 }
 
 // Mirrors shaders/column.glsl: snow::land_in_column on the cells, with the
-// snow tops ground + depth, or with `kept` the routing's kept heights.
+// snow tops ground + depth, or with `kept` the routing's kept heights. The
+// layers with a surface are the column's first column_layers_ (packed from
+// the top), so the loop reads no cell past them and converts flags only
+// where it needs them.
 inline int CpuStabilizer::land(int i, int j, float h, float support, float rise, bool kept) const {
   if (i < 0 || j < 0 || i >= width_ || j >= height_) return kLandVoid;
-  for (int l = 0; l < layers_; ++l) {
+  const int count = column_layers_[size_t(j) * width_ + i];
+  for (int l = 0; l < count; ++l) {
     const size_t k = index(l, i, j);
     const glm::vec4& cell = cells_[k];
-    const int flags = cell_flags(cell);
-    if ((flags & kCellSurface) == 0) {
-      return l > 0 && (cell_flags(cells_[index(l - 1, i, j)]) & kCellDown) == 0 ? kLandBlocked
-                                                                                : kLandVoid;
-    }
     if (h >= cell.y) return kLandBlocked;
     const float top = kept ? stable_[k] : cell.x + depth_[k];
     if (top <= h) {
-      if ((flags & kCellSolid) != 0 || cell.y - support < rise) return kLandBlocked;
+      if ((cell_flags(cell) & kCellSolid) != 0 || cell.y - support < rise) return kLandBlocked;
       return l;
     }
     if (h >= cell.x) return kLandBlocked;
   }
-  return kLandBlocked;
+  if (count == layers_) return kLandBlocked;
+  return count > 0 && (cell_flags(cells_[index(count - 1, i, j)]) & kCellDown) == 0 ? kLandBlocked
+                                                                                    : kLandVoid;
 }
 
 // Mirrors gap_at in shaders/stabilize_outflow.frag: the layer of column
@@ -225,17 +227,15 @@ inline int CpuStabilizer::land(int i, int j, float h, float support, float rise,
 // height h, kLandBlocked or kLandVoid.
 int CpuStabilizer::gap_at(int i, int j, float h) const {
   if (i < 0 || j < 0 || i >= width_ || j >= height_) return kLandVoid;
-  for (int l = 0; l < layers_; ++l) {
+  const int count = column_layers_[size_t(j) * width_ + i];
+  for (int l = 0; l < count; ++l) {
     const glm::vec4& cell = cells_[index(l, i, j)];
-    const int flags = cell_flags(cell);
-    if ((flags & kCellSurface) == 0) {
-      return l > 0 && (cell_flags(cells_[index(l - 1, i, j)]) & kCellDown) == 0 ? kLandBlocked
-                                                                                : kLandVoid;
-    }
     if (h >= cell.y) return kLandBlocked;
-    if (h >= cell.x) return (flags & kCellSolid) != 0 ? kLandBlocked : l;
+    if (h >= cell.x) return (cell_flags(cell) & kCellSolid) != 0 ? kLandBlocked : l;
   }
-  return kLandBlocked;
+  if (count == layers_) return kLandBlocked;
+  return count > 0 && (cell_flags(cells_[index(count - 1, i, j)]) & kCellDown) == 0 ? kLandBlocked
+                                                                                    : kLandVoid;
 }
 
 // The stride-1 rule of a strided pass (see outflow_texel): would a single
@@ -257,10 +257,9 @@ bool CpuStabilizer::single_step_moves(int i, int j, const glm::vec4& cell, float
 }
 
 // Mirrors shaders/stabilize_outflow.frag.
-float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_void) {
+float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_void, float* out,
+                                   uint8_t* code) {
   const size_t k = index(l, i, j);
-  float* out = &amount_[8 * k];
-  uint8_t* code = &code_[8 * k];
   for (int n = 0; n < 8; ++n) {
     out[n] = 0.0f;
     code[n] = kCodeNone;
@@ -393,13 +392,26 @@ void CpuStabilizer::outflow_pass(int stride) {
     for (int j = b.j0; j < b.j1; ++j) {
       for (int i = b.i0; i < b.i1; ++i) {
         const size_t c = size_t(j) * width_ + i;
+        const int col_layers = column_layers_[c];
         float column_largest = 0.0f;
-        for (int l = 0; l < column_layers_[c]; ++l) {
+        float out[8 * 64];
+        uint8_t code[8 * 64];
+        for (int l = 0; l < col_layers; ++l) {
           float to_void = 0.0f;
-          column_largest = std::max(column_largest, outflow_texel(l, i, j, stride, &to_void));
+          column_largest = std::max(
+              column_largest, outflow_texel(l, i, j, stride, &to_void, &out[8 * l], &code[8 * l]));
           largest_void = std::max(largest_void, to_void);
         }
+        // Only the amounts of a column that sends snow are read (by the
+        // gathers), so only those are stored: most columns rest.
         column_sent_[c] = column_largest > 0.0f;
+        if (column_sent_[c]) {
+          for (int l = 0; l < col_layers; ++l) {
+            const size_t k = index(l, i, j);
+            std::memcpy(&amount_[8 * k], &out[8 * l], 8 * sizeof(float));
+            std::memcpy(&code_[8 * k], &code[8 * l], 8);
+          }
+        }
         largest = std::max(largest, column_largest);
       }
     }

@@ -84,9 +84,9 @@ class CpuStabilizer {
   /// depth s, free top he and snow over the ceiling (the rule strided passes
   /// move by).
   bool single_step_moves(int i, int j, const glm::vec4& cell, float s, float he, float over) const;
-  /// Outflow of one layer texel; returns the sum of its amounts, and the sum
-  /// of those into the void in *to_void.
-  float outflow_texel(int l, int i, int j, int stride, float* to_void);
+  /// Outflow of one layer texel into out[8] and code[8]; returns the sum of
+  /// its amounts, and the sum of those into the void in *to_void.
+  float outflow_texel(int l, int i, int j, int stride, float* to_void, float* out, uint8_t* code);
   /// Gather of the layer texels of one column; true when a depth changed.
   bool gather_column(int i, int j, int stride);
   /// Erosion of one layer texel: its next kept height from stable_.
