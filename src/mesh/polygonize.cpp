@@ -102,6 +102,44 @@ struct OMesh : OpenMesh::TriMesh_ArrayKernelT<SnowMeshTraits> {
     // An edge between two boundary vertices must be a boundary edge.
     return !(is_boundary(v0) && is_boundary(v1) && !is_boundary(v0v1) && !is_boundary(v1v0));
   }
+
+  // The queries below are OpenMesh's, inline: OpenMesh 9 compiles valence and
+  // find_halfedge into its library, where each circulator step checks its
+  // handles in calls of their own (a fifth of polygonize on a small scene).
+
+  /// Outgoing halfedges of v, as PolyConnectivity::valence counts them.
+  unsigned valence(VertexHandle v) const {
+    const HalfedgeHandle start = halfedge_handle(v);
+    unsigned count = 0;
+    for (HalfedgeHandle h = start; h.is_valid();) {
+      ++count;
+      h = cw_rotated_halfedge_handle(h);
+      if (h == start) break;
+    }
+    return count;
+  }
+  /// Whether a halfedge runs from a to b (PolyConnectivity::find_halfedge).
+  bool has_halfedge(VertexHandle a, VertexHandle b) const {
+    const HalfedgeHandle start = halfedge_handle(a);
+    for (HalfedgeHandle h = start; h.is_valid();) {
+      if (to_vertex_handle(h) == b) return true;
+      h = cw_rotated_halfedge_handle(h);
+      if (h == start) break;
+    }
+    return false;
+  }
+  /// TriMeshT::calc_face_normal(f) (the same corners into the same
+  /// arithmetic, so the same bits), with vertex `moved`, if it is a corner,
+  /// at `p` instead of its point.
+  Normal face_normal(FaceHandle f, VertexHandle moved = VertexHandle(),
+                     const Point& p = Point(0.0)) const {
+    const HalfedgeHandle h0 = halfedge_handle(f);
+    const HalfedgeHandle h1 = next_halfedge_handle(h0);
+    const VertexHandle c[3] = {to_vertex_handle(h0), to_vertex_handle(h1),
+                               to_vertex_handle(next_halfedge_handle(h1))};
+    const auto at = [&](VertexHandle v) -> const Point& { return v == moved ? p : point(v); };
+    return PolyMesh::calc_face_normal(at(c[0]), at(c[1]), at(c[2]));
+  }
 };
 
 /// Decimation priority and bound: the quadric error of Garland and Heckbert
@@ -150,16 +188,18 @@ class ModPlaneErrorT : public OpenMesh::Decimater::ModBaseT<MeshT> {
 
   /// The error of the collapse (m^2), or ILLEGAL_COLLAPSE where it is over
   /// the bound or the two vertices' valences add up to too much; no normal
-  /// test.
-  float bounded_error(const CollapseInfo& ci) {
+  /// test. `valence0`: the valence of ci.v0 if known (the caller tries all
+  /// collapses of one vertex), else 0.
+  float bounded_error(const CollapseInfo& ci, unsigned& valence0) {
     OpenMesh::Geometry::Quadricd q = Base::mesh().property(quadrics_, ci.v0);
     q += Base::mesh().property(quadrics_, ci.v1);
     const double err = q(ci.p1);
+    if (!(err < max_err_)) return float(Base::ILLEGAL_COLLAPSE);
     // Flat regions would otherwise collapse into a few vertices of huge
     // valence, which makes every later collapse test slow and the
     // triangles needle-thin.
-    if (!(err < max_err_) ||
-        Base::mesh().valence(ci.v0) + Base::mesh().valence(ci.v1) > kMaxValence + 4) {
+    if (valence0 == 0) valence0 = Base::mesh().valence(ci.v0);
+    if (valence0 + Base::mesh().valence(ci.v1) > kMaxValence + 4) {
       return float(Base::ILLEGAL_COLLAPSE);
     }
     return float(err);
@@ -173,16 +213,13 @@ class ModPlaneErrorT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   // go) by more than the deviation, as ModNormalFlippingT::collapse_priority
   // computes it (the face normals are kept up to date by the Decimater).
   bool flips_normal(const CollapseInfo& ci) {
-    Mesh& m = Base::mesh();
-    m.set_point(ci.v0, ci.p1);
-    bool flips = false;
-    for (auto vf = m.cvf_iter(ci.v0); vf.is_valid() && !flips; ++vf) {
+    const Mesh& m = Base::mesh();
+    for (auto vf = m.cvf_iter(ci.v0); vf.is_valid(); ++vf) {
       const auto f = *vf;
       if (f == ci.fl || f == ci.fr) continue;
-      flips = (m.normal(f) | m.calc_face_normal(f)) < min_cos_;
+      if ((m.normal(f) | m.face_normal(f, ci.v0, ci.p1)) < min_cos_) return true;
     }
-    m.set_point(ci.v0, ci.p0);
-    return flips;
+    return false;
   }
 
  private:
@@ -231,10 +268,11 @@ class Decimater : public OpenMesh::Decimater::BaseDecimaterT<OMesh> {
     const auto key = [&](OMesh::VertexHandle v) {
       float best = std::numeric_limits<float>::max();
       OMesh::HalfedgeHandle target;
+      unsigned valence = 0;  // of v, once needed
       for (auto h : mesh_.voh_range(v)) {
         const CollapseInfo ci(mesh_, h);
-        const float err = plane_error.bounded_error(ci);
-        if (err < 0.0f || !(err < best) || !is_collapse_legal(ci) || plane_error.flips_normal(ci))
+        const float err = plane_error.bounded_error(ci, valence);
+        if (err < 0.0f || !(err < best) || !collapse_legal(ci) || plane_error.flips_normal(ci))
           continue;
         best = err;
         target = h;
@@ -260,12 +298,12 @@ class Decimater : public OpenMesh::Decimater::BaseDecimaterT<OMesh> {
       const OMesh::VertexHandle v = heap.front();
       heap.pop_front();
       CollapseInfo ci(mesh_, mesh_.property(target_, v));
-      if (!is_collapse_legal(ci)) continue;
+      if (!collapse_legal(ci)) continue;
       around.assign(mesh_.vv_begin(ci.v0), mesh_.vv_end(ci.v0));
       preprocess_collapse(ci);
       mesh_.collapse(ci.v0v1);
       for (auto f : mesh_.vf_range(ci.v1)) {
-        if (!mesh_.status(f).deleted()) mesh_.set_normal(f, mesh_.calc_face_normal(f));
+        if (!mesh_.status(f).deleted()) mesh_.set_normal(f, mesh_.face_normal(f));
       }
       postprocess_collapse(ci);
       for (auto w : around) key(w);
@@ -273,6 +311,26 @@ class Decimater : public OpenMesh::Decimater::BaseDecimaterT<OMesh> {
   }
 
  private:
+  /// BaseDecimaterT::is_collapse_legal with the mesh's inline queries.
+  bool collapse_legal(const CollapseInfo& ci) const {
+    if (mesh_.status(ci.v0).locked()) return false;
+    if (!mesh_.is_collapse_ok(ci.v0v1)) return false;
+    if (ci.vl.is_valid() && ci.vr.is_valid() && mesh_.has_halfedge(ci.vl, ci.vr) &&
+        mesh_.valence(ci.vl) == 3 && mesh_.valence(ci.vr) == 3) {
+      return false;
+    }
+    if (mesh_.status(ci.v0).feature() && !mesh_.status(mesh_.edge_handle(ci.v0v1)).feature())
+      return false;
+    if (mesh_.is_boundary(ci.v0)) {
+      // No boundary vertex into an inner one, and only one one-ring
+      // intersection.
+      if (!mesh_.is_boundary(ci.v1)) return false;
+      if (ci.vl.is_valid() && ci.vr.is_valid()) return false;
+    }
+    // At least two faces at v0.
+    return mesh_.cw_rotated_halfedge_handle(mesh_.cw_rotated_halfedge_handle(ci.v0v1)) != ci.v0v1;
+  }
+
   struct HeapInterface {
     OMesh& mesh;
     OpenMesh::VPropHandleT<float> priority;
@@ -848,6 +906,12 @@ size_t build_solid(const TopMesh& top, const PatchField& f, float bottom_offset,
                    OpenMesh::FPropHandleT<bool> is_top, SolidVertices* vertices = nullptr) {
   std::vector<OMesh::VertexHandle> top_v(top.positions.size());
   std::vector<OMesh::VertexHandle> bottom_v(top.positions.size());
+  // Room for the whole solid at once: grown an element at a time, OpenMesh's
+  // arrays were a twentieth of polygonize on a small scene (edges: 3 per 2 faces).
+  const size_t inner =
+      size_t(std::count_if(top.sample.begin(), top.sample.end(), [](int32_t a) { return a >= 0; }));
+  const size_t faces = 2 * (top.tris.size() / 3);
+  mesh.reserve(top.positions.size() + inner, faces * 3 / 2 + 3, faces);
   for (size_t v = 0; v < top.positions.size(); ++v) {
     const glm::dvec3& p = top.positions[v];
     top_v[v] = mesh.add_vertex(OMesh::Point(p.x, p.y, p.z));
@@ -882,7 +946,7 @@ void decimate(OMesh& mesh, double max_error) {
   mesh.request_edge_status();
   mesh.request_face_status();
   mesh.request_face_normals();
-  mesh.update_face_normals();
+  for (auto f : mesh.faces()) mesh.set_normal(f, mesh.face_normal(f));
   Decimater(mesh, max_error).decimate();
   mesh.garbage_collection();
 }
