@@ -704,5 +704,42 @@ TEST(Bvh, ParallelBuildIsOneValidTree) {
   EXPECT_EQ(differ, 0u);
 }
 
+// Bvh::reaches, the exact casts' shortcut on the CPU: true for some
+// triangle exactly when the walk finds the ray occluded, and never where it
+// does not (rays with zero components too: slabs of 0 * inf).
+TEST(Bvh, ReachesAgreesWithTheWalk) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> where(-5.0f, 5.0f), size(-0.8f, 0.8f), unit(-1.0f, 1.0f);
+  const size_t n = 2000;
+  std::vector<glm::vec3> corners;
+  for (size_t t = 0; t < n; ++t) {
+    const glm::vec3 c(where(rng), 0.3f * where(rng), where(rng));
+    for (int k = 0; k < 3; ++k) corners.push_back(c + glm::vec3(size(rng), size(rng), size(rng)));
+  }
+  const Bvh bvh(corners);
+  size_t occluded = 0, differ = 0, false_hits = 0;
+  for (int r = 0; r < 400; ++r) {
+    const glm::vec3 origin(where(rng), 0.5f * where(rng), where(rng));
+    glm::vec3 dir(unit(rng), 0.2f + std::abs(unit(rng)), unit(rng));
+    if (r % 4 == 0) dir.x = 0.0f;
+    if (r % 8 == 0) dir = glm::vec3(0.0f, 1.0f, 0.0f);
+    const float t_min = r % 3 == 0 ? 0.0f : 0.01f;
+    const bool walk = bvh.occluded(origin, dir, t_min, std::numeric_limits<float>::infinity());
+    bool any = false;
+    for (uint32_t t = 0; t < n; ++t) {
+      const bool reached =
+          bvh.reaches(t, origin, dir, t_min, std::numeric_limits<float>::infinity());
+      any = any || reached;
+      false_hits += reached && !walk;
+    }
+    occluded += walk;
+    differ += any != walk;
+  }
+  EXPECT_GT(occluded, 50u);
+  EXPECT_EQ(differ, 0u);
+  EXPECT_EQ(false_hits, 0u);
+  EXPECT_FALSE(bvh.reaches(uint32_t(n), glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f), 0.0f, 1e9f));
+}
+
 }  // namespace
 }  // namespace snow

@@ -13,8 +13,11 @@ namespace {
 
 constexpr uint32_t kLeafSize = 4;
 
-bool hit_box(const glm::vec3& min, const glm::vec3& max, const glm::vec3& origin,
-             const glm::vec3& inv_dir, float t_min, float t_max) {
+// Inlined into both walks (occluded and reaches): with two callers GCC no
+// longer inlines them, and a call per node slows the walk.
+[[gnu::always_inline]] inline bool hit_box(const glm::vec3& min, const glm::vec3& max,
+                                           const glm::vec3& origin, const glm::vec3& inv_dir,
+                                           float t_min, float t_max) {
   for (int a = 0; a < 3; ++a) {
     float t0 = (min[a] - origin[a]) * inv_dir[a];
     float t1 = (max[a] - origin[a]) * inv_dir[a];
@@ -28,8 +31,9 @@ bool hit_box(const glm::vec3& min, const glm::vec3& max, const glm::vec3& origin
   return true;
 }
 
-bool hit_triangle(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c,
-                  const glm::vec3& origin, const glm::vec3& dir, float t_min, float t_max) {
+[[gnu::always_inline]] inline bool hit_triangle(const glm::vec3& a, const glm::vec3& b,
+                                                const glm::vec3& c, const glm::vec3& origin,
+                                                const glm::vec3& dir, float t_min, float t_max) {
   const glm::vec3 e1 = b - a;
   const glm::vec3 e2 = c - a;
   const glm::vec3 p = glm::cross(dir, e2);
@@ -149,6 +153,34 @@ bool Bvh::occluded(const glm::vec3& origin, const glm::vec3& direction, float t_
       }
     }
     ++i;
+  }
+  return false;
+}
+
+bool Bvh::reaches(uint32_t t, const glm::vec3& origin, const glm::vec3& direction, float t_min,
+                  float t_max) const {
+  if (t >= triangle_count()) return false;
+  // The boxes occluded() tests on its way to t's leaf, with its arithmetic,
+  // then the leaf's triangles. A subtree's last node in pre-order is a leaf,
+  // where the subtree's triangles end: t is in the left child's subtree when
+  // it comes before that end.
+  const glm::vec3 inv_dir = 1.0f / direction;
+  uint32_t i = 0;
+  for (;;) {
+    const Node& node = nodes_[i];
+    if (!hit_box(node.min, node.max, origin, inv_dir, t_min, t_max)) return false;
+    if (node.count > 0) break;
+    const uint32_t left = i + 1;
+    const uint32_t end = nodes_[left].count > 0 ? left + 1 : nodes_[left].first;
+    const Node& last = nodes_[end - 1];
+    i = t < last.first + last.count ? left : end;
+  }
+  const Node& leaf = nodes_[i];
+  for (uint32_t k = leaf.first; k < leaf.first + leaf.count; ++k) {
+    if (hit_triangle(corners_[3 * k], corners_[3 * k + 1], corners_[3 * k + 2], origin, direction,
+                     t_min, t_max)) {
+      return true;
+    }
   }
   return false;
 }

@@ -33,6 +33,14 @@ class Bvh {
   bool occluded(const glm::vec3& origin, const glm::vec3& direction, float t_min,
                 float t_max) const;
 
+  /// True when occluded(origin, direction, t_min, t_max) reaches the leaf
+  /// holding triangle t (leaf order) and finds one of its triangles hit: the
+  /// ray hits the box of every node on the way down to that leaf, and a
+  /// triangle of it. occluded() is then true: a cheap test of a likely
+  /// occluder before the walk (false for t out of range).
+  bool reaches(uint32_t t, const glm::vec3& origin, const glm::vec3& direction, float t_min,
+               float t_max) const;
+
   size_t triangle_count() const { return corners_.size() / 3; }
   /// The nodes, root first (empty for no triangles).
   const std::vector<Node>& nodes() const { return nodes_; }
