@@ -257,6 +257,7 @@ bool CpuStabilizer::single_step_moves(int i, int j, const glm::vec4& cell, float
 }
 
 // Mirrors shaders/stabilize_outflow.frag.
+template <bool kStrided>
 float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_void, float* out,
                                    uint8_t* code) {
   const size_t k = index(l, i, j);
@@ -272,7 +273,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   const float over = h - he;
   // A strided pass moves only snow that a single step moves: snow at rest
   // for single steps stays, which the GPU passes' active tiles rely on.
-  if (stride > 1 && !single_step_moves(i, j, cell, s, he, over)) return 0.0f;
+  if (kStrided && !single_step_moves(i, j, cell, s, he, over)) return 0.0f;
   float w[8];
   float wsum = 0.0f, wmax = 0.0f;
   int voids = 0;
@@ -293,7 +294,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
       nj = j + m * kDirJ[n];
       land_l = land(ni, nj, path_h, path_g, rise_);
       path_tan += step_tan;
-      if (stride == 1 || land_l < 0) break;
+      if (!kStrided || land_l < 0) break;
       const size_t km = index(land_l, ni, nj);
       const float top = cells_[km].x + depth_[km];
       if (path_h - top > rise_) {
@@ -304,7 +305,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
       path_g = cells_[km].x;
       step_tan = cells_[km].z;
     }
-    if (stride > 1 && land_l == kLandVoid) land_l = kLandBlocked;
+    if (kStrided && land_l == kLandVoid) land_l = kLandBlocked;
     if (land_l == kLandVoid) {
       code[n] = kCodeVoid;
       ++voids;
@@ -337,7 +338,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
     float total = std::min(s, std::max(0.5f * wmax, over));
     if (total < settings_.min_move) total = 0.0f;
     for (int n = 0; n < 8; ++n) out[n] = total * (w[n] / wsum);
-  } else if (over > 0.0f && stride == 1) {
+  } else if (over > 0.0f && !kStrided) {
     // Snow deeper than its gap with nowhere downhill to go is squeezed
     // out sideways into the gaps of the neighbouring columns at that
     // height, as far as they have room (the void takes everything).
@@ -398,8 +399,10 @@ void CpuStabilizer::outflow_pass(int stride) {
         uint8_t code[8 * 64];
         for (int l = 0; l < col_layers; ++l) {
           float to_void = 0.0f;
-          column_largest = std::max(
-              column_largest, outflow_texel(l, i, j, stride, &to_void, &out[8 * l], &code[8 * l]));
+          const float sent =
+              stride > 1 ? outflow_texel<true>(l, i, j, stride, &to_void, &out[8 * l], &code[8 * l])
+                         : outflow_texel<false>(l, i, j, 1, &to_void, &out[8 * l], &code[8 * l]);
+          column_largest = std::max(column_largest, sent);
           largest_void = std::max(largest_void, to_void);
         }
         // Only the amounts of a column that sends snow are read (by the

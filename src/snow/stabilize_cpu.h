@@ -86,6 +86,8 @@ class CpuStabilizer {
   bool single_step_moves(int i, int j, const glm::vec4& cell, float s, float he, float over) const;
   /// Outflow of one layer texel into out[8] and code[8]; returns the sum of
   /// its amounts, and the sum of those into the void in *to_void.
+  /// kStrided: stride > 1 (compiled apart: single steps are most passes).
+  template <bool kStrided>
   float outflow_texel(int l, int i, int j, int stride, float* to_void, float* out, uint8_t* code);
   /// Gather of the layer texels of one column; true when a depth changed.
   bool gather_column(int i, int j, int stride);
