@@ -764,42 +764,42 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
     // hypotenuses of two texels; only those above have children.
     int levels = 0;
     for (int t = 1; t < tile; t *= 2) levels += 2;
-    const std::function<void(int, int, int, int, int, int, int, bool)> level =
-        [&](int depth, int ax, int ay, int bx, int by, int cx, int cy, bool parent) {
-          const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
-          if (depth > 0) {
-            level(depth - 1, cx, cy, ax, ay, mx, my, parent);
-            level(depth - 1, bx, by, cx, cy, mx, my, parent);
-            return;
-          }
-          float& e = error[size_t(my) * size_t(n) + size_t(mx)];
-          if (member(ax, ay) && member(bx, by) && member(mx, my)) {
-            const size_t a = f.at(ax, ay), b = f.at(bx, by), m = f.at(mx, my);
-            const float dg = std::abs(0.5f * (f.g[a] + f.g[b]) - f.g[m]);
-            const float dt =
-                std::abs(0.5f * (f.g[a] + f.s[a] + f.g[b] + f.s[b]) - (f.g[m] + f.s[m]));
-            e = std::max(e, std::max(dg, dt));
-          }
-          if (parent) {
-            e = std::max({e, error[size_t((ay + cy) >> 1) * size_t(n) + size_t((ax + cx) >> 1)],
-                          error[size_t((by + cy) >> 1) * size_t(n) + size_t((bx + cx) >> 1)]});
-          }
-        };
+    // (Recursive lambdas that take themselves: a std::function call per
+    // triangle cost a tenth of a large top's triangulation.)
+    const auto level = [&](const auto& self, int depth, int ax, int ay, int bx, int by, int cx,
+                           int cy, bool parent) -> void {
+      const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
+      if (depth > 0) {
+        self(self, depth - 1, cx, cy, ax, ay, mx, my, parent);
+        self(self, depth - 1, bx, by, cx, cy, mx, my, parent);
+        return;
+      }
+      float& e = error[size_t(my) * size_t(n) + size_t(mx)];
+      if (member(ax, ay) && member(bx, by) && member(mx, my)) {
+        const size_t a = f.at(ax, ay), b = f.at(bx, by), m = f.at(mx, my);
+        const float dg = std::abs(0.5f * (f.g[a] + f.g[b]) - f.g[m]);
+        const float dt = std::abs(0.5f * (f.g[a] + f.s[a] + f.g[b] + f.s[b]) - (f.g[m] + f.s[m]));
+        e = std::max(e, std::max(dg, dt));
+      }
+      if (parent) {
+        e = std::max({e, error[size_t((ay + cy) >> 1) * size_t(n) + size_t((ax + cx) >> 1)],
+                      error[size_t((by + cy) >> 1) * size_t(n) + size_t((bx + cx) >> 1)]});
+      }
+    };
     for (int depth = levels - 1; depth >= 0; --depth) {
-      level(depth, 0, 0, tile, tile, tile, 0, depth < levels - 1);
-      level(depth, tile, tile, 0, 0, 0, tile, depth < levels - 1);
+      level(level, depth, 0, 0, tile, tile, tile, 0, depth < levels - 1);
+      level(level, depth, tile, tile, 0, 0, 0, tile, depth < levels - 1);
     }
   }
   std::vector<uint8_t> cell_done(f.member.size(), 0);
   const float split_above = tolerance >= 0.0 ? float(tolerance) : -1.0f;
   // Triangle (a, b, c): hypotenuse a-b, right angle at c.
-  std::function<void(int, int, int, int, int, int)> visit = [&](int ax, int ay, int bx, int by,
-                                                                int cx, int cy) {
+  const auto visit = [&](const auto& self, int ax, int ay, int bx, int by, int cx, int cy) -> void {
     const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
     const bool leaf = std::abs(ax - cx) + std::abs(ay - cy) <= 1;
     if (!leaf && error[size_t(my) * size_t(n) + size_t(mx)] > split_above) {
-      visit(cx, cy, ax, ay, mx, my);
-      visit(bx, by, cx, cy, mx, my);
+      self(self, cx, cy, ax, ay, mx, my);
+      self(self, bx, by, cx, cy, mx, my);
       return;
     }
     const bool in_a = member(ax, ay), in_b = member(bx, by), in_c = member(cx, cy);
@@ -827,8 +827,8 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
     done = 1;
     march_cell(ci, cj);
   };
-  visit(0, 0, tile, tile, tile, 0);
-  visit(tile, tile, 0, 0, 0, tile);
+  visit(visit, 0, 0, tile, tile, tile, 0);
+  visit(visit, tile, tile, 0, 0, 0, tile);
   return top;
 }
 
