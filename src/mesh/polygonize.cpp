@@ -764,8 +764,8 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
     // hypotenuses of two texels; only those above have children.
     int levels = 0;
     for (int t = 1; t < tile; t *= 2) levels += 2;
-    // (Recursive lambdas that take themselves: a std::function call per
-    // triangle cost a tenth of a large top's triangulation.)
+    // (Recursive lambdas that take themselves, not std::function: a call
+    // through it per triangle; the 1M terrain's polygonize 1.18 -> 1.09-1.13 s.)
     const auto level = [&](const auto& self, int depth, int ax, int ay, int bx, int by, int cx,
                            int cy, bool parent) -> void {
       const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
