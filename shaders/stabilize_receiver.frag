@@ -2,8 +2,9 @@
 // Routing, receiver pass: a texel holding more than it can keep (ground +
 // depth above its kept height H) points at the neighbour that limits it (the
 // one with the smallest H(landing) + distance * tan(repose) among those with
-// a lower H), or at the void when one neighbour is the void; others point at
-// themselves. H falls strictly along pointers, so they form a forest.
+// a lower H), or at the void when one neighbour is the void or that
+// neighbour sheds into the void; others point at themselves. H falls
+// strictly along pointers, so they form a forest.
 // Stamps the tiles of the texels that point elsewhere (the routed ones), so
 // the jump and scatter passes can leave out the others.
 // Mirrors the receiver loop of CpuStabilizer::route.
@@ -26,6 +27,7 @@ void main() {
   if ((int(cell.w) & kCellSurface) != 0 && cell.x + s > hs) {
     float he = free_top(cell, s);
     float best = hs;
+    ivec3 receiver = t;
     for (int n = 0; n < 8; ++n) {
       ivec2 nc = c + kDir[n];
       int land_l = landing(nc, he, cell.x, true);
@@ -39,6 +41,20 @@ void main() {
       if (hn < hs && (p == self_index || via < best)) {
         best = via;
         p = texel_index(nc, land_l);
+        receiver = ivec3(nc, land_l);
+      }
+    }
+    if (p != self_index && p != kPointerVoid) {
+      // A receiver that sheds into the void (a neighbour lands in it at the
+      // receiver's free top) keeps nothing that arrives: the path ends in
+      // the void here.
+      vec4 rc = texelFetch(u_cells, receiver, 0);
+      float rhe = free_top(rc, texelFetch(u_depth, receiver, 0).r);
+      for (int n = 0; n < 8; ++n) {
+        if (landing(receiver.xy + kDir[n], rhe, rc.x, true) == kLandVoid) {
+          p = kPointerVoid;
+          break;
+        }
       }
     }
   }

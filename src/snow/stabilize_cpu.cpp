@@ -669,6 +669,23 @@ int CpuStabilizer::route(double* routed_volume, bool drain) {
                 p = uint32_t(kt);
               }
             }
+            if (p != uint32_t(k) && p != kPointerVoid) {
+              // A receiver that sheds into the void (a neighbour lands in
+              // it at the receiver's free top) keeps nothing that arrives:
+              // the next pass sends it all off the edge. So the path ends
+              // in the void here (snow creeping off tile edges: fountain
+              // 145 -> 48 passes).
+              const size_t col = p % (size_t(width_) * size_t(height_));
+              const int pi = int(col % size_t(width_)), pj = int(col / size_t(width_));
+              const glm::vec4 pc = cells_[p];
+              const float phe = free_top(pc, depth_[p]);
+              for (int n = 0; n < 8; ++n) {
+                if (land(pi + kDirI[n], pj + kDirJ[n], phe, pc.x, rise_, true) == kLandVoid) {
+                  p = kPointerVoid;
+                  break;
+                }
+              }
+            }
           }
           pointer[k] = p;
           if (p != uint32_t(k)) routed_rows[row].push_back(uint32_t(k));
