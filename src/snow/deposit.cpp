@@ -187,10 +187,6 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
   // of a texel come with a lower cost, so a lower height, and are taken
   // first (the others are then stale).
   std::priority_queue<uint64_t, std::vector<uint64_t>, std::greater<uint64_t>> frontier;
-  struct Entry {
-    float dist;
-    uint32_t k;
-  };
   auto entry = [](float key, uint32_t k) {
     uint32_t bits;
     const float positive_zero = key + 0.0f;  // -0 as +0: equal keys, equal bits
@@ -244,26 +240,26 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
     frontier.pop();
     if (seen_[k] == done) continue;  // stale entry
     seen_[k] = done;
-    const Entry e{dist_[k], k};
-    const int i = int((e.k % per_layer_) % size_t(g_.width));
-    const int j = int((e.k % per_layer_) / size_t(g_.width));
-    if (e.k != p && sheds(e.k, i, j)) continue;
-    covered_.emplace_back(e.k, e.dist);
+    const float dist = dist_[k];
+    const int i = int((k % per_layer_) % size_t(g_.width));
+    const int j = int((k % per_layer_) / size_t(g_.width));
+    if (k != p && sheds(k, i, j)) continue;
+    covered_.emplace_back(k, dist);
     ++covered_total_;
-    const double room = cap(e.k) - double(top(e.k));
+    const double room = cap(k) - double(top(k));
     if (room > 0.0) {
       ++active;
-      keys += double(top(e.k)) + double(e.dist);
-      if (room < inf) saturations.push({cap(e.k) + double(e.dist), e.k});
+      keys += double(top(k)) + double(dist);
+      if (room < inf) saturations.push({cap(k) + double(dist), k});
     }
-    const glm::vec4 cell = cells_[e.k];
-    const float h = float(std::max(double(top(e.k)), std::min(apex - double(e.dist), cap(e.k))));
+    const glm::vec4 cell = cells_[k];
+    const float h = float(std::max(double(top(k)), std::min(apex - double(dist), cap(k))));
     for (int n = 0; n < 8; ++n) {
       const int ni = i + kDirI[n], nj = j + kDirJ[n];
       const int lb = gap_at(ni, nj, h);
       if (lb < 0) continue;
       const uint32_t b = uint32_t(index(lb, ni, nj));
-      const float d = e.dist + step_[n] * cell.z;
+      const float d = dist + step_[n] * cell.z;
       if (seen_[b] == done || (seen_[b] == reached && dist_[b] <= d)) continue;
       seen_[b] = reached;
       dist_[b] = d;

@@ -122,12 +122,12 @@ void CpuStabilizer::TileSet::clear() {
   list.clear();
 }
 
-void CpuStabilizer::add_near(TileSet& set, int t, int reach) const {
+void CpuStabilizer::add_near(TileSet& set, int t, int reach, bool self) const {
   const int ti = t % tiles_x_, tj = t / tiles_x_;
   for (int b = std::max(0, tj - reach); b <= std::min(tiles_y_ - 1, tj + reach); ++b) {
     for (int a = std::max(0, ti - reach); a <= std::min(tiles_x_ - 1, ti + reach); ++a) {
       const int u = b * tiles_x_ + a;
-      if (has_surface_[size_t(u)]) set.add(u);
+      if (has_surface_[size_t(u)] && (self || u != t)) set.add(u);
     }
   }
 }
@@ -611,13 +611,7 @@ int CpuStabilizer::erode() {
         if (!changed_[size_t(t)]) continue;
         round_changed = true;
         if (!active) continue;
-        const int ti = t % tiles_x_, tj = t / tiles_x_;
-        for (int b = std::max(0, tj - 1); b <= std::min(tiles_y_ - 1, tj + 1); ++b) {
-          for (int a = std::max(0, ti - 1); a <= std::min(tiles_x_ - 1, ti + 1); ++a) {
-            const int u = b * tiles_x_ + a;
-            if (u != t && has_surface_[size_t(u)]) pending.add(u);
-          }
-        }
+        add_near(pending, t, 1, false);  // t itself is stable
       }
     }
     if (!round_changed) break;

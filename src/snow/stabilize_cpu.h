@@ -112,8 +112,9 @@ class CpuStabilizer {
     }
     void clear();
   };
-  /// Adds the tiles with a surface within `reach` tiles of tile t.
-  void add_near(TileSet& set, int t, int reach) const;
+  /// Adds the tiles with a surface within `reach` tiles of tile t (t itself
+  /// only with `self`).
+  void add_near(TileSet& set, int t, int reach, bool self = true) const;
   /// Tiles within this many of a tile hold the columns a pass of `stride`
   /// reads.
   static int reach(int stride) { return (stride + kTile - 1) / kTile; }
