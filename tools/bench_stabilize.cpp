@@ -1,13 +1,16 @@
 // Benchmark of stage 3, the stabilizer (src/snow/stabilize.h): iterations to
 // converge and time per iteration on the GL renderer at hand, for a canned
-// scene or a glTF file with 0.3 m (--depth) of snow on every top surface.
+// scene or a glTF file with 0.3 m (--depth) of snow on every top surface,
+// or with --coverage on that depth times the default coverage, as a one-step
+// snowfall lays it.
 // Results: tools/RESULTS.md.
 //
 //   snowmodel_bench_stabilize [--scene courtyard|house60|house30|FILE] [--side N]
 //                             [--layers L] [--depth METRES] [--max-stride S] [--passes P]
 //                             [--tiles on|off] [--count-tiles on|off]
 //                             [--max-iterations N] [--route on|off]
-//                             [--trace P] [--backend gpu|cpu]
+//                             [--trace P] [--backend gpu|cpu] [--coverage on|off]
+//                             [--probe I,J,R]
 // With --passes P, runs exactly P passes (tolerance 0) to time them;
 // otherwise runs to convergence (default settings). --tiles off computes
 // every texel in every pass (StabilizeSettings::active_tiles = false).
@@ -15,9 +18,13 @@
 // --route off skips the routing
 // (StabilizeSettings::route_steep = false), to time passes on maps too large
 // to route with full passes. --trace P prints the residual, routed volume,
+// routing passes, drains and pours,
 // elapsed time and share of tiles computed (with --count-tiles on) every P
 // passes (stderr), to see where the passes go. --backend cpu runs the
 // CpuStabilizer (src/snow/stabilize_cpu.h) instead of the GPU passes.
+// With --trace, --probe I,J,R also prints after each chunk the layer texels
+// of the columns within R of column (I, J): ground, ceiling, normal's y and
+// depth, top down.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -34,6 +41,7 @@
 #include "gl/context.h"
 #include "scene/builder.h"
 #include "scene/load_gltf.h"
+#include "snow/coverage.h"
 #include "snow/peel.h"
 #include "snow/stabilize.h"
 #include "snow/stabilize_cpu.h"
@@ -53,6 +61,8 @@ int main(int argc, char** argv) {
   int side = 1024, layers = 4, passes = -1, trace = 0;
   float snow_depth = 0.3f;
   std::string backend = "gpu";
+  bool with_coverage = false;
+  int probe_i = 0, probe_j = 0, probe_r = -1;
   StabilizeSettings settings;
   for (int a = 1; a < argc; a += 2) {
     const std::string key = argv[a];
@@ -62,7 +72,7 @@ int main(int argc, char** argv) {
                    "[--side N] [--layers L]\n  [--depth METRES] [--max-stride S] [--passes P] "
                    "[--tiles on|off] "
                    "[--count-tiles on|off] [--max-iterations N]\n  [--route on|off] [--trace P] "
-                   "[--backend gpu|cpu]\n");
+                   "[--backend gpu|cpu] [--coverage on|off] [--probe I,J,R]\n");
       return key == "-h" || key == "--help" ? 0 : 2;
     }
     const char* value = argv[a + 1];
@@ -88,6 +98,10 @@ int main(int argc, char** argv) {
       trace = std::atoi(value);
     else if (key == "--backend")
       backend = value;
+    else if (key == "--probe")
+      std::sscanf(value, "%d,%d,%d", &probe_i, &probe_j, &probe_r);
+    else if (key == "--coverage")
+      with_coverage = std::strcmp(value, "off") != 0;
     else if (key == "--count-tiles")
       settings.count_tiles = std::strcmp(value, "off") != 0;
     else {
@@ -117,9 +131,15 @@ int main(int argc, char** argv) {
     const SnowMaps maps = peel_layers(scene, peel);
     const double peel_s = seconds_since(t0);
     std::vector<float> depth(size_t(maps.layers) * maps.grid.texels(), 0.0f);
-    for (int j = 0; j < maps.grid.height; ++j) {
-      for (int i = 0; i < maps.grid.width; ++i) {
-        if (maps.has_surface(0, i, j)) depth[maps.index(0, i, j)] = snow_depth;
+    if (with_coverage) {
+      // The snow of a one-step snowfall with the default coverage.
+      depth = compute_coverage(scene, maps, CoverageSettings{});
+      for (float& d : depth) d *= snow_depth;
+    } else {
+      for (int j = 0; j < maps.grid.height; ++j) {
+        for (int i = 0; i < maps.grid.width; ++i) {
+          if (maps.has_surface(0, i, j)) depth[maps.index(0, i, j)] = snow_depth;
+        }
       }
     }
     if (passes >= 0) {
@@ -159,13 +179,30 @@ int main(int argc, char** argv) {
           const int32_t object = maps.object[most];
           std::fprintf(
               stderr,
-              "pass %d residual %.3e m routed %.4f m^3 (%d passes) %.1f s, tiles %.1f %%; largest "
+              "pass %d residual %.3e m routed %.4f m^3 (%d passes, %d drains, %d pours) %.1f s, "
+              "tiles %.1f %%; largest "
               "change %.2e m at layer %d (%d, %d) on %s, ground %.3f m, depth %.4f m\n",
-              sum.iterations, r.residual, r.routed_volume, r.route_passes, seconds_since(t0),
-              100.0 * r.tile_share, after[most] - before[most], l, i, j,
+              sum.iterations, r.residual, r.routed_volume, r.route_passes, r.drains, r.pours,
+              seconds_since(t0), 100.0 * r.tile_share, after[most] - before[most], l, i, j,
               object >= 0 ? scene.objects[size_t(object)].name.c_str() : "-", maps.ground[most],
               after[most]);
           before = after;
+          if (probe_r >= 0) {
+            for (int jj = std::max(0, probe_j - probe_r);
+                 jj <= std::min(maps.grid.height - 1, probe_j + probe_r); ++jj) {
+              for (int ii = std::max(0, probe_i - probe_r);
+                   ii <= std::min(maps.grid.width - 1, probe_i + probe_r); ++ii) {
+                std::fprintf(stderr, "  (%d,%d)", ii, jj);
+                for (int l = 0; l < maps.layers; ++l) {
+                  const size_t k = maps.index(l, ii, jj);
+                  if (std::isnan(maps.ground[k])) break;
+                  std::fprintf(stderr, " [%d g%.3f c%.3f n%.2f d%.4f]", l, maps.ground[k],
+                               maps.ceiling[k], maps.normal[k].y, after[k]);
+                }
+                std::fprintf(stderr, "\n");
+              }
+            }
+          }
         }
         r = sum;
       } else {
