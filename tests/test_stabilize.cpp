@@ -237,7 +237,8 @@ TEST(Column, LandingRule) {
 // --- CPU reference on analytic maps -----------------------------------------
 
 TEST(StrideSchedule, LengthensOnlyWhereTheSnowCreeps) {
-  StabilizeSettings settings;  // max_stride 4, check_every 16
+  StabilizeSettings settings;  // max_stride 4
+  settings.check_every = 16;
   StrideSchedule schedule(settings);
   const auto run = [&](int passes, float residual) {
     std::vector<int> strides;

@@ -112,6 +112,7 @@ int StrideSchedule::next() {
   int levels = 1;
   while ((1 << levels) <= cap_) ++levels;  // cap_ = 2^(levels-1)
   ++since_;
+  ++since_pressed_;
   return cap_ >> (cycle_++ % levels);
 }
 
@@ -138,7 +139,7 @@ bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule
 bool pressed_snow_due(const StabilizeSettings& settings, const StrideSchedule& schedule,
                       float residual) {
   return settings.route_steep && settings.deposit_piles && schedule.creeping() &&
-         residual >= settings.tolerance;
+         residual >= settings.tolerance && schedule.since_pressed() >= kPressedEvery;
 }
 
 namespace {
@@ -1019,9 +1020,12 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
         result.route_passes += route(true);
         ++result.drains;
         reset_tiles();  // the routing used the outflow textures
-      } else if (pressed_snow_due(settings, schedule, moves.x) && pour_pressed()) {
-        ++result.pours;
-        reset_tiles();
+      } else if (pressed_snow_due(settings, schedule, moves.x)) {
+        schedule.pressed_looked_for();
+        if (pour_pressed()) {
+          ++result.pours;
+          reset_tiles();
+        }
       }
     }
   }

@@ -787,12 +787,14 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
       if (drain_due(settings_, schedule_, result.residual, residual_void_)) {
         result.route_passes += route(nullptr, true);
         ++result.drains;
-      } else if (pressed_snow_due(settings_, schedule_, result.residual) &&
-                 pour_pressed_snow(cells_.data(), depth_.data(),
-                                   DepositGrid{width_, height_, layers_, texel_},
-                                   settings_.tolerance) > 0) {
-        ++result.pours;
-        touch_all();
+      } else if (pressed_snow_due(settings_, schedule_, result.residual)) {
+        schedule_.pressed_looked_for();
+        if (pour_pressed_snow(cells_.data(), depth_.data(),
+                              DepositGrid{width_, height_, layers_, texel_},
+                              settings_.tolerance) > 0) {
+          ++result.pours;
+          touch_all();
+        }
       }
     }
   }
