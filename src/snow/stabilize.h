@@ -80,9 +80,9 @@ struct StabilizeSettings {
   int max_iterations = 4000;       // relaxation passes at most per call (>= 0)
   int check_every = 4;             // passes between convergence checks (a small GPU reduction
                                    // and readback), which also decide on strides and drains;
-                                   // >= 1. 16 before: the run stopped up to 15 passes late and
-                                   // drained late (Kenney tiles, 0.3 m: 4-118 passes against
-                                   // 16-337, pavement-fountain 48 -> 26, SheenChair 99 -> 42)
+                                   // >= 1. With 16, runs stopped up to 15 passes late and
+                                   // drained late (Kenney tiles, 0.3 m, 16 -> 4: building-small-a
+                                   // 118 -> 81 passes, fountain 48 -> 26, SheenChair 99 -> 42)
   int max_stride = 4;              // texels, largest stride of the multi-scale relaxation
                                    // passes (a power of two, 1..64; 1 = single steps only).
                                    // Not scaled with the map size: on the courtyard at 256
