@@ -52,6 +52,14 @@ class Pourer {
   /// cost), spreading from a covered texel at the larger of its snow top
   /// and apex - its path cost; returns the height of the cone's apex.
   double grow(uint32_t p, float volume, double apex);
+  /// Whether growing again at the cone of apex `apex` would repeat the last
+  /// growth, which spread at the snow tops: at every texel it covered, the
+  /// cone's surface lies in the same gap of each neighbour column as the
+  /// snow top. Then the second growth finds the same neighbours, so it takes
+  /// the same texels in the same order at the same path costs and ends at
+  /// the same apex. So it is skipped (Kenney tiles with 0.3 m: 42-94 % of
+  /// the piles, the courtyard 92 %; their growths ~10 % less CPU time).
+  bool grows_alike(double apex) const;
 
   struct Column {
     const Pourer& s;
@@ -162,7 +170,7 @@ void Pourer::pour(uint32_t p, float volume) {
   // its height: grown once at the snow tops as they are, then again at the
   // cone heights the first growth found.
   const double first = grow(p, volume, -kOpenSky);
-  const double cone = grow(p, volume, first);
+  const double cone = grows_alike(first) ? first : grow(p, volume, first);
   // Each covered texel rises to the cone; the terminal keeps the rest, so
   // the volume is exact.
   float placed = 0.0f;
@@ -175,6 +183,23 @@ void Pourer::pour(uint32_t p, float volume) {
     }
   }
   depth_[p] = depth_[p] + (volume - placed);
+}
+
+bool Pourer::grows_alike(double apex) const {
+  for (const auto& [k, dist] : covered_) {
+    // The heights grow() spreads from: the snow top in the first growth,
+    // the cone's surface (capped, never under the top) in the second.
+    const float at_top = top(k);
+    const float at_cone = float(std::max(double(at_top), std::min(apex - double(dist), cap(k))));
+    if (at_cone == at_top) continue;
+    const int i = int((k % per_layer_) % size_t(g_.width));
+    const int j = int((k % per_layer_) / size_t(g_.width));
+    for (int n = 0; n < 8; ++n) {
+      const int ni = i + kDirI[n], nj = j + kDirJ[n];
+      if (gap_at(ni, nj, at_top) != gap_at(ni, nj, at_cone)) return false;
+    }
+  }
+  return true;
 }
 
 double Pourer::grow(uint32_t p, float volume, double apex) {
