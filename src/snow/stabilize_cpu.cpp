@@ -198,6 +198,15 @@ double CpuStabilizer::lost_volume() const {
   return sum * double(texel_) * double(texel_);
 }
 
+// Past the `count` surfaces of column (i, j), as column.glsl's landing
+// walk ends: a wall (kLandBlocked) where all L layers hold a surface or the
+// lowest faces up, else the void.
+inline int CpuStabilizer::past_column(int i, int j, int count) const {
+  if (count == layers_) return kLandBlocked;
+  return count > 0 && (cell_flags(cells_[index(count - 1, i, j)]) & kCellDown) == 0 ? kLandBlocked
+                                                                                    : kLandVoid;
+}
+
 // Mirrors shaders/column.glsl: snow::land_in_column on the cells, with the
 // snow tops ground + depth, or with `kept` the routing's kept heights. The
 // layers with a surface are the column's first column_layers_ (packed from
@@ -217,9 +226,7 @@ inline int CpuStabilizer::land(int i, int j, float h, float support, float rise,
     }
     if (h >= cell.x) return kLandBlocked;
   }
-  if (count == layers_) return kLandBlocked;
-  return count > 0 && (cell_flags(cells_[index(count - 1, i, j)]) & kCellDown) == 0 ? kLandBlocked
-                                                                                    : kLandVoid;
+  return past_column(i, j, count);
 }
 
 // Mirrors gap_at in shaders/stabilize_outflow.frag: the layer of column
@@ -233,9 +240,7 @@ int CpuStabilizer::gap_at(int i, int j, float h) const {
     if (h >= cell.y) return kLandBlocked;
     if (h >= cell.x) return (cell_flags(cell) & kCellSolid) != 0 ? kLandBlocked : l;
   }
-  if (count == layers_) return kLandBlocked;
-  return count > 0 && (cell_flags(cells_[index(count - 1, i, j)]) & kCellDown) == 0 ? kLandBlocked
-                                                                                    : kLandVoid;
+  return past_column(i, j, count);
 }
 
 // The stride-1 rule of a strided pass (see outflow_texel): would a single

@@ -80,6 +80,9 @@ class CpuStabilizer {
   [[gnu::always_inline]] int land(int i, int j, float h, float support, float rise,
                                   bool kept = false) const;
   int gap_at(int i, int j, float h) const;
+  /// land and gap_at past the `count` surfaces of column (i, j):
+  /// kLandBlocked or kLandVoid.
+  int past_column(int i, int j, int count) const;
   /// Whether a single step moves snow from layer texel (i, j) with this cell,
   /// depth s, free top he and snow over the ceiling (the rule strided passes
   /// move by).
