@@ -23,7 +23,6 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <deque>
 #include <functional>
 #include <limits>
 #include <map>
@@ -396,7 +395,6 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const std::vector<fl
   std::vector<int32_t> label(n, -1);
   std::vector<int32_t> column_stamp(per_layer, -1);
   std::vector<PatchTexels> patches;
-  std::deque<size_t> queue;
   static const int kDi[4] = {1, -1, 0, 0};
   static const int kDj[4] = {0, 0, 1, -1};
 
@@ -409,12 +407,11 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const std::vector<fl
       label[k] = id;
       column_stamp[k % per_layer] = id;
       patch.texels.push_back(k);
-      queue.push_back(k);
     };
     claim(seed);
-    while (!queue.empty()) {
-      const size_t a = queue.front();
-      queue.pop_front();
+    // Breadth first: the patch's texels are the queue, in the order claimed.
+    for (size_t next = 0; next < patch.texels.size(); ++next) {
+      const size_t a = patch.texels[next];
       const TexelCoord ca = coord_of(maps, a);
       const float ha = top(a);
       for (int d = 0; d < 4; ++d) {
@@ -756,39 +753,83 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
     }
   }
   if (tolerance >= 0.0) {
-    // Level by level, finest first: a triangle's error takes in its
-    // children's, which both triangles sharing each child hypotenuse must
-    // have set. Each level is reached by descending from the two root
-    // triangles, which costs about as many steps as there are triangles.
-    // Depths 0 (the roots) to 2 * log2(tile) - 1, whose triangles have
-    // hypotenuses of two texels; only those above have children.
-    int levels = 0;
-    for (int t = 1; t < tile; t *= 2) levels += 2;
-    // (Recursive lambdas that take themselves, not std::function: a call
-    // through it per triangle; the 1M terrain's polygonize 1.18 -> 1.09-1.13 s.)
-    const auto level = [&](const auto& self, int depth, int ax, int ay, int bx, int by, int cx,
-                           int cy, bool parent) -> void {
+    // A triangle's error takes in its own (how far top and ground at its
+    // hypotenuse midpoint lie from the hypotenuse's) and its children's,
+    // kept at that midpoint, which the two triangles sharing a hypotenuse
+    // share. So each midpoint is worked out once, level by level, finest
+    // first, from its two triangles: a square's centre is the midpoint of
+    // its diagonal, whose children's midpoints are the square's edge
+    // midpoints; an edge midpoint (hypotenuse of length 2h) is the midpoint
+    // of the triangles with right angles h to either side, whose children's
+    // midpoints are the centres of the four squares of side h around it.
+    // The diagonal of a square runs through its parent square's centre: from
+    // its own top-left corner to its bottom-right one where the square's
+    // column and row (in squares of its size) add up to an even number.
+    // These are the errors of a recursive descent over the triangles from
+    // the two roots, bit for bit, without a descent per level, and each
+    // midpoint written by one task, rows in parallel (the 1M terrain at
+    // 2048: triangulate_top 0.21-0.35 -> 0.07-0.08 s on 2 cores).
+    //
+    // own: the error of triangle (a, b) with its right angle at c. Every
+    // triangle turns the same way from a to b to c, and its sums run in that
+    // order, so the two that share a hypotenuse may round apart.
+    const auto own = [&](int ax, int ay, int bx, int by, int cx, int cy, float& e) {
+      if ((bx - ax) * (cy - ay) - (by - ay) * (cx - ax) > 0) {
+        std::swap(ax, bx);
+        std::swap(ay, by);
+      }
       const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
-      if (depth > 0) {
-        self(self, depth - 1, cx, cy, ax, ay, mx, my, parent);
-        self(self, depth - 1, bx, by, cx, cy, mx, my, parent);
-        return;
-      }
-      float& e = error[size_t(my) * size_t(n) + size_t(mx)];
-      if (member(ax, ay) && member(bx, by) && member(mx, my)) {
-        const size_t a = f.at(ax, ay), b = f.at(bx, by), m = f.at(mx, my);
-        const float dg = std::abs(0.5f * (f.g[a] + f.g[b]) - f.g[m]);
-        const float dt = std::abs(0.5f * (f.g[a] + f.s[a] + f.g[b] + f.s[b]) - (f.g[m] + f.s[m]));
-        e = std::max(e, std::max(dg, dt));
-      }
-      if (parent) {
-        e = std::max({e, error[size_t((ay + cy) >> 1) * size_t(n) + size_t((ax + cx) >> 1)],
-                      error[size_t((by + cy) >> 1) * size_t(n) + size_t((bx + cx) >> 1)]});
-      }
+      if (!(member(ax, ay) && member(bx, by) && member(mx, my))) return;
+      const size_t a = f.at(ax, ay), b = f.at(bx, by), m = f.at(mx, my);
+      const float dg = std::abs(0.5f * (f.g[a] + f.g[b]) - f.g[m]);
+      const float dt = std::abs(0.5f * (f.g[a] + f.s[a] + f.g[b] + f.s[b]) - (f.g[m] + f.s[m]));
+      e = std::max(e, std::max(dg, dt));
     };
-    for (int depth = levels - 1; depth >= 0; --depth) {
-      level(level, depth, 0, 0, tile, tile, tile, 0, depth < levels - 1);
-      level(level, depth, tile, tile, 0, 0, 0, tile, depth < levels - 1);
+    const auto at = [&](int x, int y) -> float& { return error[size_t(y) * size_t(n) + size_t(x)]; };
+    const unsigned threads = threads_for(error.size());
+    for (int side = 2; side <= tile; side *= 2) {
+      const int h = side / 2;
+      const bool parent = side > 2;
+      // Edge midpoints of squares of this side (hypotenuses of length side).
+      parallel_for(
+          size_t(tile / h + 1),
+          [&](size_t row) {
+            const int y = int(row) * h;
+            for (int x = (y % side == 0) ? h : 0; x <= tile; x += side) {
+              float& e = at(x, y);
+              const bool horizontal = y % side == 0;
+              const int dx = horizontal ? h : 0, dy = horizontal ? 0 : h;
+              for (int sgn = -1; sgn <= 1; sgn += 2) {
+                const int cx = x + sgn * dy, cy = y + sgn * dx;  // right angle
+                if (cx < 0 || cy < 0 || cx > tile || cy > tile) continue;
+                own(x - dx, y - dy, x + dx, y + dy, cx, cy, e);
+                if (!parent) continue;
+                e = std::max({e, at((x - dx + cx) >> 1, (y - dy + cy) >> 1),
+                              at((x + dx + cx) >> 1, (y + dy + cy) >> 1)});
+              }
+            }
+          },
+          threads);
+      // Centres of squares of this side (diagonals), whose children are the
+      // edge midpoints just done.
+      parallel_for(
+          size_t(tile / side),
+          [&](size_t qy) {
+            const int y = int(qy) * side + h;
+            for (int qx = 0; qx * side < tile; ++qx) {
+              const int x = qx * side + h;
+              float& e = at(x, y);
+              if ((qx + int(qy)) % 2 == 0) {
+                own(x - h, y - h, x + h, y + h, x + h, y - h, e);
+                own(x - h, y - h, x + h, y + h, x - h, y + h, e);
+              } else {
+                own(x + h, y - h, x - h, y + h, x - h, y - h, e);
+                own(x + h, y - h, x - h, y + h, x + h, y + h, e);
+              }
+              e = std::max({e, at(x - h, y), at(x + h, y), at(x, y - h), at(x, y + h)});
+            }
+          },
+          threads);
     }
   }
   std::vector<uint8_t> cell_done(f.member.size(), 0);
