@@ -741,5 +741,40 @@ TEST(Bvh, ReachesAgreesWithTheWalk) {
   EXPECT_FALSE(bvh.reaches(uint32_t(n), glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f), 0.0f, 1e9f));
 }
 
+// Bvh::first_hit names a triangle that the ray hits (one that reaches()
+// confirms, the CPU casts' cache) exactly where occluded() is true, and
+// kNone elsewhere.
+TEST(Bvh, FirstHitNamesAnOccluder) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> where(-5.0f, 5.0f), size(-0.8f, 0.8f), unit(-1.0f, 1.0f);
+  const size_t n = 2000;
+  std::vector<glm::vec3> corners;
+  for (size_t t = 0; t < n; ++t) {
+    const glm::vec3 c(where(rng), 0.3f * where(rng), where(rng));
+    for (int k = 0; k < 3; ++k) corners.push_back(c + glm::vec3(size(rng), size(rng), size(rng)));
+  }
+  const Bvh bvh(corners);
+  const float far = std::numeric_limits<float>::infinity();
+  size_t hits = 0, misses = 0, wrong = 0;
+  for (int r = 0; r < 2000; ++r) {
+    const glm::vec3 origin(where(rng), 0.5f * where(rng), where(rng));
+    glm::vec3 dir(unit(rng), 0.2f + std::abs(unit(rng)), unit(rng));
+    if (r % 4 == 0) dir.x = 0.0f;
+    const float t_min = r % 3 == 0 ? 0.0f : 0.01f;
+    const uint32_t t = bvh.first_hit(origin, dir, t_min, far);
+    if (t == Bvh::kNone) {
+      ++misses;
+      wrong += bvh.occluded(origin, dir, t_min, far);
+    } else {
+      ++hits;
+      wrong += t >= n || !bvh.occluded(origin, dir, t_min, far) ||
+               !bvh.reaches(t, origin, dir, t_min, far);
+    }
+  }
+  EXPECT_GT(hits, 200u);
+  EXPECT_GT(misses, 200u);
+  EXPECT_EQ(wrong, 0u);
+}
+
 }  // namespace
 }  // namespace snow

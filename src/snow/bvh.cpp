@@ -131,8 +131,8 @@ void Bvh::build(uint32_t first, uint32_t count, const std::vector<glm::vec3>& ce
   out[index].count = 0;
 }
 
-bool Bvh::occluded(const glm::vec3& origin, const glm::vec3& direction, float t_min,
-                   float t_max) const {
+uint32_t Bvh::first_hit(const glm::vec3& origin, const glm::vec3& direction, float t_min,
+                       float t_max) const {
   // Stackless pre-order walk: a hit inner node goes on to its left child (the
   // next node), a missed one skips its subtree; leaves go on to the next node.
   const glm::vec3 inv_dir = 1.0f / direction;
@@ -148,13 +148,13 @@ bool Bvh::occluded(const glm::vec3& origin, const glm::vec3& direction, float t_
       for (uint32_t t = node.first; t < node.first + node.count; ++t) {
         if (hit_triangle(corners_[3 * t], corners_[3 * t + 1], corners_[3 * t + 2], origin,
                          direction, t_min, t_max)) {
-          return true;
+          return t;
         }
       }
     }
     ++i;
   }
-  return false;
+  return kNone;
 }
 
 bool Bvh::reaches(uint32_t t, const glm::vec3& origin, const glm::vec3& direction, float t_min,

@@ -28,10 +28,17 @@ class Bvh {
   /// Builds over triangles t = (corners[3t], corners[3t+1], corners[3t+2]).
   explicit Bvh(std::vector<glm::vec3> corners);
 
-  /// True when the ray origin + t * direction hits a triangle (either side)
-  /// for some t in (t_min, t_max). direction need not be unit length.
+  static constexpr uint32_t kNone = ~0u;
+  /// The first triangle (leaf order) the walk finds that the ray origin + t *
+  /// direction hits (either side) for some t in (t_min, t_max); kNone when
+  /// there is none. direction need not be unit length.
+  uint32_t first_hit(const glm::vec3& origin, const glm::vec3& direction, float t_min,
+                     float t_max) const;
+  /// True when the ray hits a triangle: first_hit(...) != kNone.
   bool occluded(const glm::vec3& origin, const glm::vec3& direction, float t_min,
-                float t_max) const;
+                float t_max) const {
+    return first_hit(origin, direction, t_min, t_max) != kNone;
+  }
 
   /// True when occluded(origin, direction, t_min, t_max) reaches the leaf
   /// holding triangle t (leaf order) and finds one of its triangles hit: the
