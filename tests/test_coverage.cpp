@@ -707,16 +707,22 @@ TEST(Bvh, ParallelBuildIsOneValidTree) {
 // Bvh::reaches, the exact casts' shortcut on the CPU: true for some
 // triangle exactly when the walk finds the ray occluded, and never where it
 // does not (rays with zero components too: slabs of 0 * inf).
-TEST(Bvh, ReachesAgreesWithTheWalk) {
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<float> where(-5.0f, 5.0f), size(-0.8f, 0.8f), unit(-1.0f, 1.0f);
-  const size_t n = 2000;
+// n small random triangles in a flat box 10 m wide (corners 3 per triangle).
+std::vector<glm::vec3> random_triangles(std::mt19937& rng, size_t n) {
+  std::uniform_real_distribution<float> where(-5.0f, 5.0f), size(-0.8f, 0.8f);
   std::vector<glm::vec3> corners;
   for (size_t t = 0; t < n; ++t) {
     const glm::vec3 c(where(rng), 0.3f * where(rng), where(rng));
     for (int k = 0; k < 3; ++k) corners.push_back(c + glm::vec3(size(rng), size(rng), size(rng)));
   }
-  const Bvh bvh(corners);
+  return corners;
+}
+
+TEST(Bvh, ReachesAgreesWithTheWalk) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> where(-5.0f, 5.0f), unit(-1.0f, 1.0f);
+  const size_t n = 2000;
+  const Bvh bvh(random_triangles(rng, n));
   size_t occluded = 0, differ = 0, false_hits = 0;
   for (int r = 0; r < 400; ++r) {
     const glm::vec3 origin(where(rng), 0.5f * where(rng), where(rng));
@@ -746,14 +752,9 @@ TEST(Bvh, ReachesAgreesWithTheWalk) {
 // kNone elsewhere.
 TEST(Bvh, FirstHitNamesAnOccluder) {
   std::mt19937 rng(9);
-  std::uniform_real_distribution<float> where(-5.0f, 5.0f), size(-0.8f, 0.8f), unit(-1.0f, 1.0f);
+  std::uniform_real_distribution<float> where(-5.0f, 5.0f), unit(-1.0f, 1.0f);
   const size_t n = 2000;
-  std::vector<glm::vec3> corners;
-  for (size_t t = 0; t < n; ++t) {
-    const glm::vec3 c(where(rng), 0.3f * where(rng), where(rng));
-    for (int k = 0; k < 3; ++k) corners.push_back(c + glm::vec3(size(rng), size(rng), size(rng)));
-  }
-  const Bvh bvh(corners);
+  const Bvh bvh(random_triangles(rng, n));
   const float far = std::numeric_limits<float>::infinity();
   size_t hits = 0, misses = 0, wrong = 0;
   for (int r = 0; r < 2000; ++r) {
