@@ -959,6 +959,7 @@ struct CoverageRenderer::Impl {
               draw_cpu_shadow_map(snow_triangles, frames[k], height[w], drawn[w], false);
               const glm::vec3 up = -dirs[k];  // the casts' ray, as reference::sees_sky's
               const size_t sx = size_t(size.x);
+              uint32_t last = Bvh::kNone;
               for (size_t r = 0; r < points.size(); ++r) {
                 const glm::vec3& p = points[r].p;
                 size_t at = 0;
@@ -976,14 +977,27 @@ struct CoverageRenderer::Impl {
                 const float t_min = reference::own_surface(p.y) / up.y;  // as sees_sky
                 const size_t texel[4] = {at, at + 1, at + sx, at + sx + 1};
                 uint32_t tried = kNoTriangle;
-                bool blocked = false;
+                bool blocked = !(up.y > 0.0f);  // (fall directions point down)
                 for (int e = 0; e < 4 && hints && !blocked; ++e) {
                   const uint32_t id = drawn[w][texel[e]];
                   if (!(above >> e & 1) || id == kNoTriangle || id == tried) continue;
                   tried = id;
                   blocked = bvh.reaches(id, p, up, t_min, kOpenSky);
                 }
-                lit[w][r] += !blocked && reference::sees_sky({&bvh, snow_bvh.get()}, p, dirs[k]);
+                // Then the triangle that blocked the last pair the walk settled
+                // (as in cast_on_cpu), then the walk. On the courtyard with
+                // this method, the cache settles 14,877 of the 17,439 blocked
+                // pairs the hints leave, but 165,613 pairs see the sky and
+                // need the whole walk: coverage 1.76 -> 1.60 s (medians of 5).
+                if (!blocked && last != Bvh::kNone && last != tried) {
+                  blocked = bvh.reaches(last, p, up, t_min, kOpenSky);
+                }
+                if (!blocked) {
+                  const uint32_t hit = bvh.first_hit(p, up, t_min, kOpenSky);
+                  blocked = hit != Bvh::kNone;
+                  if (blocked) last = hit;
+                }
+                lit[w][r] += !blocked && !(snow_bvh && snow_bvh->occluded(p, up, t_min, kOpenSky));
               }
             }
           },
