@@ -704,6 +704,35 @@ TEST(Bvh, ParallelBuildIsOneValidTree) {
   EXPECT_EQ(differ, 0u);
 }
 
+// Triangles the split cannot part (one shared centroid, or NaN corners):
+// the build ends in leaves that still hold every triangle once, in order,
+// and rays still find the shared ones.
+TEST(Bvh, UnsplittableTrianglesStillBuild) {
+  std::vector<glm::vec3> corners;
+  for (int t = 0; t < 40; ++t) {  // 40 triangles about the origin, turned
+    const float a = 0.15f * float(t);
+    const glm::vec3 u(std::cos(a), 0.0f, std::sin(a));
+    corners.insert(corners.end(),
+                   {u, -0.5f * u + glm::vec3(0, 0.1f, 0), -0.5f * u - glm::vec3(0, 0.1f, 0)});
+  }
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int t = 0; t < 5; ++t) {
+    corners.insert(corners.end(),
+                   {glm::vec3(nan), glm::vec3(float(t)), glm::vec3(1.0f, nan, 0.0f)});
+  }
+  const Bvh bvh(corners);
+  uint32_t next = 0;
+  for (const Bvh::Node& node : bvh.nodes()) {
+    if (node.count == 0) continue;
+    EXPECT_EQ(node.first, next);
+    next = node.first + node.count;
+  }
+  EXPECT_EQ(next, 45u);
+  // Through the origin, where every turned triangle lies.
+  EXPECT_TRUE(bvh.occluded(glm::vec3(0.0f, 0.0f, -1.0f), glm::vec3(0.0f, 0.0f, 1.0f), 0.0f, 2.0f));
+  EXPECT_FALSE(bvh.occluded(glm::vec3(0.0f, 5.0f, -1.0f), glm::vec3(0.0f, 0.0f, 1.0f), 0.0f, 2.0f));
+}
+
 // Bvh::reaches, the exact casts' shortcut on the CPU: true for some
 // triangle exactly when the walk finds the ray occluded, and never where it
 // does not (rays with zero components too: slabs of 0 * inf).

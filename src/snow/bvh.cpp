@@ -56,18 +56,19 @@ Bvh::Bvh(std::vector<glm::vec3> corners) : corners_(std::move(corners)) {
   const uint32_t n = static_cast<uint32_t>(corners_.size() / 3);
   corners_.resize(size_t(n) * 3);
   order_.resize(n);
-  std::vector<glm::vec3> centroids(n);
+  std::vector<Prim> prims(n);
   for (uint32_t t = 0; t < n; ++t) {
     order_[t] = t;
-    centroids[t] = (corners_[3 * t] + corners_[3 * t + 1] + corners_[3 * t + 2]) / 3.0f;
+    const glm::vec3 &a = corners_[3 * t], &b = corners_[3 * t + 1], &c = corners_[3 * t + 2];
+    prims[t] = {glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c)), (a + b + c) / 3.0f};
   }
   if (n == 0) return;
-  nodes_.reserve(2 * (n / 2 + 1));
+  nodes_.reserve(2 * size_t(n));
   // Subtrees of about 64k triangles or more are built beside each other, up
-  // to 2^5 at once (1M triangles: 0.6 s on one core).
+  // to 2^5 at once (1M triangles: 0.27-0.33 s on 2 cores).
   int parallel_levels = 0;
   while (parallel_levels < 5 && (n >> parallel_levels) >= (1u << 17)) ++parallel_levels;
-  build(0, n, centroids, nodes_, parallel_levels);
+  build(0, n, prims, nodes_, parallel_levels);
   // Store the triangles in leaf order.
   std::vector<glm::vec3> sorted(corners_.size());
   for (uint32_t k = 0; k < n; ++k) {
@@ -76,7 +77,7 @@ Bvh::Bvh(std::vector<glm::vec3> corners) : corners_(std::move(corners)) {
   corners_ = std::move(sorted);
 }
 
-void Bvh::build(uint32_t first, uint32_t count, const std::vector<glm::vec3>& centroids,
+void Bvh::build(uint32_t first, uint32_t count, const std::vector<Prim>& prims,
                 std::vector<Node>& out, int parallel_levels) {
   // Depth-first layout: an inner node's left child follows it directly.
   const size_t index = out.size();
@@ -84,38 +85,105 @@ void Bvh::build(uint32_t first, uint32_t count, const std::vector<glm::vec3>& ce
   glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
   glm::vec3 clo = lo, chi = hi;
   for (uint32_t k = first; k < first + count; ++k) {
-    const uint32_t t = order_[k];
-    for (int c = 0; c < 3; ++c) {
-      lo = glm::min(lo, corners_[3 * t + c]);
-      hi = glm::max(hi, corners_[3 * t + c]);
-    }
-    clo = glm::min(clo, centroids[t]);
-    chi = glm::max(chi, centroids[t]);
+    const Prim& p = prims[order_[k]];
+    lo = glm::min(lo, p.lo);
+    hi = glm::max(hi, p.hi);
+    clo = glm::min(clo, p.c);
+    chi = glm::max(chi, p.c);
   }
   out[index].min = lo;
   out[index].max = hi;
   const glm::vec3 extent = chi - clo;
-  const int axis =
-      extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
-  if (count <= kLeafSize || extent[axis] <= 0.0f) {
+  if (count <= kLeafSize || !(std::max({extent.x, extent.y, extent.z}) > 0.0f)) {
     out[index].first = first;
     out[index].count = count;
     return;
   }
-  const uint32_t half = count / 2;
-  std::nth_element(order_.begin() + first, order_.begin() + first + half,
-                   order_.begin() + first + count,
-                   [&](uint32_t a, uint32_t b) { return centroids[a][axis] < centroids[b][axis]; });
+  // The split: of the planes between kBins bins of the centroids along each
+  // axis, the one of least surface area heuristic cost (binned SAH, Wald
+  // 2007). Against the median of the longest axis it replaced, the 1M
+  // terrain at 2048 (2 cores): build 0.20-0.22 -> 0.27-0.33 s, but sky cull
+  // 0.71-0.75 -> 0.43-0.45 s and CPU casts 0.86-0.91 -> 0.51-0.54 s.
+  constexpr int kBins = 16;
+  struct Bin {
+    glm::vec3 lo{std::numeric_limits<float>::max()}, hi{-std::numeric_limits<float>::max()};
+    uint32_t n = 0;
+  };
+  Bin bins[3][kBins];
+  glm::vec3 scale;
+  for (int ax = 0; ax < 3; ++ax) scale[ax] = extent[ax] > 0.0f ? float(kBins) / extent[ax] : 0.0f;
+  const auto bin_of = [&](const Prim& p, int ax) {
+    const float f = (p.c[ax] - clo[ax]) * scale[ax];
+    return f > 0.0f ? int(std::min(f, float(kBins - 1))) : 0;  // (NaN: 0)
+  };
+  for (uint32_t k = first; k < first + count; ++k) {
+    const Prim& p = prims[order_[k]];
+    for (int ax = 0; ax < 3; ++ax) {
+      Bin& bin = bins[ax][bin_of(p, ax)];
+      bin.lo = glm::min(bin.lo, p.lo);
+      bin.hi = glm::max(bin.hi, p.hi);
+      ++bin.n;
+    }
+  }
+  const auto area = [](const glm::vec3& a, const glm::vec3& b) {
+    const glm::vec3 d = glm::max(b - a, glm::vec3(0.0f));
+    return d.x * d.y + d.y * d.z + d.z * d.x;
+  };
+  float best_cost = std::numeric_limits<float>::max();
+  int best_axis = -1, best_bin = -1;
+  for (int ax = 0; ax < 3; ++ax) {
+    if (!(extent[ax] > 0.0f)) continue;
+    float right_cost[kBins] = {};  // area x count of bins b.. (b >= 1)
+    Bin right;
+    for (int b = kBins - 1; b > 0; --b) {
+      const Bin& bin = bins[ax][b];
+      right.lo = glm::min(right.lo, bin.lo);
+      right.hi = glm::max(right.hi, bin.hi);
+      right.n += bin.n;
+      right_cost[b] = right.n > 0 ? area(right.lo, right.hi) * float(right.n) : -1.0f;
+    }
+    Bin left;
+    for (int b = 0; b + 1 < kBins; ++b) {
+      const Bin& bin = bins[ax][b];
+      left.lo = glm::min(left.lo, bin.lo);
+      left.hi = glm::max(left.hi, bin.hi);
+      left.n += bin.n;
+      if (left.n == 0 || right_cost[b + 1] < 0.0f) continue;
+      const float cost = area(left.lo, left.hi) * float(left.n) + right_cost[b + 1];
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_axis = ax;
+        best_bin = b;
+      }
+    }
+  }
+  uint32_t half = 0;
+  if (best_axis >= 0) {
+    const auto mid =
+        std::partition(order_.begin() + first, order_.begin() + first + count,
+                       [&](uint32_t t) { return bin_of(prims[t], best_axis) <= best_bin; });
+    half = uint32_t(mid - (order_.begin() + first));
+  }
+  if (half == 0 || half == count) {
+    // Every centroid in one bin (they nearly coincide): the median of the
+    // longest axis.
+    const int axis =
+        extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+    half = count / 2;
+    std::nth_element(order_.begin() + first, order_.begin() + first + half,
+                     order_.begin() + first + count,
+                     [&](uint32_t a, uint32_t b) { return prims[a].c[axis] < prims[b].c[axis]; });
+  }
   if (parallel_levels > 0) {
     // The halves touch disjoint ranges of order_; the right one is spliced
     // in after the left one, its skip links moved by where it lands.
     std::vector<Node> right;
-    right.reserve(2 * ((count - half) / 2 + 1));
+    right.reserve(2 * size_t(count - half));
     parallel_for(2, [&](size_t task) {
       if (task == 0) {
-        build(first, half, centroids, out, parallel_levels - 1);
+        build(first, half, prims, out, parallel_levels - 1);
       } else {
-        build(first + half, count - half, centroids, right, parallel_levels - 1);
+        build(first + half, count - half, prims, right, parallel_levels - 1);
       }
     });
     const uint32_t offset = static_cast<uint32_t>(out.size());
@@ -124,15 +192,15 @@ void Bvh::build(uint32_t first, uint32_t count, const std::vector<glm::vec3>& ce
     }
     out.insert(out.end(), right.begin(), right.end());
   } else {
-    build(first, half, centroids, out, 0);
-    build(first + half, count - half, centroids, out, 0);
+    build(first, half, prims, out, 0);
+    build(first + half, count - half, prims, out, 0);
   }
   out[index].first = static_cast<uint32_t>(out.size());  // skip: past the subtree
   out[index].count = 0;
 }
 
 uint32_t Bvh::first_hit(const glm::vec3& origin, const glm::vec3& direction, float t_min,
-                       float t_max) const {
+                        float t_max) const {
   // Stackless pre-order walk: a hit inner node goes on to its left child (the
   // next node), a missed one skips its subtree; leaves go on to the next node.
   const glm::vec3 inv_dir = 1.0f / direction;

@@ -1,8 +1,8 @@
 #pragma once
 // A bounding volume hierarchy over a triangle soup, for occlusion rays: the
 // CPU reference passes use it directly, the coverage pass uploads it for its
-// exact ray casts (shaders/coverage_exact.glsl mirrors occluded()). Median
-// split on the longest centroid axis, up to 4 triangles per leaf. Nodes are
+// exact ray casts (shaders/coverage_exact.glsl mirrors occluded()). Binned
+// surface area heuristic splits, up to 4 triangles per leaf. Nodes are
 // stored in pre-order (an inner node's left child follows it, its right
 // subtree follows the left one) with skip links, so rays walk the tree
 // without a stack; the node layout is what std430 storage buffers read as
@@ -61,8 +61,11 @@ class Bvh {
   // from out.size(); its skip links index `out`. The two halves of the top
   // `parallel_levels` splits are built on two threads each, into vectors of
   // their own, and spliced in: the same nodes as a serial build.
-  void build(uint32_t first, uint32_t count, const std::vector<glm::vec3>& centroids,
-             std::vector<Node>& out, int parallel_levels);
+  struct Prim {
+    glm::vec3 lo, hi, c;  // a triangle's box and centroid (built from corners_)
+  };
+  void build(uint32_t first, uint32_t count, const std::vector<Prim>& prims, std::vector<Node>& out,
+             int parallel_levels);
 
   std::vector<glm::vec3> corners_;
   std::vector<uint32_t> order_;
