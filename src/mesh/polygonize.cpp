@@ -785,7 +785,9 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
       const float dt = std::abs(0.5f * (f.g[a] + f.s[a] + f.g[b] + f.s[b]) - (f.g[m] + f.s[m]));
       e = std::max(e, std::max(dg, dt));
     };
-    const auto at = [&](int x, int y) -> float& { return error[size_t(y) * size_t(n) + size_t(x)]; };
+    const auto at = [&](int x, int y) -> float& {
+      return error[size_t(y) * size_t(n) + size_t(x)];
+    };
     const unsigned threads = threads_for(error.size());
     for (int side = 2; side <= tile; side *= 2) {
       const int h = side / 2;
