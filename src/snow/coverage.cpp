@@ -705,6 +705,29 @@ inline int classify_on_cpu(const std::vector<float>& height, const ShadowFrame& 
 
 namespace {
 
+/// reference::sees_sky from p along up = -d (up.y > 0; t_min as there), for
+/// rays cast in turn from neighbouring receivers in the same direction: the
+/// scene triangle that blocked the last of them (`last`, kept up to date) is
+/// tried first, unless it is `tried` already. Where Bvh::reaches finds it
+/// hit, the walk would find the ray blocked too, so the answer is the
+/// reference's. Measured with the earlier median-split BVH: the 1M-triangle
+/// terrain at 2048, K = 64, CPU rays: the casts 1.06-1.29 -> 0.85-0.90 s on
+/// 2 cores; the courtyard's CPU shadow maps: it settles 14,877 of the 17,439
+/// blocked pairs their hints leave, coverage 1.76 -> 1.60 s (the 165,613
+/// pairs that see the sky still walk).
+bool sees_sky_after(const Bvh& bvh, const Bvh* snow_bvh, const glm::vec3& p, const glm::vec3& up,
+                    float t_min, uint32_t& last, uint32_t tried = Bvh::kNone) {
+  if (last != Bvh::kNone && last != tried && bvh.reaches(last, p, up, t_min, kOpenSky)) {
+    return false;
+  }
+  const uint32_t hit = bvh.first_hit(p, up, t_min, kOpenSky);
+  if (hit != Bvh::kNone) {
+    last = hit;
+    return false;
+  }
+  return !(snow_bvh && snow_bvh->occluded(p, up, t_min, kOpenSky));
+}
+
 // The GL side of a CoverageRenderer: programs, the scene's buffers, shadow
 // maps and the passes' buffers. Made on the first compute that draws shadow
 // maps or casts rays on the GPU: runs whose rays are cast on the CPU upload
@@ -861,12 +884,9 @@ struct CoverageRenderer::Impl {
     if (snow_depth) {
       snow_bvh = std::make_unique<Bvh>(reference::snow_surface_triangles(maps, *snow_depth));
     }
-    // Each chunk's receivers (neighbours along a row) are cast in turn, and
-    // the scene triangle that blocked a direction last is tried first
-    // (Bvh::reaches): it mostly blocks the next receiver's ray too, and
-    // where it does, the walk would find the ray blocked as well, so the
-    // counts are reference::open_directions' (1M-triangle terrain at 2048,
-    // K = 64: the casts 1.06-1.29 -> 0.85-0.90 s on 2 cores).
+    // Each chunk's receivers (neighbours along a row) are cast in turn:
+    // reference::open_directions with the last occluder of each direction
+    // tried first (sees_sky_after).
     constexpr size_t kChunk = 256, kRounds = 16;
     const auto cast_chunk = [&](size_t c) {
       std::vector<uint32_t> last(dirs.size(), Bvh::kNone);
@@ -874,17 +894,10 @@ struct CoverageRenderer::Impl {
         const glm::vec3 p = receiver_point(maps.grid, recv[r]);
         int lit = 0;
         for (size_t k = 0; k < dirs.size(); ++k) {
-          // reference::sees_sky, with the cache.
           const glm::vec3 up = -dirs[k];
-          if (!(up.y > 0.0f)) continue;
+          if (!(up.y > 0.0f)) continue;  // as sees_sky
           const float t_min = reference::own_surface(p.y) / up.y;
-          if (last[k] != Bvh::kNone && bvh.reaches(last[k], p, up, t_min, kOpenSky)) continue;
-          const uint32_t hit = bvh.first_hit(p, up, t_min, kOpenSky);
-          if (hit != Bvh::kNone) {
-            last[k] = hit;
-            continue;
-          }
-          lit += !(snow_bvh && snow_bvh->occluded(p, up, t_min, kOpenSky));
+          lit += sees_sky_after(bvh, snow_bvh.get(), p, up, t_min, last[k]);
         }
         coverage[recv_index[r]] = float(lit) / float(dirs.size());
       }
@@ -984,20 +997,9 @@ struct CoverageRenderer::Impl {
                   tried = id;
                   blocked = bvh.reaches(id, p, up, t_min, kOpenSky);
                 }
-                // Then the triangle that blocked the last pair the walk settled
-                // (as in cast_on_cpu), then the walk. On the courtyard with
-                // this method, the cache settles 14,877 of the 17,439 blocked
-                // pairs the hints leave, but 165,613 pairs see the sky and
-                // need the whole walk: coverage 1.76 -> 1.60 s (medians of 5).
-                if (!blocked && last != Bvh::kNone && last != tried) {
-                  blocked = bvh.reaches(last, p, up, t_min, kOpenSky);
-                }
-                if (!blocked) {
-                  const uint32_t hit = bvh.first_hit(p, up, t_min, kOpenSky);
-                  blocked = hit != Bvh::kNone;
-                  if (blocked) last = hit;
-                }
-                lit[w][r] += !blocked && !(snow_bvh && snow_bvh->occluded(p, up, t_min, kOpenSky));
+                // Then the triangle that blocked the last pair cast, then the walk.
+                lit[w][r] +=
+                    !blocked && sees_sky_after(bvh, snow_bvh.get(), p, up, t_min, last, tried);
               }
             }
           },
