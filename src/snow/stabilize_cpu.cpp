@@ -104,6 +104,7 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
   sent_.reset(tiles);
   near_.reset(tiles);
   changed_.assign(tiles, 0);
+  changed_box_.assign(tiles, Tile{});
 }
 
 CpuStabilizer::Tile CpuStabilizer::tile(int t) const {
@@ -141,6 +142,30 @@ void CpuStabilizer::touch_all() {
 
 void CpuStabilizer::touch(int t) {
   for (int level = 0; level < levels_; ++level) add_near(dirty_[level], t, reach(1 << level));
+}
+
+void CpuStabilizer::touch(int t, const Tile& box) {
+  // An outflow of stride s reads the columns within s (Chebyshev distance)
+  // of its own, so only tiles that near the changed columns are dirty for
+  // it. Snow creeping inside a tile then leaves its neighbours clean for
+  // single steps, where touch(t) made all eight dirty. grass-trees-tall
+  // (snowmodel_bench_stabilize --coverage on): tiles computed 42 -> 35 %,
+  // relaxation 0.17 -> 0.16 s; building-small-d 36 -> 29 %, 0.21-0.22 ->
+  // 0.20 s; the same passes, bit for bit.
+  const int ti = t % tiles_x_, tj = t / tiles_x_;
+  for (int level = 0; level < levels_; ++level) {
+    const int stride = 1 << level, r = reach(stride);
+    for (int b = std::max(0, tj - r); b <= std::min(tiles_y_ - 1, tj + r); ++b) {
+      for (int a = std::max(0, ti - r); a <= std::min(tiles_x_ - 1, ti + r); ++a) {
+        const int u = b * tiles_x_ + a;
+        if (!has_surface_[size_t(u)]) continue;
+        const Tile c = tile(u);
+        const int dx = std::max({0, c.i0 - box.i1, box.i0 - (c.i1 - 1)});
+        const int dy = std::max({0, c.j0 - box.j1, box.j0 - (c.j1 - 1)});
+        if (std::max(dx, dy) <= stride) dirty_[level].add(u);
+      }
+    }
+  }
 }
 
 template <class Fn>
@@ -495,16 +520,20 @@ void CpuStabilizer::gather_pass(int stride) {
   const std::vector<int>& tiles = active ? near_.list : surface_tiles_;
   for_tiles(tiles, [&](int t, size_t) {
     const Tile b = tile(t);
-    bool changed = sent_.in[size_t(t)] != 0;
+    Tile box{b.i1, b.j1, b.i0 - 1, b.j0 - 1};  // the columns whose depth changed (inclusive)
     for (int j = b.j0; j < b.j1; ++j) {
-      for (int i = b.i0; i < b.i1; ++i) changed |= gather_column(i, j, stride);
+      for (int i = b.i0; i < b.i1; ++i) {
+        if (!gather_column(i, j, stride)) continue;
+        box = {std::min(box.i0, i), std::min(box.j0, j), std::max(box.i1, i), std::max(box.j1, j)};
+      }
     }
-    changed_[size_t(t)] = changed;
+    changed_box_[size_t(t)] = box;
   });
-  // A changed tile's neighbours within each stride's reach are dirty.
+  // The tiles whose outflow of each stride reads a changed column are dirty.
   if (active) {
     for (int t : tiles) {
-      if (changed_[size_t(t)]) touch(t);
+      const Tile& box = changed_box_[size_t(t)];
+      if (box.i0 <= box.i1) touch(t, box);
     }
     near_.clear();
   }

@@ -129,6 +129,9 @@ class CpuStabilizer {
   void touch_all();
   /// Tile t changed: the tiles within each stride's reach are dirty for it.
   void touch(int t);
+  /// The columns of `box` (inclusive bounds) in tile t changed: the tiles
+  /// within each stride of them are dirty for it.
+  void touch(int t, const Tile& box);
   double snow_volume() const;
   size_t index(int l, int i, int j) const {
     return (size_t(l) * size_t(height_) + size_t(j)) * size_t(width_) + size_t(i);
@@ -169,7 +172,8 @@ class CpuStabilizer {
                       // there, or that one moved snow)
   TileSet sent_;      // the tiles whose last outflow moved snow
   TileSet near_;      // scratch: the tiles a gather or erosion pass computes
-  std::vector<uint8_t> changed_;     // per tile: its last gather or erosion pass changed it
+  std::vector<uint8_t> changed_;     // per tile: its last erosion pass changed it
+  std::vector<Tile> changed_box_;    // per tile: the columns its last gather changed
   std::vector<int> work_;            // the tiles a pass computes
   std::vector<glm::vec2> slot_max_;  // per tile of work_: largest move, largest into the void
   double tile_work_ = 0.0;           // tiles computed by the relaxation passes (count_tiles)
