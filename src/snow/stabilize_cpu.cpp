@@ -5,8 +5,9 @@
 // statement, so that the GPU and the CPU agree to the bit.
 //
 // Active tiles: a pass computes a tile (kTile x kTile columns, all layers)
-// only when a tile within the pass's reach (the stride, in tiles) changed
-// since the tile's last pass of the same kind and stride moved nothing there;
+// only when something it reads changed (for an outflow of stride s, a column
+// within s of its own; after routing, any tile within reach) since the
+// tile's last pass of the same kind and stride moved nothing there;
 // a skipped tile would repeat that pass's result (no move), so the results
 // are those of full passes. Each stride keeps its set of such (dirty) tiles,
 // and each pass lists the tiles it computes, so a pass costs what it

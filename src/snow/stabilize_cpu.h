@@ -168,7 +168,7 @@ class CpuStabilizer {
   std::vector<uint8_t> has_surface_;  // per tile
   int levels_ = 1;                    // strides 1, 2, ..., max_stride
   TileSet dirty_[7];  // per log2(stride): the tiles whose next outflow of that stride may move
-                      // snow (a tile within reach changed since its last one moved nothing
+                      // snow (a column it reads changed since its last one moved nothing
                       // there, or that one moved snow)
   TileSet sent_;      // the tiles whose last outflow moved snow
   TileSet near_;      // scratch: the tiles a gather or erosion pass computes
