@@ -77,6 +77,12 @@ class Pourer {
   }
   bool on_map(int i, int j) const { return i >= 0 && j >= 0 && i < g_.width && j < g_.height; }
   float top(size_t k) const { return cells_[k].x + depth_[k]; }
+  // The height a growth spreads from at covered texel k (path cost dist): the
+  // cone's surface at apex `apex`, capped, never under the snow top (the
+  // snow top itself in a first growth, apex -kOpenSky).
+  float spread_height(size_t k, float dist, double apex) const {
+    return float(std::max(double(top(k)), std::min(apex - double(dist), cap(k))));
+  }
   // The highest snow top texel k can hold (kCeilingClearance under its
   // ceiling; infinite under the open sky).
   double cap(size_t k) const {
@@ -190,7 +196,7 @@ bool Pourer::grows_alike(double apex) const {
     // The heights grow() spreads from: the snow top in the first growth,
     // the cone's surface (capped, never under the top) in the second.
     const float at_top = top(k);
-    const float at_cone = float(std::max(double(at_top), std::min(apex - double(dist), cap(k))));
+    const float at_cone = spread_height(k, dist, apex);
     if (at_cone == at_top) continue;
     const int i = int((k % per_layer_) % size_t(g_.width));
     const int j = int((k % per_layer_) / size_t(g_.width));
@@ -278,7 +284,7 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
       if (room < inf) saturations.push({cap(k) + double(dist), k});
     }
     const glm::vec4 cell = cells_[k];
-    const float h = float(std::max(double(top(k)), std::min(apex - double(dist), cap(k))));
+    const float h = spread_height(k, dist, apex);
     for (int n = 0; n < 8; ++n) {
       const int ni = i + kDirI[n], nj = j + kDirJ[n];
       const int lb = gap_at(ni, nj, h);

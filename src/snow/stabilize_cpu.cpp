@@ -125,11 +125,16 @@ void CpuStabilizer::TileSet::clear() {
 }
 
 void CpuStabilizer::add_near(TileSet& set, int t, int reach, bool self) const {
+  add_near(set, t, reach, [&](int u) { return self || u != t; });
+}
+
+template <class Keep>
+void CpuStabilizer::add_near(TileSet& set, int t, int reach, Keep keep) const {
   const int ti = t % tiles_x_, tj = t / tiles_x_;
   for (int b = std::max(0, tj - reach); b <= std::min(tiles_y_ - 1, tj + reach); ++b) {
     for (int a = std::max(0, ti - reach); a <= std::min(tiles_x_ - 1, ti + reach); ++a) {
       const int u = b * tiles_x_ + a;
-      if (has_surface_[size_t(u)] && (self || u != t)) set.add(u);
+      if (has_surface_[size_t(u)] && keep(u)) set.add(u);
     }
   }
 }
@@ -153,19 +158,14 @@ void CpuStabilizer::touch(int t, const Tile& box) {
   // (snowmodel_bench_stabilize --coverage on): tiles computed 42 -> 35 %,
   // relaxation 0.17 -> 0.16 s; building-small-d 36 -> 29 %, 0.21-0.22 ->
   // 0.20 s; the same passes, bit for bit.
-  const int ti = t % tiles_x_, tj = t / tiles_x_;
   for (int level = 0; level < levels_; ++level) {
-    const int stride = 1 << level, r = reach(stride);
-    for (int b = std::max(0, tj - r); b <= std::min(tiles_y_ - 1, tj + r); ++b) {
-      for (int a = std::max(0, ti - r); a <= std::min(tiles_x_ - 1, ti + r); ++a) {
-        const int u = b * tiles_x_ + a;
-        if (!has_surface_[size_t(u)]) continue;
-        const Tile c = tile(u);
-        const int dx = std::max({0, c.i0 - box.i1, box.i0 - (c.i1 - 1)});
-        const int dy = std::max({0, c.j0 - box.j1, box.j0 - (c.j1 - 1)});
-        if (std::max(dx, dy) <= stride) dirty_[level].add(u);
-      }
-    }
+    const int stride = 1 << level;
+    add_near(dirty_[level], t, reach(stride), [&](int u) {
+      const Tile c = tile(u);
+      const int dx = std::max({0, c.i0 - box.i1, box.i0 - (c.i1 - 1)});
+      const int dy = std::max({0, c.j0 - box.j1, box.j0 - (c.j1 - 1)});
+      return std::max(dx, dy) <= stride;
+    });
   }
 }
 

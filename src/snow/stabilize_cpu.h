@@ -118,6 +118,9 @@ class CpuStabilizer {
   /// Adds the tiles with a surface within `reach` tiles of tile t (t itself
   /// only with `self`).
   void add_near(TileSet& set, int t, int reach, bool self = true) const;
+  /// The same, for the tiles u that keep(u) accepts.
+  template <class Keep>
+  void add_near(TileSet& set, int t, int reach, Keep keep) const;
   /// Tiles within this many of a tile hold the columns a pass of `stride`
   /// reads.
   static int reach(int stride) { return (stride + kTile - 1) / kTile; }
