@@ -688,6 +688,16 @@ TEST(Bvh, ParallelBuildIsOneValidTree) {
   EXPECT_EQ(walk(0, glm::vec3(-inf), glm::vec3(inf)), nodes.size());
   EXPECT_EQ(next_triangle, n);
   ASSERT_EQ(bad, 0u);  // (a bad skip link can send the walk below in circles)
+  // order() is a permutation, and the triangles in leaf order are the input's.
+  ASSERT_EQ(bvh.order().size(), n);
+  std::vector<uint8_t> seen(n, 0);
+  for (size_t k = 0; k < n; ++k) {
+    const uint32_t t = bvh.order()[k];
+    ASSERT_LT(t, n);
+    bad += seen[t]++;
+    for (size_t c = 0; c < 3; ++c) bad += bvh.corners()[3 * k + c] != corners[3 * size_t(t) + c];
+  }
+  EXPECT_EQ(bad, 0u);
   // Vertical rays through random points, against every triangle.
   size_t hits = 0, differ = 0;
   for (int r = 0; r < 100; ++r) {

@@ -52,40 +52,39 @@ constexpr uint32_t kLeafSize = 4;
 
 }  // namespace
 
-Bvh::Bvh(std::vector<glm::vec3> corners) : corners_(std::move(corners)) {
-  const uint32_t n = static_cast<uint32_t>(corners_.size() / 3);
-  corners_.resize(size_t(n) * 3);
-  order_.resize(n);
+Bvh::Bvh(const std::vector<glm::vec3>& corners) {
+  const uint32_t n = static_cast<uint32_t>(corners.size() / 3);
   std::vector<Prim> prims(n);
   for (uint32_t t = 0; t < n; ++t) {
-    order_[t] = t;
-    const glm::vec3 &a = corners_[3 * t], &b = corners_[3 * t + 1], &c = corners_[3 * t + 2];
-    prims[t] = {glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c)), (a + b + c) / 3.0f};
+    const glm::vec3 &a = corners[3 * t], &b = corners[3 * t + 1], &c = corners[3 * t + 2];
+    prims[t] = {glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c)), (a + b + c) / 3.0f, t};
   }
   if (n == 0) return;
   nodes_.reserve(2 * size_t(n));
-  // Subtrees of about 64k triangles or more are built beside each other, up
-  // to 2^5 at once (1M triangles: 0.27-0.33 s on 2 cores).
+  // The halves of the top splits are built beside each other, down to
+  // subtrees of about 16k triangles, up to 2^4 at once (1M triangles: 0.27-0.33
+  // s on 2 cores).
   int parallel_levels = 0;
-  while (parallel_levels < 5 && (n >> parallel_levels) >= (1u << 17)) ++parallel_levels;
+  while (parallel_levels < 4 && (n >> parallel_levels) >= (1u << 14)) ++parallel_levels;
   build(0, n, prims, nodes_, parallel_levels);
   // Store the triangles in leaf order.
-  std::vector<glm::vec3> sorted(corners_.size());
+  order_.resize(n);
+  corners_.resize(3 * size_t(n));
   for (uint32_t k = 0; k < n; ++k) {
-    for (int c = 0; c < 3; ++c) sorted[3 * size_t(k) + c] = corners_[3 * size_t(order_[k]) + c];
+    order_[k] = prims[k].index;
+    for (int c = 0; c < 3; ++c) corners_[3 * size_t(k) + c] = corners[3 * size_t(order_[k]) + c];
   }
-  corners_ = std::move(sorted);
 }
 
-void Bvh::build(uint32_t first, uint32_t count, const std::vector<Prim>& prims,
-                std::vector<Node>& out, int parallel_levels) {
+void Bvh::build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::vector<Node>& out,
+                int parallel_levels) {
   // Depth-first layout: an inner node's left child follows it directly.
   const size_t index = out.size();
   out.emplace_back();
   glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
   glm::vec3 clo = lo, chi = hi;
   for (uint32_t k = first; k < first + count; ++k) {
-    const Prim& p = prims[order_[k]];
+    const Prim& p = prims[k];
     lo = glm::min(lo, p.lo);
     hi = glm::max(hi, p.hi);
     clo = glm::min(clo, p.c);
@@ -117,7 +116,7 @@ void Bvh::build(uint32_t first, uint32_t count, const std::vector<Prim>& prims,
     return f > 0.0f ? int(std::min(f, float(kBins - 1))) : 0;  // (NaN: 0)
   };
   for (uint32_t k = first; k < first + count; ++k) {
-    const Prim& p = prims[order_[k]];
+    const Prim& p = prims[k];
     for (int ax = 0; ax < 3; ++ax) {
       Bin& bin = bins[ax][bin_of(p, ax)];
       bin.lo = glm::min(bin.lo, p.lo);
@@ -160,9 +159,9 @@ void Bvh::build(uint32_t first, uint32_t count, const std::vector<Prim>& prims,
   uint32_t half = 0;
   if (best_axis >= 0) {
     const auto mid =
-        std::partition(order_.begin() + first, order_.begin() + first + count,
-                       [&](uint32_t t) { return bin_of(prims[t], best_axis) <= best_bin; });
-    half = uint32_t(mid - (order_.begin() + first));
+        std::partition(prims.begin() + first, prims.begin() + first + count,
+                       [&](const Prim& p) { return bin_of(p, best_axis) <= best_bin; });
+    half = uint32_t(mid - (prims.begin() + first));
   }
   if (half == 0 || half == count) {
     // Every centroid in one bin (they nearly coincide): the median of the
@@ -170,12 +169,12 @@ void Bvh::build(uint32_t first, uint32_t count, const std::vector<Prim>& prims,
     const int axis =
         extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
     half = count / 2;
-    std::nth_element(order_.begin() + first, order_.begin() + first + half,
-                     order_.begin() + first + count,
-                     [&](uint32_t a, uint32_t b) { return prims[a].c[axis] < prims[b].c[axis]; });
+    std::nth_element(prims.begin() + first, prims.begin() + first + half,
+                     prims.begin() + first + count,
+                     [&](const Prim& a, const Prim& b) { return a.c[axis] < b.c[axis]; });
   }
   if (parallel_levels > 0) {
-    // The halves touch disjoint ranges of order_; the right one is spliced
+    // The halves touch disjoint ranges of prims; the right one is spliced
     // in after the left one, its skip links moved by where it lands.
     std::vector<Node> right;
     right.reserve(2 * size_t(count - half));

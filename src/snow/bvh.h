@@ -25,8 +25,10 @@ class Bvh {
     uint32_t count = 0;  // leaf: triangle count (> 0); 0 for inner nodes
   };
 
-  /// Builds over triangles t = (corners[3t], corners[3t+1], corners[3t+2]).
-  explicit Bvh(std::vector<glm::vec3> corners);
+  /// Builds over triangles t = (corners[3t], corners[3t+1], corners[3t+2])
+  /// (a trailing partial triangle is ignored); keeps its own copy, in leaf
+  /// order.
+  explicit Bvh(const std::vector<glm::vec3>& corners);
 
   static constexpr uint32_t kNone = ~0u;
   /// The first triangle (leaf order) the walk finds that the ray origin + t *
@@ -57,14 +59,17 @@ class Bvh {
   const std::vector<uint32_t>& order() const { return order_; }
 
  private:
-  // Builds the subtree over order_[first, first + count) into `out`, pre-order
+  // Builds the subtree over prims[first, first + count) into `out`, pre-order
   // from out.size(); its skip links index `out`. The two halves of the top
   // `parallel_levels` splits are built on two threads each, into vectors of
   // their own, and spliced in: the same nodes as a serial build.
+  // The triangles are reordered in place, as Prims: the builds read each
+  // node's range in memory order.
   struct Prim {
-    glm::vec3 lo, hi, c;  // a triangle's box and centroid (built from corners_)
+    glm::vec3 lo, hi, c;  // a triangle's box and centroid
+    uint32_t index;       // its original index
   };
-  void build(uint32_t first, uint32_t count, const std::vector<Prim>& prims, std::vector<Node>& out,
+  void build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::vector<Node>& out,
              int parallel_levels);
 
   std::vector<glm::vec3> corners_;

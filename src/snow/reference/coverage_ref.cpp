@@ -88,7 +88,7 @@ std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
     const std::vector<glm::vec3> snow = snow_surface_triangles(maps, *snow_depth);
     corners.insert(corners.end(), snow.begin(), snow.end());
   }
-  const Bvh bvh(std::move(corners));
+  const Bvh bvh(corners);
   std::vector<float> coverage(maps.ground.size(), 0.0f);
   const MapGrid& grid = maps.grid;
   // Rows in parallel (each writes its own texels).
