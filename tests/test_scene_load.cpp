@@ -696,6 +696,16 @@ TEST_F(SceneLoad, MaterialsImagesAndTextureTransform) {
   EXPECT_TRUE(t.images.empty());
   EXPECT_EQ(t.materials[0].base_color_image, -1);
   EXPECT_TRUE(t.warnings.empty());
+
+  // Without shading (the batch job without a preview): the same triangles,
+  // objects and materials, no normals and no UVs.
+  no_images.shading = false;
+  const snow::Scene u = snow::load_scene(dir_ / "mat.gltf", no_images);
+  EXPECT_EQ(u.positions, s.positions);
+  EXPECT_EQ(u.objects.size(), s.objects.size());
+  EXPECT_EQ(u.materials.size(), s.materials.size());
+  EXPECT_TRUE(u.normals.empty());
+  EXPECT_TRUE(u.uvs.empty());
 }
 
 TEST_F(SceneLoad, UnknownOptionalExtensionWarns) {

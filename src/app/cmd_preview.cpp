@@ -53,10 +53,10 @@ void run_preview(PreviewOptions o) {
 
   // Ignored objects are neither simulated nor drawn (a sky dome would hide
   // the scene from the orbit camera).
-  const Scene loaded = load_scene(o.input, s.load);
+  Scene loaded = load_scene(o.input, s.load);
   warn_unmatched(loaded, s.ignore, "--ignore");
   warn_unmatched(loaded, s.no_snow_on, "--no-snow-on");
-  const Scene scene = without_ignored(loaded, s.ignore);
+  const Scene scene = without_ignored(std::move(loaded), s.ignore);
   if (!s.no_snow_on.empty()) v.receives = receiving_objects(scene, s.no_snow_on);
   const live::ViewerReport r = live::run_viewer(scene, v);
   char summary[400];

@@ -349,13 +349,15 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   const std::optional<bool> software =
       backend == gl::Backend::Auto ? gl::probe_software(context_options) : std::nullopt;
   std::future<void> warm_gl = warm_up_gl(global, backend, software);
-  // Textures only show in the preview (ToyCar's: 0.03 s to decode).
-  s.load.load_images = !o.preview.empty();
+  // Textures, normals and UVs only show in the preview (ToyCar's textures:
+  // 0.03 s to decode).
+  s.load.load_images = s.load.shading = !o.preview.empty();
   Scene scene;
   stage("load", [&] { scene = load_scene(o.input, s.load); });
   warn_unmatched(scene, s.ignore, "--ignore");
   warn_unmatched(scene, s.no_snow_on, "--no-snow-on");
-  const Scene snow_scene = without_ignored(scene, s.ignore);
+  const size_t triangles_in = scene.triangle_count();
+  const Scene snow_scene = without_ignored(std::move(scene), s.ignore);
   const std::vector<uint8_t> receives = receiving_objects(snow_scene, s.no_snow_on);
   warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
   choose_automatic_side(s.peel, snow_scene.bounds, s.accumulate.fall_depth);
@@ -455,8 +457,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
       "summary: %.2f s (%s); peak memory %.0f MiB; triangles in %zu, snow out %zu in %zu "
       "patches; snow %.3f m^3 (fell %.3f, lost off the domain %.3f); coverage by %s; stabilizer "
       "%d passes on the %s",
-      total, timing.c_str(), peak_memory_mib(), scene.triangle_count(), triangles_out,
-      patches.size(), snow.volume, snow.fallen_volume, snow.lost_volume,
+      total, timing.c_str(), peak_memory_mib(), triangles_in, triangles_out, patches.size(),
+      snow.volume, snow.fallen_volume, snow.lost_volume,
       snow.coverage_method == CoverageMethod::CpuRays         ? "rays on the CPU"
       : snow.coverage_method == CoverageMethod::GpuRays       ? "rays on the GPU"
       : snow.coverage_method == CoverageMethod::CpuShadowMaps ? "shadow maps on the CPU"

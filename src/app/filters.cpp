@@ -27,7 +27,7 @@ void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, c
   }
 }
 
-Scene without_ignored(const Scene& scene, const std::vector<std::string>& ignore) {
+Scene without_ignored(Scene scene, const std::vector<std::string>& ignore) {
   if (ignore.empty()) return scene;
   Scene out;
   out.materials = scene.materials;
@@ -45,8 +45,9 @@ Scene without_ignored(const Scene& scene, const std::vector<std::string>& ignore
                  end = begin + size_t(object.triangle_count) * 3;
     out.positions.insert(out.positions.end(), scene.positions.begin() + begin,
                          scene.positions.begin() + end);
-    out.normals.insert(out.normals.end(), scene.normals.begin() + begin,
-                       scene.normals.begin() + end);
+    if (!scene.normals.empty())
+      out.normals.insert(out.normals.end(), scene.normals.begin() + begin,
+                         scene.normals.begin() + end);
     if (!scene.uvs.empty())
       out.uvs.insert(out.uvs.end(), scene.uvs.begin() + begin, scene.uvs.begin() + end);
     out.objects.push_back(copy);

@@ -17,8 +17,9 @@ bool matches(const std::vector<std::string>& globs, const SceneObject& object);
 void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, const char* flag);
 
 /// The scene without the objects that match `ignore` (they neither receive
-/// nor shelter; each is logged). Throws InputError when nothing is left.
-Scene without_ignored(const Scene& scene, const std::vector<std::string>& ignore);
+/// nor shelter; each is logged): `scene` itself when none is ignored (moved
+/// in, not copied). Throws InputError when nothing is left.
+Scene without_ignored(Scene scene, const std::vector<std::string>& ignore);
 
 /// Per object of `scene`: 0 where a `no_snow_on` glob matches (it gets no
 /// fresh snow but still shelters), else 1.

@@ -1304,7 +1304,9 @@ class GltfLoader {
       const size_t vertex_count = values.size() / 3;
       geometry.positions.resize(vertex_count);
       std::memcpy(geometry.positions.data(), values.data(), values.size() * sizeof(float));
-      const int64_t normal = opt_index(*attributes, "NORMAL", accessor_count, what, "accessors");
+      const int64_t normal =
+          settings_.shading ? opt_index(*attributes, "NORMAL", accessor_count, what, "accessors")
+                            : -1;
       if (normal >= 0) {
         values = read_attribute(uint64_t(normal), 3, what + " NORMAL", nullptr);
         if (values.size() / 3 != vertex_count) {
@@ -1314,7 +1316,9 @@ class GltfLoader {
           std::memcpy(geometry.normals.data(), values.data(), values.size() * sizeof(float));
         }
       }
-      const int64_t uv = opt_index(*attributes, uv_name.c_str(), accessor_count, what, "accessors");
+      const int64_t uv = settings_.shading ? opt_index(*attributes, uv_name.c_str(), accessor_count,
+                                                       what, "accessors")
+                                           : -1;
       if (uv >= 0) {
         values = read_attribute(uint64_t(uv), 2, what + " " + uv_name, nullptr);
         if (values.size() / 2 != vertex_count) {
@@ -1454,11 +1458,11 @@ class GltfLoader {
     if (!read("POSITION", 3, values)) fail(dwhat + " has no POSITION attribute");
     geometry.positions.resize(size_t(points));
     std::memcpy(geometry.positions.data(), values.data(), values.size() * sizeof(float));
-    if (read("NORMAL", 3, values)) {
+    if (settings_.shading && read("NORMAL", 3, values)) {
       geometry.normals.resize(size_t(points));
       std::memcpy(geometry.normals.data(), values.data(), values.size() * sizeof(float));
     }
-    if (read(uv_name.c_str(), 2, values)) {
+    if (settings_.shading && read(uv_name.c_str(), 2, values)) {
       geometry.uvs.resize(size_t(points));
       std::memcpy(geometry.uvs.data(), values.data(), values.size() * sizeof(float));
     }
@@ -1507,7 +1511,7 @@ class GltfLoader {
       if (total > settings_.limits.max_triangles) fail_triangle_limit();
     }
     scene_.positions.reserve(size_t(total) * 3);
-    scene_.normals.reserve(size_t(total) * 3);
+    if (settings_.shading) scene_.normals.reserve(size_t(total) * 3);
     Progress progress("load", double(instances.size()));
     std::vector<glm::vec3> world_positions, world_normals;
     for (size_t i = 0; i < instances.size(); ++i) {
@@ -1589,20 +1593,21 @@ class GltfLoader {
         ++scene_.stats.degenerate_dropped;
         continue;
       }
-      const glm::vec3 face = glm::vec3(cross / std::sqrt(area2));
       scene_.positions.push_back(pa);
       scene_.positions.push_back(pb);
       scene_.positions.push_back(pc);
       scene_.bounds.extend(pa);
       scene_.bounds.extend(pb);
       scene_.bounds.extend(pc);
+      ++kept;
+      if (!settings_.shading) continue;
+      const glm::vec3 face = glm::vec3(cross / std::sqrt(area2));
       for (uint32_t v : {a, b, c}) {
         glm::vec3 n = face;
         if (has_normals && (wn[v].x != 0.0f || wn[v].y != 0.0f || wn[v].z != 0.0f)) n = wn[v];
         scene_.normals.push_back(n);
         if (write_uvs) scene_.uvs.push_back(has_uvs ? g.uvs[v] : glm::vec2(0.0f));
       }
-      ++kept;
     }
     if (kept == 0) return;
     if (scene_.triangle_count() > UINT32_MAX) fail("the scene has more than 2^32 triangles");

@@ -28,6 +28,9 @@ struct LoadLimits {
 
 struct LoadSettings {
   bool load_images = true;  // decode baseColor textures into Scene::images (bool)
+  bool shading = true;      // read normals and UVs (only renderers use them); false: the
+                            // NORMAL and TEXCOORD attributes are not read, and
+                            // Scene::normals and Scene::uvs stay empty
   LoadLimits limits;        // resource limits (see LoadLimits)
 };
 
@@ -44,9 +47,10 @@ struct LoadSettings {
 ///   normalized or integer attributes; sparse accessors; byteStride.
 /// - KHR_draco_mesh_compression when built with Draco (see
 ///   gltf_draco_supported()); EXT_meshopt_compression is refused.
-/// - Normals: the file's, transformed by the inverse transpose; flat face
-///   normals where the file has none (or a normal is zero/non-finite).
-/// - UVs: the texture coordinate set of the material's baseColorTexture
+/// - Normals (with settings.shading): the file's, transformed by the inverse
+///   transpose; flat face normals where the file has none (or a normal is
+///   zero/non-finite).
+/// - UVs (with settings.shading): the texture coordinate set of the material's baseColorTexture
 ///   (TEXCOORD_0 by default) with KHR_texture_transform applied, so they
 ///   sample Material::base_color_image directly; zeros for objects without
 ///   that set; empty when no object has one.

@@ -42,28 +42,29 @@ struct Material {
 
 /// One glTF primitive instanced by one node: a contiguous triangle range.
 struct SceneObject {
-  std::string name;        // node name, else mesh name, else "mesh<M>.prim<P>"
-  std::string node_path;   // "/Root/House/Roof" (node names, or node<N>)
-  int node = -1;           // glTF node index
-  int mesh = -1;           // glTF mesh index
-  int primitive = -1;      // primitive index within the mesh
-  int material = -1;       // index into Scene::materials, or -1
+  std::string name;       // node name, else mesh name, else "mesh<M>.prim<P>"
+  std::string node_path;  // "/Root/House/Roof" (node names, or node<N>)
+  int node = -1;          // glTF node index
+  int mesh = -1;          // glTF mesh index
+  int primitive = -1;     // primitive index within the mesh
+  int material = -1;      // index into Scene::materials, or -1
   uint32_t first_triangle = 0;
   uint32_t triangle_count = 0;
 };
 
 struct SceneStats {
-  uint64_t triangles_read = 0;        // before degenerate ones are dropped
-  uint64_t degenerate_dropped = 0;    // zero-area or repeated-index triangles
-  uint64_t primitives_skipped = 0;    // POINTS, LINES, ... (each warned)
-  uint64_t nodes = 0;                 // nodes visited in the scene graph
-  uint64_t instances = 0;             // (node, mesh) pairs
+  uint64_t triangles_read = 0;      // before degenerate ones are dropped
+  uint64_t degenerate_dropped = 0;  // zero-area or repeated-index triangles
+  uint64_t primitives_skipped = 0;  // POINTS, LINES, ... (each warned)
+  uint64_t nodes = 0;               // nodes visited in the scene graph
+  uint64_t instances = 0;           // (node, mesh) pairs
 };
 
 /// World-space triangle soup, grouped by object. Triangle t has corners
 /// positions[3t..3t+2]; normals and uvs follow the same layout (uvs may be
-/// empty when no primitive had TEXCOORD_0; normals are always filled, with
-/// flat normals where the file had none). Objects' triangle ranges are
+/// empty when no primitive had TEXCOORD_0; normals are filled, with flat
+/// normals where the file had none, unless the scene was loaded without
+/// shading, LoadSettings::shading, when both are empty). Objects' triangle ranges are
 /// contiguous, in order, and cover every triangle.
 struct Scene {
   std::vector<glm::vec3> positions;
