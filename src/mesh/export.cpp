@@ -73,12 +73,19 @@ std::string sniff_mime_type(const std::vector<unsigned char>& b) {
 /// Moves every image held as bytes (from a file or a data URI) into buffer 0
 /// as a new buffer view.
 void embed_images(tinygltf::Model& model, const fs::path& input) {
+  // What the images still to embed take (each padded to 4 bytes): buffer 0
+  // grows once, not per image.
+  size_t to_embed = 0;
+  for (const tinygltf::Image& image : model.images) {
+    if (image.bufferView < 0) to_embed += image.image.size() + 3;
+  }
   for (size_t i = 0; i < model.images.size(); ++i) {
     tinygltf::Image& image = model.images[i];
     if (image.bufferView >= 0) {
       image.image.clear();
       continue;
     }
+    to_embed -= image.image.size() + 3;
     if (image.image.empty()) {
       log_warn(input.string() + ": image " + std::to_string(i) + " ('" + image.uri +
                "') could not be read; the output refers to it by its URI as it is");
@@ -94,6 +101,7 @@ void embed_images(tinygltf::Model& model, const fs::path& input) {
     }
     if (model.buffers.empty()) model.buffers.emplace_back();
     std::vector<unsigned char>& bytes = model.buffers[0].data;
+    bytes.reserve(bytes.size() + image.image.size() + 3 + to_embed);
     bytes.resize((bytes.size() + 3) & ~size_t(3), 0);
     tinygltf::BufferView view;
     view.name = image.name.empty() ? "image" + std::to_string(i) : image.name;
@@ -177,7 +185,7 @@ void write_snow_meshes(const std::vector<SnowPatch>& patches, const fs::path& pa
       }
       tinygltf::Model model;
       append_meshes(model, meshes, {snow_material()}, "Snow");
-      save_gltf(model, path);
+      save_gltf(std::move(model), path);
       break;
     }
     case MeshFormat::Obj:
@@ -219,7 +227,7 @@ void write_combined_gltf(const fs::path& input_scene, const std::vector<SnowPatc
   }
   embed_images(model, input_scene);
   append_meshes(model, patch_meshes(patches), {snow_material()}, "Snow");
-  save_gltf(model, out);
+  save_gltf(std::move(model), out);
 }
 
 }  // namespace snow

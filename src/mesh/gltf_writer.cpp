@@ -13,7 +13,6 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
-#include <optional>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -173,6 +172,15 @@ void append_meshes(tinygltf::Model& model, const std::vector<TriMesh>& meshes,
   if (model.asset.generator.empty()) model.asset.generator = "snowmodel";
   if (model.buffers.empty() && std::find(write.begin(), write.end(), true) != write.end())
     model.buffers.emplace_back();
+  // Buffer 0 grows once: at most what add_primitive appends, with padding.
+  size_t appended = 0;
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    if (!write[i]) continue;
+    const TriMesh& m = meshes[i];
+    appended += m.positions.size() * sizeof(glm::vec3) + m.normals.size() * sizeof(glm::vec3) +
+                m.uvs.size() * sizeof(glm::vec2) + m.indices.size() * sizeof(uint32_t) + 4 * 4;
+  }
+  if (appended > 0) model.buffers[0].data.reserve(model.buffers[0].data.size() + appended);
 
   const int material_offset = int(model.materials.size());
   for (const MeshMaterial& m : materials) {
@@ -206,20 +214,16 @@ void append_meshes(tinygltf::Model& model, const std::vector<TriMesh>& meshes,
   model.scenes[size_t(model.defaultScene)].nodes.push_back(root_index);
 }
 
-void save_gltf(const tinygltf::Model& model, const std::filesystem::path& path) {
+void save_gltf(tinygltf::Model model, const std::filesystem::path& path) {
   const std::string ext = lower_extension(path);
   if (ext == ".glb") {
     // Buffer 0 becomes the GLB's BIN chunk. Streamed into the file: no copy
     // of the buffers in memory (on a 1M-triangle scene 0.3 s of the export).
-    std::optional<tinygltf::Model> copy;
-    if (!model.buffers.empty() && !model.buffers[0].uri.empty()) {
-      copy = model;
-      copy->buffers[0].uri.clear();
-    }
+    if (!model.buffers.empty()) model.buffers[0].uri.clear();
     write_file_atomically(path, [&](const std::filesystem::path& tmp) {
       std::ofstream out(tmp, std::ios::binary);
       if (!out) throw IOError("cannot write " + path.string() + ": " + std::strerror(errno));
-      serialize(copy ? *copy : model, true, path, out);
+      serialize(model, true, path, out);
       out.flush();
       if (!out) throw IOError("cannot write " + path.string() + ": " + std::strerror(errno));
     });
@@ -231,20 +235,19 @@ void save_gltf(const tinygltf::Model& model, const std::filesystem::path& path) 
   // .gltf: every buffer goes to "<stem>.bin", "<stem>1.bin", ... beside it.
   // The JSON is serialized with empty buffers, then their uri and
   // byteLength are set.
-  tinygltf::Model copy = model;
-  std::vector<std::vector<unsigned char>> data(copy.buffers.size());
-  std::vector<std::string> uris(copy.buffers.size());
+  std::vector<std::vector<unsigned char>> data(model.buffers.size());
+  std::vector<std::string> uris(model.buffers.size());
   const std::string stem = path.stem().string();
-  for (size_t i = 0; i < copy.buffers.size(); ++i) {
-    data[i] = std::move(copy.buffers[i].data);
-    copy.buffers[i].data.clear();
-    copy.buffers[i].uri.clear();
+  for (size_t i = 0; i < model.buffers.size(); ++i) {
+    data[i] = std::move(model.buffers[i].data);
+    model.buffers[i].data.clear();
+    model.buffers[i].uri.clear();
     uris[i] = stem + (i == 0 ? std::string() : std::to_string(i)) + ".bin";
   }
   nlohmann::json json;
   try {
     std::ostringstream text;
-    serialize(copy, false, path, text);
+    serialize(model, false, path, text);
     json = nlohmann::json::parse(text.str());
     for (size_t i = 0; i < data.size(); ++i) {
       json["buffers"][i]["uri"] = uris[i];

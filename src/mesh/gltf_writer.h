@@ -35,7 +35,8 @@ void append_meshes(tinygltf::Model& model, const std::vector<TriMesh>& meshes,
 /// buffer without a data URI is written beside it as "<stem>.bin" (buffer 0)
 /// or "<stem><i>.bin" (buffer i > 0), and referenced by that relative URI.
 /// Every file is written atomically (snow::write_file_atomically); failures
-/// throw IOError naming the path.
-void save_gltf(const tinygltf::Model& model, const std::filesystem::path& path);
+/// throw IOError naming the path. Pass a model that is no longer needed with
+/// std::move: its buffers are then written without a copy.
+void save_gltf(tinygltf::Model model, const std::filesystem::path& path);
 
 }  // namespace snow
