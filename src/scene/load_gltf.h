@@ -50,10 +50,11 @@ struct LoadSettings {
 /// - Normals (with settings.shading): the file's, transformed by the inverse
 ///   transpose; flat face normals where the file has none (or a normal is
 ///   zero/non-finite).
-/// - UVs (with settings.shading): the texture coordinate set of the material's baseColorTexture
-///   (TEXCOORD_0 by default) with KHR_texture_transform applied, so they
-///   sample Material::base_color_image directly; zeros for objects without
-///   that set; empty when no object has one.
+/// - UVs (with settings.shading): the texture coordinate set of the
+///   material's baseColorTexture (TEXCOORD_0 by default) with
+///   KHR_texture_transform applied, so they sample
+///   Material::base_color_image directly; zeros for objects without that
+///   set; empty when no object has one.
 /// - Materials: one per glTF material (same index); baseColorFactor, and the
 ///   baseColorTexture decoded to RGBA8 when settings.load_images and the
 ///   material is used. A missing or undecodable image is a warning.

@@ -63,9 +63,9 @@ struct SceneStats {
 /// World-space triangle soup, grouped by object. Triangle t has corners
 /// positions[3t..3t+2]; normals and uvs follow the same layout (uvs may be
 /// empty when no primitive had TEXCOORD_0; normals are filled, with flat
-/// normals where the file had none, unless the scene was loaded without
-/// shading, LoadSettings::shading, when both are empty). Objects' triangle ranges are
-/// contiguous, in order, and cover every triangle.
+/// normals where the file had none). A scene loaded without shading
+/// (LoadSettings::shading) has neither: both are empty. Objects' triangle
+/// ranges are contiguous, in order, and cover every triangle.
 struct Scene {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;
