@@ -475,6 +475,71 @@ fs::path write_input_scene(const fs::path& folder, std::vector<unsigned char>* p
   return path;
 }
 
+// save_gltf writes buffer 0 into the GLB itself (tinygltf's writer copies
+// it first): the file is byte for byte what tinygltf writes, also with
+// names that look like the JSON it patches, odd lengths that need padding,
+// and a model without buffers.
+TEST(Export, GlbIsTinygltfsGlbByteForByte) {
+  const TestDir test_dir;
+  const auto same_as_tinygltf = [&](const tinygltf::Model& model, const char* name) {
+    SCOPED_TRACE(name);
+    const fs::path ours = test_dir.path / (std::string(name) + ".glb");
+    save_gltf(model, ours);
+    std::ostringstream theirs;
+    tinygltf::TinyGLTF writer;
+    writer.SetImageWriter(nullptr, nullptr);
+    ASSERT_TRUE(writer.WriteGltfSceneToStream(&model, theirs, true, true));
+    std::ifstream in(ours, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(bytes.size(), theirs.str().size());
+    EXPECT_TRUE(bytes == theirs.str());
+  };
+  TriMesh mesh;
+  mesh.name = "x\"buffers\":[{\"byteLength\":0}],\\\"";
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 0, 1}};
+  mesh.normals = {{0, 1, 0}, {0, 1, 0}, {0, 1, 0}};
+  mesh.indices = {0, 2, 1};
+  tinygltf::Model model;
+  append_meshes(model, {mesh}, {snow_material()}, "\"buffers\":[{\"byteLength\":0");
+  model.buffers[0].name = "buffers";
+  {
+    // The JSON tinygltf writes for it with buffer 0 emptied has the length
+    // to set where the scanner finds it: the GLB is not tinygltf's own.
+    tinygltf::Model emptied = model;
+    emptied.buffers[0].data.clear();
+    std::ostringstream glb;
+    tinygltf::TinyGLTF writer;
+    writer.SetImageWriter(nullptr, nullptr);
+    ASSERT_TRUE(writer.WriteGltfSceneToStream(&emptied, glb, true, true));
+    const std::string json = glb.str().substr(20);
+    const size_t at = detail::empty_buffer0_length_at(json);
+    ASSERT_NE(at, std::string::npos);
+    EXPECT_EQ(json.compare(at - 25, 26, "\"buffers\":[{\"byteLength\":0"), 0);
+    EXPECT_NE(json.find("byteLength\\\":0"), std::string::npos);  // the decoy names
+  }
+  same_as_tinygltf(model, "names");
+  model.buffers[0].data.push_back(7);  // 1 to 3 bytes of BIN padding
+  same_as_tinygltf(model, "padded");
+  model.buffers.emplace_back();  // a second buffer, written by its URI
+  model.buffers[1].uri = "other.bin";
+  model.buffers[1].data = {1, 2, 3, 4};
+  same_as_tinygltf(model, "two buffers");
+  same_as_tinygltf(tinygltf::Model{}, "empty");
+}
+
+TEST(Export, Buffer0LengthIsFoundAtTheTopLevelOnly) {
+  const auto at = [](const std::string& json) { return detail::empty_buffer0_length_at(json); };
+  EXPECT_EQ(at(R"({"buffers":[{"byteLength":0}]})"), 26u);
+  EXPECT_EQ(
+      at(R"({"asset":{"a":"\"buffers\":[{\"byteLength\":0"},"buffers":[{"byteLength":0,"n":1}]})"),
+      73u);
+  EXPECT_EQ(at(R"({"extras":{"buffers":[{"byteLength":0}]}})"), std::string::npos);
+  EXPECT_EQ(at(R"({"buffers":[{"byteLength":01}]})"), std::string::npos);
+  EXPECT_EQ(at(R"({"buffers":[{"byteLength":0)"), std::string::npos);
+  EXPECT_EQ(at(R"({"buffers":[]})"), std::string::npos);
+  EXPECT_EQ(at(""), std::string::npos);
+}
+
 TEST(Export, CombinedKeepsTheInputAndEmbedsItsImages) {
   const auto patches = table_patches();
   const TestDir test_dir;

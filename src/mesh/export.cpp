@@ -71,11 +71,11 @@ std::string sniff_mime_type(const std::vector<unsigned char>& b) {
 }
 
 /// Moves every image held as bytes (from a file or a data URI) into buffer 0
-/// as a new buffer view.
-void embed_images(tinygltf::Model& model, const fs::path& input) {
-  // What the images still to embed take (each padded to 4 bytes): buffer 0
-  // grows once, not per image.
-  size_t to_embed = 0;
+/// as a new buffer view, with room for `then` more bytes after them.
+void embed_images(tinygltf::Model& model, const fs::path& input, size_t then) {
+  // What the images still to embed take (each padded to 4 bytes), and what
+  // comes after them: buffer 0 grows once, not per image.
+  size_t to_embed = then;
   for (const tinygltf::Image& image : model.images) {
     if (image.bufferView < 0) to_embed += image.image.size() + 3;
   }
@@ -225,8 +225,9 @@ void write_combined_gltf(const fs::path& input_scene, const std::vector<SnowPatc
     throw InputError(input_scene.string() + ": " +
                      (err.empty() ? std::string("not a valid glTF file") : first_line(err)));
   }
-  embed_images(model, input_scene);
-  append_meshes(model, patch_meshes(patches), {snow_material()}, "Snow");
+  const std::vector<TriMesh> snow = patch_meshes(patches);
+  embed_images(model, input_scene, mesh_buffer_bytes(snow));
+  append_meshes(model, snow, {snow_material()}, "Snow");
   save_gltf(std::move(model), out);
 }
 

@@ -163,6 +163,78 @@ void serialize(const tinygltf::Model& model, bool binary, const std::filesystem:
 
 }  // namespace
 
+size_t detail::empty_buffer0_length_at(const std::string& json) {
+  static const std::string key = "\"buffers\":[{\"byteLength\":0";
+  int depth = 0;
+  for (size_t k = 0; k < json.size(); ++k) {
+    const char c = json[k];
+    if (c == '"') {
+      if (depth == 1 && json.compare(k, key.size(), key) == 0) {
+        const size_t zero = k + key.size() - 1;
+        const char after = zero + 1 < json.size() ? json[zero + 1] : '\0';
+        return after == ',' || after == '}' ? zero : std::string::npos;
+      }
+      for (++k; k < json.size() && json[k] != '"'; ++k) {
+        if (json[k] == '\\') ++k;  // an escaped character
+      }
+    } else if (c == '{' || c == '[') {
+      ++depth;
+    } else if (c == '}' || c == ']') {
+      --depth;
+    }
+  }
+  return std::string::npos;
+}
+
+namespace {
+
+void put_u32(std::ostream& out, uint32_t v) {
+  const unsigned char b[4] = {uint8_t(v), uint8_t(v >> 8), uint8_t(v >> 16), uint8_t(v >> 24)};
+  out.write(reinterpret_cast<const char*>(b), 4);
+}
+
+/// Writes `model` as GLB with buffer 0 as its BIN chunk, the same bytes as
+/// tinygltf's GLB writer but without its copy of buffer 0: tinygltf
+/// serializes the JSON with buffer 0 emptied, its byteLength is set in the
+/// text, and the chunk is written from the model's own bytes.
+void write_glb(tinygltf::Model& model, const std::filesystem::path& path, std::ostream& out) {
+  std::vector<unsigned char> bin;
+  if (!model.buffers.empty()) bin.swap(model.buffers[0].data);
+  std::ostringstream glb;
+  serialize(model, true, path, glb);
+  std::string json = glb.str();
+  size_t zero = std::string::npos;
+  if (json.size() >= 20) {
+    json = json.substr(20);  // the header and the JSON chunk's header
+    while (!json.empty() && json.back() == ' ') json.pop_back();  // its padding
+    zero = detail::empty_buffer0_length_at(json);
+  }
+  if (bin.empty() || zero == std::string::npos || bin.size() > UINT32_MAX) {
+    // No bytes to move, or JSON of an unexpected form: tinygltf writes it all.
+    if (!model.buffers.empty()) model.buffers[0].data.swap(bin);
+    serialize(model, true, path, out);
+    return;
+  }
+  json.replace(zero, 1, std::to_string(bin.size()));
+  const size_t json_padded = (json.size() + 3) & ~size_t(3);
+  const size_t bin_padded = (bin.size() + 3) & ~size_t(3);
+  const size_t total = 12 + 8 + json_padded + 8 + bin_padded;
+  if (total > UINT32_MAX) throw IOError("cannot write " + path.string() + ": over 4 GiB as GLB");
+  out.write("glTF", 4);
+  put_u32(out, 2);
+  put_u32(out, uint32_t(total));
+  put_u32(out, uint32_t(json_padded));
+  out.write("JSON", 4);
+  out.write(json.data(), std::streamsize(json.size()));
+  out.write("   ", std::streamsize(json_padded - json.size()));
+  put_u32(out, uint32_t(bin_padded));
+  out.write("BIN\0", 4);
+  out.write(reinterpret_cast<const char*>(bin.data()), std::streamsize(bin.size()));
+  out.write("\0\0\0", std::streamsize(bin_padded - bin.size()));
+}
+
+}  // namespace
+
 void append_meshes(tinygltf::Model& model, const std::vector<TriMesh>& meshes,
                    const std::vector<MeshMaterial>& materials, const std::string& root_name) {
   std::vector<bool> write(meshes.size());
@@ -172,15 +244,10 @@ void append_meshes(tinygltf::Model& model, const std::vector<TriMesh>& meshes,
   if (model.asset.generator.empty()) model.asset.generator = "snowmodel";
   if (model.buffers.empty() && std::find(write.begin(), write.end(), true) != write.end())
     model.buffers.emplace_back();
-  // Buffer 0 grows once: at most what add_primitive appends, with padding.
-  size_t appended = 0;
-  for (size_t i = 0; i < meshes.size(); ++i) {
-    if (!write[i]) continue;
-    const TriMesh& m = meshes[i];
-    appended += m.positions.size() * sizeof(glm::vec3) + m.normals.size() * sizeof(glm::vec3) +
-                m.uvs.size() * sizeof(glm::vec2) + m.indices.size() * sizeof(uint32_t) + 4 * 4;
+  // Buffer 0 grows once (unless the caller made room).
+  if (!model.buffers.empty()) {
+    model.buffers[0].data.reserve(model.buffers[0].data.size() + mesh_buffer_bytes(meshes));
   }
-  if (appended > 0) model.buffers[0].data.reserve(model.buffers[0].data.size() + appended);
 
   const int material_offset = int(model.materials.size());
   for (const MeshMaterial& m : materials) {
@@ -214,6 +281,17 @@ void append_meshes(tinygltf::Model& model, const std::vector<TriMesh>& meshes,
   model.scenes[size_t(model.defaultScene)].nodes.push_back(root_index);
 }
 
+size_t mesh_buffer_bytes(const std::vector<TriMesh>& meshes) {
+  size_t bytes = 0;
+  for (const TriMesh& m : meshes) {
+    // add_primitive's views: positions, normals, UVs and indices (uint32 at
+    // most), each padded to 4 bytes.
+    bytes += m.positions.size() * sizeof(glm::vec3) + m.normals.size() * sizeof(glm::vec3) +
+             m.uvs.size() * sizeof(glm::vec2) + m.indices.size() * sizeof(uint32_t) + 4 * 3;
+  }
+  return bytes;
+}
+
 void save_gltf(tinygltf::Model model, const std::filesystem::path& path) {
   const std::string ext = lower_extension(path);
   if (ext == ".glb") {
@@ -223,7 +301,7 @@ void save_gltf(tinygltf::Model model, const std::filesystem::path& path) {
     write_file_atomically(path, [&](const std::filesystem::path& tmp) {
       std::ofstream out(tmp, std::ios::binary);
       if (!out) throw IOError("cannot write " + path.string() + ": " + std::strerror(errno));
-      serialize(model, true, path, out);
+      write_glb(model, path, out);
       out.flush();
       if (!out) throw IOError("cannot write " + path.string() + ": " + std::strerror(errno));
     });

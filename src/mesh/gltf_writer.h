@@ -30,6 +30,10 @@ namespace snow {
 void append_meshes(tinygltf::Model& model, const std::vector<TriMesh>& meshes,
                    const std::vector<MeshMaterial>& materials, const std::string& root_name);
 
+/// At most the bytes append_meshes adds to buffer 0 for `meshes` (their
+/// attributes and indices, with padding): room to reserve beforehand.
+size_t mesh_buffer_bytes(const std::vector<TriMesh>& meshes);
+
 /// Writes `model` as binary .glb or as .gltf JSON, chosen by the extension of
 /// `path` (case-insensitive; anything else: InputError). For .gltf every
 /// buffer without a data URI is written beside it as "<stem>.bin" (buffer 0)
@@ -38,5 +42,13 @@ void append_meshes(tinygltf::Model& model, const std::vector<TriMesh>& meshes,
 /// throw IOError naming the path. Pass a model that is no longer needed with
 /// std::move: its buffers are then written without a copy.
 void save_gltf(tinygltf::Model model, const std::filesystem::path& path);
+
+namespace detail {
+/// Where the 0 of `"buffers":[{"byteLength":0` is in compact glTF JSON, at
+/// the top level (not in a string, not in a nested object); npos if not
+/// there, or not followed by ',' or '}'. save_gltf's GLB writer sets buffer
+/// 0's length there (exposed for tests).
+size_t empty_buffer0_length_at(const std::string& json);
+}  // namespace detail
 
 }  // namespace snow
