@@ -209,7 +209,11 @@ void write_glb(tinygltf::Model& model, const std::filesystem::path& path, std::o
     while (!json.empty() && json.back() == ' ') json.pop_back();  // its padding
     zero = detail::empty_buffer0_length_at(json);
   }
-  if (bin.empty() || zero == std::string::npos || bin.size() > UINT32_MAX) {
+  if (uint64_t(bin.size()) + json.size() + 64 > UINT32_MAX) {
+    throw IOError("cannot write " + path.string() +
+                  ": a GLB holds at most 4 GiB; write .gltf (its buffers go to .bin files)");
+  }
+  if (bin.empty() || zero == std::string::npos) {
     // No bytes to move, or JSON of an unexpected form: tinygltf writes it all.
     if (!model.buffers.empty()) model.buffers[0].data.swap(bin);
     serialize(model, true, path, out);
@@ -219,7 +223,6 @@ void write_glb(tinygltf::Model& model, const std::filesystem::path& path, std::o
   const size_t json_padded = (json.size() + 3) & ~size_t(3);
   const size_t bin_padded = (bin.size() + 3) & ~size_t(3);
   const size_t total = 12 + 8 + json_padded + 8 + bin_padded;
-  if (total > UINT32_MAX) throw IOError("cannot write " + path.string() + ": over 4 GiB as GLB");
   out.write("glTF", 4);
   put_u32(out, 2);
   put_u32(out, uint32_t(total));
