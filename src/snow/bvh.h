@@ -59,16 +59,16 @@ class Bvh {
   const std::vector<uint32_t>& order() const { return order_; }
 
  private:
-  // Builds the subtree over prims[first, first + count) into `out`, pre-order
-  // from out.size(); its skip links index `out`. The two halves of the top
-  // `parallel_levels` splits are built on two threads each, into vectors of
-  // their own, and spliced in: the same nodes as a serial build.
-  // The triangles are reordered in place, as Prims: the builds read each
-  // node's range in memory order.
+  // A triangle as the build sorts it: the build reorders these in place, so
+  // it reads each node's range in memory order.
   struct Prim {
     glm::vec3 lo, hi, c;  // a triangle's box and centroid
     uint32_t index;       // its original index
   };
+  // Builds the subtree over prims[first, first + count) into `out`, pre-order
+  // from out.size(); its skip links index `out`. The two halves of the top
+  // `parallel_levels` splits are built on two threads each, into vectors of
+  // their own, and spliced in: the same nodes as a serial build.
   void build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::vector<Node>& out,
              int parallel_levels);
 

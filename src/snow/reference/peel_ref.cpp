@@ -32,8 +32,8 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
   }
   const size_t texels = grid.texels();
   if (texels > size_t(UINT32_MAX)) throw InputError("reference peel: more than 2^32 texels");
-  // Every hit in one array (a vector per texel made the allocator most of
-  // the work: Kenney tiles 15-20 ms), then grouped by texel.
+  // Every hit in one array, grouped by texel below (no allocation per
+  // texel).
   std::vector<TexelHit> found;
   const double ox = grid.origin.x, oz = grid.origin.y, t = grid.texel;
 
