@@ -494,6 +494,15 @@ TEST(Coverage, AutomaticMethodCastsRaysWhereReceiversAreFew) {
   const std::vector<float> a = renderer.compute(maps, CoverageSettings{});
   EXPECT_EQ(renderer.timings().method,
             gl::renderer_is_software() ? CoverageMethod::CpuRays : CoverageMethod::GpuRays);
+  // Told the maps, the renderer builds its BVH in Morton order for the few
+  // rays (80k triangles, 24 x 24 texels x 2 layers): the same coverage.
+  EXPECT_EQ(renderer.bvh_build(), Bvh::Build::Sah);
+  CoverageRenderer morton(scene, &maps);
+  EXPECT_EQ(morton.bvh_build(), Bvh::Build::Morton);
+  const std::vector<float> am = morton.compute(maps, CoverageSettings{});
+  EXPECT_EQ(std::memcmp(a.data(), am.data(), a.size() * sizeof(float)), 0);
+  EXPECT_EQ(CoverageRenderer(make_table_scene(0.75f, 1.0f, 4.0f), &maps).bvh_build(),
+            Bvh::Build::Sah);
   CoverageSettings rays;
   rays.method = "rays";
   const std::vector<float> r = renderer.compute(maps, rays);
@@ -644,11 +653,28 @@ bool ray_hits(glm::dvec3 o, glm::dvec3 d, glm::dvec3 a, glm::dvec3 b, glm::dvec3
   return u >= 0.0 && v >= 0.0 && u + v <= 1.0 && glm::dot(e2, q) / det > 0.0;
 }
 
-// A BVH large enough to be built on several threads (its top splits build
-// their halves beside each other, spliced into one pre-order array): the
+}  // namespace
+
+// Each test of the BVH runs on both builds (named in test output; found by
+// argument-dependent lookup, so in Bvh's namespace).
+void PrintTo(Bvh::Build build, std::ostream* os) {
+  *os << (build == Bvh::Build::Sah ? "Sah" : "Morton");
+}
+
+namespace {
+
+class BvhBuilds : public ::testing::TestWithParam<Bvh::Build> {};
+INSTANTIATE_TEST_SUITE_P(Bvh, BvhBuilds, ::testing::Values(Bvh::Build::Sah, Bvh::Build::Morton),
+                         [](const ::testing::TestParamInfo<Bvh::Build>& info) {
+                           return info.param == Bvh::Build::Sah ? "Sah" : "Morton";
+                         });
+
+// A BVH large enough to be built on several threads (the SAH build's top
+// splits build their halves beside each other, spliced into one pre-order
+// array; the Morton build is serial): the
 // spliced skip links and boxes hold for every node, the leaves cover every
 // triangle once in order, and rays find what a walk over all triangles finds.
-TEST(Bvh, ParallelBuildIsOneValidTree) {
+TEST_P(BvhBuilds, ParallelBuildIsOneValidTree) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> where(-50.0f, 50.0f), size(-0.3f, 0.3f);
   const size_t n = 300000;  // two halves built apart
@@ -658,7 +684,7 @@ TEST(Bvh, ParallelBuildIsOneValidTree) {
     const glm::vec3 c(where(rng), 0.2f * where(rng), where(rng));
     for (int k = 0; k < 3; ++k) corners.push_back(c + glm::vec3(size(rng), size(rng), size(rng)));
   }
-  const Bvh bvh(corners);
+  const Bvh bvh(corners, GetParam());
   const std::vector<Bvh::Node>& nodes = bvh.nodes();
   ASSERT_FALSE(nodes.empty());
   uint32_t next_triangle = 0;
@@ -717,7 +743,7 @@ TEST(Bvh, ParallelBuildIsOneValidTree) {
 // Triangles the split cannot part (one shared centroid, or NaN corners):
 // the build ends in leaves that still hold every triangle once, in order,
 // and rays still find the shared ones.
-TEST(Bvh, UnsplittableTrianglesStillBuild) {
+TEST_P(BvhBuilds, UnsplittableTrianglesStillBuild) {
   std::vector<glm::vec3> corners;
   for (int t = 0; t < 40; ++t) {  // 40 triangles about the origin, turned
     const float a = 0.15f * float(t);
@@ -730,7 +756,7 @@ TEST(Bvh, UnsplittableTrianglesStillBuild) {
     corners.insert(corners.end(),
                    {glm::vec3(nan), glm::vec3(float(t)), glm::vec3(1.0f, nan, 0.0f)});
   }
-  const Bvh bvh(corners);
+  const Bvh bvh(corners, GetParam());
   uint32_t next = 0;
   for (const Bvh::Node& node : bvh.nodes()) {
     if (node.count == 0) continue;
@@ -757,11 +783,11 @@ std::vector<glm::vec3> random_triangles(std::mt19937& rng, size_t n) {
   return corners;
 }
 
-TEST(Bvh, ReachesAgreesWithTheWalk) {
+TEST_P(BvhBuilds, ReachesAgreesWithTheWalk) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> where(-5.0f, 5.0f), unit(-1.0f, 1.0f);
   const size_t n = 2000;
-  const Bvh bvh(random_triangles(rng, n));
+  const Bvh bvh(random_triangles(rng, n), GetParam());
   size_t occluded = 0, differ = 0, false_hits = 0;
   for (int r = 0; r < 400; ++r) {
     const glm::vec3 origin(where(rng), 0.5f * where(rng), where(rng));
@@ -789,11 +815,11 @@ TEST(Bvh, ReachesAgreesWithTheWalk) {
 // Bvh::first_hit names a triangle that the ray hits (one that reaches()
 // confirms, the CPU casts' cache) exactly where occluded() is true, and
 // kNone elsewhere.
-TEST(Bvh, FirstHitNamesAnOccluder) {
+TEST_P(BvhBuilds, FirstHitNamesAnOccluder) {
   std::mt19937 rng(9);
   std::uniform_real_distribution<float> where(-5.0f, 5.0f), unit(-1.0f, 1.0f);
   const size_t n = 2000;
-  const Bvh bvh(random_triangles(rng, n));
+  const Bvh bvh(random_triangles(rng, n), GetParam());
   const float far = std::numeric_limits<float>::infinity();
   size_t hits = 0, misses = 0, wrong = 0;
   for (int r = 0; r < 2000; ++r) {

@@ -84,7 +84,7 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   }
 
   SnowResult result;
-  std::optional<CoverageRenderer> shadows(std::in_place, scene);
+  std::optional<CoverageRenderer> shadows(std::in_place, scene, &maps);
   result.coverage = shadows->compute(maps, coverage);
   result.coverage_method = shadows->timings().method;
   mask_coverage(maps, receives, result.coverage);

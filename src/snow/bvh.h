@@ -2,7 +2,9 @@
 // A bounding volume hierarchy over a triangle soup, for occlusion rays: the
 // CPU reference passes use it directly, the coverage pass uploads it for its
 // exact ray casts (shaders/coverage_exact.glsl mirrors occluded()). Binned
-// surface area heuristic splits, up to 4 triangles per leaf. Nodes are
+// surface area heuristic splits, or the splits of the triangles' Morton
+// order (Lauterbach et al. 2009, "Fast BVH construction on GPUs": the LBVH)
+// where few rays will walk it; up to 4 triangles per leaf. Nodes are
 // stored in pre-order (an inner node's left child follows it, its right
 // subtree follows the left one) with skip links, so rays walk the tree
 // without a stack; the node layout is what std430 storage buffers read as
@@ -25,10 +27,17 @@ class Bvh {
     uint32_t count = 0;  // leaf: triangle count (> 0); 0 for inner nodes
   };
 
+  /// How the tree is split. Both trees answer every query alike; they
+  /// differ in build time against walk time.
+  enum class Build {
+    Sah,     // binned surface area heuristic: the best walks, for many rays
+    Morton,  // linear (Morton order) BVH: built in a fraction of the time, walks a little longer
+  };
+
   /// Builds over triangles t = (corners[3t], corners[3t+1], corners[3t+2])
   /// (a trailing partial triangle is ignored); keeps its own copy, in leaf
   /// order.
-  explicit Bvh(const std::vector<glm::vec3>& corners);
+  explicit Bvh(const std::vector<glm::vec3>& corners, Build how = Build::Sah);
 
   static constexpr uint32_t kNone = ~0u;
   /// The first triangle (leaf order) the walk finds that the ray origin + t *
@@ -71,6 +80,10 @@ class Bvh {
   // their own, and spliced in: the same nodes as a serial build.
   void build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::vector<Node>& out,
              int parallel_levels);
+  // The same over corners_ in Morton order (codes[k] of triangle k): each
+  // node splits where the highest bit in which its codes differ turns on;
+  // boxes are the union of the children's.
+  void build_morton(uint32_t first, uint32_t count, const std::vector<uint32_t>& codes);
 
   std::vector<glm::vec3> corners_;
   std::vector<uint32_t> order_;

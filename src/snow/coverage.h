@@ -40,6 +40,7 @@
 #include <glm/glm.hpp>
 
 #include "scene/scene.h"
+#include "snow/bvh.h"
 #include "snow/maps.h"
 
 namespace snow {
@@ -134,13 +135,14 @@ std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& settings);
 /// later call, including destruction; the CPU methods use none.
 class CoverageRenderer {
  public:
-  /// Builds the scene's BVH (CPU, O(n log n)) and welds its vertices. The
-  /// first compute() that needs GL (shadow maps, or rays on the GPU) makes
-  /// the programs and uploads the triangles in leaf order (the vertex buffer
-  /// of the one draw call per shadow map, and the exact pass's storage
-  /// buffer) and nodes; compute() throws GLError when GL fails
-  /// (GL_OUT_OF_MEMORY included).
-  explicit CoverageRenderer(const Scene& scene);
+  /// Builds the scene's BVH (CPU, O(n log n)). Given the maps that compute()
+  /// will be given, its build suits their size: a Morton-order BVH where the
+  /// triangles far outnumber the maps' layer texels, whose rays are few (the
+  /// coverage is the same either way). The first compute() that needs GL (shadow maps, or rays on
+  /// the GPU) makes the programs and uploads the triangles in leaf order (the vertex buffer of the
+  /// one draw call per shadow map, and the exact pass's storage buffer) and nodes; compute() throws
+  /// GLError when GL fails (GL_OUT_OF_MEMORY included).
+  explicit CoverageRenderer(const Scene& scene, const SnowMaps* maps = nullptr);
   ~CoverageRenderer();
   CoverageRenderer(const CoverageRenderer&) = delete;
   CoverageRenderer& operator=(const CoverageRenderer&) = delete;
@@ -189,6 +191,8 @@ class CoverageRenderer {
   void set_profiling(bool on);
   /// Size (texels) of each shadow map in the last compute().
   glm::ivec2 shadow_map_size() const;
+  /// How the scene's BVH was built (see the constructor).
+  Bvh::Build bvh_build() const;
 
  private:
   std::vector<float> compute_checked(const SnowMaps& maps, const std::vector<glm::vec3>& directions,
