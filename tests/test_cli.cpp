@@ -115,7 +115,7 @@ TEST(Cli, InfoPrintsSceneSummary) {
 
 TEST(Cli, InfoSaysWhetherTheHeapHasHugePages) {
   // snowmodel re-executes itself with glibc.malloc.hugetlb=1 added to
-  // GLIBC_TUNABLES (core/huge_pages.h), unless the user named that tunable.
+  // GLIBC_TUNABLES (core/heap.h), unless the user named that tunable.
   const auto info = [](const std::string& env) {
     return snow::test::run_command(env + " " + std::string(SNOWMODEL_EXE) + " info --no-gl");
   };
@@ -125,6 +125,7 @@ TEST(Cli, InfoSaysWhetherTheHeapHasHugePages) {
   EXPECT_NE(unset.output.find("Huge pages for the heap: "), std::string::npos) << unset.output;
   EXPECT_NE(unset.output.find("GLIBC_TUNABLES glibc.malloc.hugetlb=1)"), std::string::npos)
       << unset.output;
+  EXPECT_NE(unset.output.find("mmap threshold: 32 MiB"), std::string::npos) << unset.output;
   // Other tunables are kept, and the hugetlb one added.
   const RunResult other = info("GLIBC_TUNABLES=glibc.malloc.check=0");
   ASSERT_EQ(other.code, 0) << other.output;
@@ -141,6 +142,13 @@ TEST(Cli, InfoSaysWhetherTheHeapHasHugePages) {
   EXPECT_NE(off.output.find("Huge pages for the heap: off (GLIBC_TUNABLES glibc.malloc.hugetlb=0)"),
             std::string::npos)
       << off.output;
+  EXPECT_NE(off.output.find("mmap threshold: 32 MiB"), std::string::npos) << off.output;
+  const RunResult threshold = info("GLIBC_TUNABLES=glibc.malloc.mmap_threshold=65536");
+  ASSERT_EQ(threshold.code, 0) << threshold.output;
+  EXPECT_NE(threshold.output.find(
+                "mmap threshold: as set (GLIBC_TUNABLES glibc.malloc.mmap_threshold=65536)"),
+            std::string::npos)
+      << threshold.output;
 }
 
 TEST(Cli, InfoJson) {

@@ -1,4 +1,5 @@
 #include <gtest/gtest.h>
+#include <malloc.h>
 
 #include <atomic>
 #include <chrono>
@@ -10,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/fs.h"
+#include "core/heap.h"
 #include "core/log.h"
 #include "core/parallel.h"
 
@@ -101,6 +103,22 @@ TEST(ParallelFor, RethrowsTheFirstErrorAfterAllThreadsStop) {
 
 // A quiet thread prints nothing but still records its warnings; other
 // threads print as before.
+// tune_heap (without argv: no re-execution) sets glibc's mmap threshold, so
+// that a block of 8 MiB comes from the heap rather than a mapping of its
+// own (mallinfo2's hblks counts those), and says so in `info`'s line.
+TEST(Heap, LargeBlocksComeFromTheHeap) {
+  snow::tune_heap(nullptr);
+  const std::string status = snow::mmap_threshold_status();
+  if (status.rfind("as set", 0) == 0 || status.find("AddressSanitizer") != std::string::npos)
+    GTEST_SKIP() << "the threshold is not ours to set here: " << status;
+  ASSERT_EQ(status.rfind("32 MiB", 0), 0u) << status;
+  const size_t mapped = mallinfo2().hblks;
+  std::vector<char> block(size_t(8) << 20, 1);
+  EXPECT_EQ(mallinfo2().hblks, mapped);
+  std::vector<char> huge(size_t(40) << 20, 1);  // over the threshold: mapped
+  EXPECT_EQ(mallinfo2().hblks, mapped + 1);
+}
+
 TEST(Log, QuietThreadPrintsNothingAndKeepsWarnings) {
   snow::set_log_level(snow::LogLevel::Debug);
   snow::clear_warnings();

@@ -26,7 +26,7 @@
 #include <vector>
 
 #include "core/error.h"
-#include "core/huge_pages.h"
+#include "core/heap.h"
 #include "core/log.h"
 #include "gl/context.h"
 #include "scene/builder.h"
@@ -196,7 +196,7 @@ void print(const Row& r, const Options& o) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  snow::use_huge_pages(argv);  // as snowmodel does, so the timings compare
+  snow::tune_heap(argv);  // as snowmodel does, so the timings compare
   Options o;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];

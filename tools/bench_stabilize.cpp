@@ -36,7 +36,7 @@
 #include <vector>
 
 #include "core/error.h"
-#include "core/huge_pages.h"
+#include "core/heap.h"
 #include "core/log.h"
 #include "gl/context.h"
 #include "scene/builder.h"
@@ -55,7 +55,7 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  snow::use_huge_pages(argv);  // as snowmodel does, so the timings compare
+  snow::tune_heap(argv);  // as snowmodel does, so the timings compare
   using namespace snow;
   std::string scene_name = "courtyard";
   int side = 1024, layers = 4, passes = -1, trace = 0;

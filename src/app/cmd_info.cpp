@@ -2,7 +2,7 @@
 #include <cstdio>
 
 #include "app/commands.h"
-#include "core/huge_pages.h"
+#include "core/heap.h"
 #include "scene/load_gltf.h"
 
 namespace snow::app {
@@ -34,7 +34,10 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
                              "less"
                            : "shadow maps, or rays on the GPU where they cost less");
     }
-    if (!options->json) std::printf("Huge pages for the heap: %s\n", huge_pages_status().c_str());
+    if (!options->json) {
+      std::printf("Huge pages for the heap: %s\n", huge_pages_status().c_str());
+      std::printf("mmap threshold: %s\n", mmap_threshold_status().c_str());
+    }
     if (options->scene.empty()) return;
     const Scene scene = load_scene(options->scene);
     std::printf("%s\n", options->json ? scene_summary_json(scene).c_str()

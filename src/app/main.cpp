@@ -5,7 +5,7 @@
 
 #include "app/commands.h"
 #include "core/error.h"
-#include "core/huge_pages.h"
+#include "core/heap.h"
 #include "core/log.h"
 
 namespace snow::app {
@@ -20,7 +20,7 @@ std::unique_ptr<gl::Context> make_headless_context(const GlobalOptions& global) 
 
 int main(int argc, char** argv) {
   using namespace snow;
-  use_huge_pages(argv);
+  tune_heap(argv);
   CLI::App cli{"snowmodel: puts physically plausible fallen snow on glTF 2.0 scenes"};
   cli.set_version_flag("--version", "snowmodel 0.1.0");
   cli.require_subcommand(1);

@@ -5,7 +5,7 @@
 // libOSMesa is opened when this backend is first asked for, not linked:
 // it links LLVM and its dependencies, whose loading (thousands of page
 // faults of the relocations) every run would pay at start otherwise, twice
-// with the huge-pages re-execution (core/huge_pages.h), though most runs
+// with the huge-pages re-execution (core/heap.h), though most runs
 // use EGL.
 #include <GL/osmesa.h>
 #include <dlfcn.h>

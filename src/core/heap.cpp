@@ -1,5 +1,6 @@
-#include "core/huge_pages.h"
+#include "core/heap.h"
 
+#include <malloc.h>
 #include <sys/auxv.h>
 #include <unistd.h>
 
@@ -10,6 +11,10 @@ namespace snow {
 namespace {
 
 constexpr const char* kTunable = "glibc.malloc.hugetlb";
+constexpr const char* kThresholdTunable = "glibc.malloc.mmap_threshold";
+constexpr int kMmapThreshold = 32 << 20;
+// What tune_heap did with the threshold, for mmap_threshold_status().
+bool threshold_set = false;
 constexpr const char* kReexecMarker = "SNOWMODEL_HUGE_PAGES_REEXEC";
 
 #if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
@@ -31,12 +36,12 @@ constexpr bool kSanitizerHeap = false;
 constexpr bool kSanitizerHeap = false;
 #endif
 
-// The value of glibc.malloc.hugetlb in GLIBC_TUNABLES ("" when not named).
-std::string tunable_value() {
+// The value of `name` in GLIBC_TUNABLES ("" when not named).
+std::string tunable_value(const char* name = kTunable) {
   const char* env = std::getenv("GLIBC_TUNABLES");
   if (env == nullptr) return "";
   const std::string tunables = env;
-  const std::string key = std::string(kTunable) + "=";
+  const std::string key = std::string(name) + "=";
   // Entries are separated by ':'; the last one naming the tunable wins.
   std::string value;
   size_t start = 0;
@@ -52,7 +57,12 @@ std::string tunable_value() {
 
 }  // namespace
 
-void use_huge_pages(char** argv) {
+void tune_heap(char** argv) {
+#if defined(__GLIBC__)
+  if (tunable_value(kThresholdTunable).empty() && !kSanitizerHeap) {
+    threshold_set = mallopt(M_MMAP_THRESHOLD, kMmapThreshold) == 1;
+  }
+#endif
   // Set only across the re-execution, so it happens at most once even where
   // glibc drops GLIBC_TUNABLES from the environment (setuid programs).
   if (std::getenv(kReexecMarker) != nullptr) {
@@ -76,6 +86,16 @@ void use_huge_pages(char** argv) {
   } else {
     unsetenv("GLIBC_TUNABLES");
   }
+}
+
+std::string mmap_threshold_status() {
+  if (threshold_set) return "32 MiB (blocks up to that size come from the heap)";
+  const std::string value = tunable_value(kThresholdTunable);
+  if (!value.empty()) {
+    return "as set (GLIBC_TUNABLES " + std::string(kThresholdTunable) + "=" + value + ")";
+  }
+  if (kSanitizerHeap) return "the allocator's own (AddressSanitizer's)";
+  return "the allocator's own (glibc refused 32 MiB)";
 }
 
 std::string huge_pages_status() {
