@@ -3,14 +3,23 @@
 // GPU). Both make a GL 4.5 core context current without any surface
 // (EGL_KHR_surfaceless_context), or with a tiny pbuffer where that extension
 // is missing; all rendering goes to framebuffer objects.
+//
+// libEGL is opened at run time, on the first use of an EGL backend, as
+// libOSMesa is (context_osmesa.cpp): a run whose passes all stay on the CPU
+// never loads it. Linked, it cost every start of the program about 3 ms
+// here (13.8-14.9 against 10.9-11.4 ms for a program linked as snowmodel
+// is), twice with the huge-page re-execution.
 #define EGL_NO_X11
 #define MESA_EGL_NO_X11_HEADERS
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
 
+#include <dlfcn.h>
+
 #include <cstring>
 #include <set>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "core/error.h"
@@ -18,6 +27,56 @@
 
 namespace snow::gl::detail {
 namespace {
+
+// The EGL entry points the backends call, from the library opened once.
+struct EglApi {
+  decltype(&eglGetProcAddress) get_proc_address = nullptr;
+  decltype(&eglGetError) get_error = nullptr;
+  decltype(&eglQueryString) query_string = nullptr;
+  decltype(&eglInitialize) initialize = nullptr;
+  decltype(&eglBindAPI) bind_api = nullptr;
+  decltype(&eglChooseConfig) choose_config = nullptr;
+  decltype(&eglCreateContext) create_context = nullptr;
+  decltype(&eglCreatePbufferSurface) create_pbuffer_surface = nullptr;
+  decltype(&eglMakeCurrent) make_current = nullptr;
+  decltype(&eglGetCurrentContext) get_current_context = nullptr;
+  decltype(&eglDestroyContext) destroy_context = nullptr;
+  decltype(&eglDestroySurface) destroy_surface = nullptr;
+};
+
+const EglApi& egl() {
+  static const EglApi api = [] {
+    void* lib = nullptr;
+    for (const char* name : {"libEGL.so.1", "libEGL.so"}) {
+      if ((lib = dlopen(name, RTLD_NOW | RTLD_LOCAL)) != nullptr) break;
+    }
+    EglApi a;
+    if (!lib) return a;  // kept open for the program's life
+    const auto find = [lib](auto& fn, const char* symbol) {
+      fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(dlsym(lib, symbol));
+    };
+    find(a.get_proc_address, "eglGetProcAddress");
+    find(a.get_error, "eglGetError");
+    find(a.query_string, "eglQueryString");
+    find(a.initialize, "eglInitialize");
+    find(a.bind_api, "eglBindAPI");
+    find(a.choose_config, "eglChooseConfig");
+    find(a.create_context, "eglCreateContext");
+    find(a.create_pbuffer_surface, "eglCreatePbufferSurface");
+    find(a.make_current, "eglMakeCurrent");
+    find(a.get_current_context, "eglGetCurrentContext");
+    find(a.destroy_context, "eglDestroyContext");
+    find(a.destroy_surface, "eglDestroySurface");
+    return a;
+  }();
+  if (!api.get_proc_address || !api.get_error || !api.query_string || !api.initialize ||
+      !api.bind_api || !api.choose_config || !api.create_context || !api.create_pbuffer_surface ||
+      !api.make_current || !api.get_current_context || !api.destroy_context ||
+      !api.destroy_surface) {
+    throw GLError("egl: libEGL.so.1 with EGL 1.4 not found (install libegl1)");
+  }
+  return api;
+}
 
 const char* egl_error_name(EGLint error) {
   switch (error) {
@@ -56,7 +115,7 @@ const char* egl_error_name(EGLint error) {
   }
 }
 
-std::string egl_error() { return egl_error_name(eglGetError()); }
+std::string egl_error() { return egl_error_name(egl().get_error()); }
 
 bool has_extension(const char* list, const char* name) {
   if (!list) return false;
@@ -69,7 +128,7 @@ bool has_extension(const char* list, const char* name) {
   return false;
 }
 
-ProcAddressFn egl_loader() { return reinterpret_cast<ProcAddressFn>(&eglGetProcAddress); }
+ProcAddressFn egl_loader() { return reinterpret_cast<ProcAddressFn>(egl().get_proc_address); }
 
 // One eglInitialize per display, kept for the life of the process: the
 // same EGLDisplay is shared by every context on it (eglTerminate would pull
@@ -80,7 +139,7 @@ void initialize_display(EGLDisplay display) {
   if (initialized.count(display)) return;
   EGLint major = 0;
   EGLint minor = 0;
-  if (!eglInitialize(display, &major, &minor)) {
+  if (!egl().initialize(display, &major, &minor)) {
     throw GLError("eglInitialize failed (" + egl_error() + ")");
   }
   initialized.insert(display);
@@ -92,13 +151,14 @@ class EglContext final : public Context {
     initialize_display(display_);
   }
   ~EglContext() override {
+    const EglApi& api = egl();
     if (context_ != EGL_NO_CONTEXT) {
-      if (eglGetCurrentContext() == context_) {
-        eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+      if (api.get_current_context() == context_) {
+        api.make_current(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
       }
-      eglDestroyContext(display_, context_);
+      api.destroy_context(display_, context_);
     }
-    if (surface_ != EGL_NO_SURFACE) eglDestroySurface(display_, surface_);
+    if (surface_ != EGL_NO_SURFACE) api.destroy_surface(display_, surface_);
   }
 
   Backend backend() const override { return backend_; }
@@ -107,10 +167,11 @@ class EglContext final : public Context {
     // Another backend (OSMesa) may have taken the thread since; libglvnd
     // skips an eglMakeCurrent of the context it thinks is current, so
     // release first to make Mesa really bind this one again.
-    if (eglGetCurrentContext() == context_ && !functions_loaded_from(egl_loader())) {
-      eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+    const EglApi& api = egl();
+    if (api.get_current_context() == context_ && !functions_loaded_from(egl_loader())) {
+      api.make_current(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     }
-    if (!eglMakeCurrent(display_, surface_, surface_, context_)) {
+    if (!api.make_current(display_, surface_, surface_, context_)) {
       throw GLError(to_string(backend_) + ": eglMakeCurrent failed (" + egl_error() + ")");
     }
     load_functions(egl_loader(), backend_);
@@ -118,10 +179,11 @@ class EglContext final : public Context {
 
   // Creates the context (GL 4.5 core, else 4.4, else 4.3) and makes it current.
   void create(const ContextOptions& options) {
-    const char* extensions = eglQueryString(display_, EGL_EXTENSIONS);
+    const EglApi& api = egl();
+    const char* extensions = api.query_string(display_, EGL_EXTENSIONS);
     const bool surfaceless = has_extension(extensions, "EGL_KHR_surfaceless_context");
     const bool no_config = has_extension(extensions, "EGL_KHR_no_config_context");
-    if (!eglBindAPI(EGL_OPENGL_API)) {
+    if (!api.bind_api(EGL_OPENGL_API)) {
       throw GLError("no desktop OpenGL on this EGL display (" + egl_error() + ")");
     }
 
@@ -130,7 +192,7 @@ class EglContext final : public Context {
       const EGLint attribs[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_SURFACE_TYPE,
                                 EGL_PBUFFER_BIT, EGL_NONE};
       EGLint count = 0;
-      if (!eglChooseConfig(display_, attribs, &config, 1, &count) || count < 1) {
+      if (!api.choose_config(display_, attribs, &config, 1, &count) || count < 1) {
         throw GLError("no EGL config with OpenGL and pbuffers");
       }
     }
@@ -154,8 +216,8 @@ class EglContext final : public Context {
           attribs.push_back(EGL_LOSE_CONTEXT_ON_RESET);
         }
         attribs.push_back(EGL_NONE);
-        context_ = eglCreateContext(display_, config ? config : EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT,
-                                    attribs.data());
+        context_ = api.create_context(display_, config ? config : EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT,
+                                      attribs.data());
         if (context_ != EGL_NO_CONTEXT) break;
         last_error = egl_error();
       }
@@ -166,12 +228,12 @@ class EglContext final : public Context {
     }
     if (!surfaceless) {
       const EGLint attribs[] = {EGL_WIDTH, 16, EGL_HEIGHT, 16, EGL_NONE};
-      surface_ = eglCreatePbufferSurface(display_, config, attribs);
+      surface_ = api.create_pbuffer_surface(display_, config, attribs);
       if (surface_ == EGL_NO_SURFACE) {
         throw GLError("eglCreatePbufferSurface failed (" + egl_error() + ")");
       }
     }
-    if (!eglMakeCurrent(display_, surface_, surface_, context_)) {
+    if (!api.make_current(display_, surface_, surface_, context_)) {
       throw GLError("eglMakeCurrent failed (" + egl_error() + ")");
     }
     init_new_context(egl_loader(), backend_, options);
@@ -186,13 +248,13 @@ class EglContext final : public Context {
 
 template <typename Fn>
 Fn egl_function(const char* name) {
-  return reinterpret_cast<Fn>(eglGetProcAddress(name));
+  return reinterpret_cast<Fn>(egl().get_proc_address(name));
 }
 
 }  // namespace
 
 std::unique_ptr<Context> create_egl_device_context(const ContextOptions& options) {
-  const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+  const char* client = egl().query_string(EGL_NO_DISPLAY, EGL_EXTENSIONS);
   if (!has_extension(client, "EGL_EXT_platform_device") ||
       !has_extension(client, "EGL_EXT_device_enumeration")) {
     throw GLError("EGL has no EGL_EXT_platform_device/EGL_EXT_device_enumeration");
@@ -241,7 +303,13 @@ std::unique_ptr<Context> create_egl_device_context(const ContextOptions& options
 }
 
 std::optional<bool> egl_lists_hardware_device() {
-  const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+  const EglApi* api = nullptr;
+  try {
+    api = &egl();
+  } catch (const GLError&) {
+    return std::nullopt;  // no libEGL
+  }
+  const char* client = api->query_string(EGL_NO_DISPLAY, EGL_EXTENSIONS);
   if (!has_extension(client, "EGL_EXT_device_enumeration")) return std::nullopt;
   auto query_devices = egl_function<PFNEGLQUERYDEVICESEXTPROC>("eglQueryDevicesEXT");
   auto query_device_string =
@@ -260,7 +328,7 @@ std::optional<bool> egl_lists_hardware_device() {
 }
 
 std::unique_ptr<Context> create_egl_surfaceless_context(const ContextOptions& options) {
-  const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+  const char* client = egl().query_string(EGL_NO_DISPLAY, EGL_EXTENSIONS);
   if (!has_extension(client, "EGL_MESA_platform_surfaceless")) {
     throw GLError("EGL has no EGL_MESA_platform_surfaceless");
   }
