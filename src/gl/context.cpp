@@ -3,6 +3,8 @@
 // KHR_debug output.
 #include "gl/context.h"
 
+#include <dlfcn.h>
+
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
@@ -150,6 +152,15 @@ bool renderer_is_software() {
 }
 
 namespace detail {
+
+void* open_library(std::initializer_list<const char*> names) {
+  for (const char* name : names) {
+    if (void* library = dlopen(name, RTLD_NOW | RTLD_LOCAL)) return library;
+  }
+  return nullptr;
+}
+
+void* library_symbol(void* library, const char* symbol) { return dlsym(library, symbol); }
 
 void load_functions(ProcAddressFn loader, Backend backend) {
   if (loader == g_loaded_from) return;

@@ -4,22 +4,18 @@
 // (EGL_KHR_surfaceless_context), or with a tiny pbuffer where that extension
 // is missing; all rendering goes to framebuffer objects.
 //
-// libEGL is opened at run time, on the first use of an EGL backend, as
-// libOSMesa is (context_osmesa.cpp): a run whose passes all stay on the CPU
-// never loads it. Linked, it cost every start of the program about 3 ms
-// here (13.8-14.9 against 10.9-11.4 ms for a program linked as snowmodel
-// is), twice with the huge-page re-execution.
+// libEGL is opened at run time, on first use (open_library), as libOSMesa
+// is: the program starts without it (about 0.5 ms less per start, twice
+// with the huge-page re-execution), and the snow command's first EGL call,
+// the probe for a hardware device, runs beside the scene's load.
 #define EGL_NO_X11
 #define MESA_EGL_NO_X11_HEADERS
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
 
-#include <dlfcn.h>
-
 #include <cstring>
 #include <set>
 #include <string>
-#include <type_traits>
 #include <vector>
 
 #include "core/error.h"
@@ -46,27 +42,21 @@ struct EglApi {
 
 const EglApi& egl() {
   static const EglApi api = [] {
-    void* lib = nullptr;
-    for (const char* name : {"libEGL.so.1", "libEGL.so"}) {
-      if ((lib = dlopen(name, RTLD_NOW | RTLD_LOCAL)) != nullptr) break;
-    }
+    void* lib = open_library({"libEGL.so.1", "libEGL.so"});
     EglApi a;
-    if (!lib) return a;  // kept open for the program's life
-    const auto find = [lib](auto& fn, const char* symbol) {
-      fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(dlsym(lib, symbol));
-    };
-    find(a.get_proc_address, "eglGetProcAddress");
-    find(a.get_error, "eglGetError");
-    find(a.query_string, "eglQueryString");
-    find(a.initialize, "eglInitialize");
-    find(a.bind_api, "eglBindAPI");
-    find(a.choose_config, "eglChooseConfig");
-    find(a.create_context, "eglCreateContext");
-    find(a.create_pbuffer_surface, "eglCreatePbufferSurface");
-    find(a.make_current, "eglMakeCurrent");
-    find(a.get_current_context, "eglGetCurrentContext");
-    find(a.destroy_context, "eglDestroyContext");
-    find(a.destroy_surface, "eglDestroySurface");
+    if (!lib) return a;
+    find_symbol(lib, a.get_proc_address, "eglGetProcAddress");
+    find_symbol(lib, a.get_error, "eglGetError");
+    find_symbol(lib, a.query_string, "eglQueryString");
+    find_symbol(lib, a.initialize, "eglInitialize");
+    find_symbol(lib, a.bind_api, "eglBindAPI");
+    find_symbol(lib, a.choose_config, "eglChooseConfig");
+    find_symbol(lib, a.create_context, "eglCreateContext");
+    find_symbol(lib, a.create_pbuffer_surface, "eglCreatePbufferSurface");
+    find_symbol(lib, a.make_current, "eglMakeCurrent");
+    find_symbol(lib, a.get_current_context, "eglGetCurrentContext");
+    find_symbol(lib, a.destroy_context, "eglDestroyContext");
+    find_symbol(lib, a.destroy_surface, "eglDestroySurface");
     return a;
   }();
   if (!api.get_proc_address || !api.get_error || !api.query_string || !api.initialize ||

@@ -2,9 +2,11 @@
 // Shared between context.cpp and the backend files. It includes no GL, EGL,
 // OSMesa or GLFW header, so each backend file can include its own native
 // headers without clashing with glad.
+#include <initializer_list>
 #include <memory>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "gl/context.h"
@@ -14,6 +16,21 @@ namespace snow::gl::detail {
 /// A get-proc-address function (eglGetProcAddress, OSMesaGetProcAddress,
 /// glfwGetProcAddress), in glad's GLADloadfunc shape.
 using ProcAddressFn = void (*(*)(const char* name))();
+
+/// The first of the shared libraries `names` that dlopen opens (RTLD_NOW |
+/// RTLD_LOCAL), kept open for the program's life; nullptr when none does.
+/// The EGL and OSMesa backends open their libraries so, on first use.
+void* open_library(std::initializer_list<const char*> names);
+
+/// The address of `symbol` in `library` (from open_library); nullptr where
+/// the library lacks it.
+void* library_symbol(void* library, const char* symbol);
+/// The same, cast to the function pointer type of `fn` and stored there.
+template <class Fn>
+void find_symbol(void* library, Fn& fn, const char* symbol) {
+  static_assert(std::is_pointer_v<Fn>);
+  fn = reinterpret_cast<Fn>(library_symbol(library, symbol));
+}
 
 /// Loads the GL functions through `loader` (skipped when the functions
 /// already came from this loader), so contexts of different backends can

@@ -8,11 +8,8 @@
 // with the huge-pages re-execution (core/heap.h), though most runs
 // use EGL.
 #include <GL/osmesa.h>
-#include <dlfcn.h>
-
 #include <cstdint>
 #include <string>
-#include <type_traits>
 #include <vector>
 
 #include "core/error.h"
@@ -34,20 +31,14 @@ struct OSMesaApi {
 
 const OSMesaApi& osmesa() {
   static const OSMesaApi api = [] {
-    void* lib = nullptr;
-    for (const char* name : {"libOSMesa.so.8", "libOSMesa.so"}) {
-      if ((lib = dlopen(name, RTLD_NOW | RTLD_LOCAL)) != nullptr) break;
-    }
+    void* lib = open_library({"libOSMesa.so.8", "libOSMesa.so"});
     OSMesaApi a;
-    if (!lib) return a;  // kept open for the program's life
-    const auto find = [lib](auto& fn, const char* symbol) {
-      fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(dlsym(lib, symbol));
-    };
-    find(a.create_context_attribs, "OSMesaCreateContextAttribs");
-    find(a.make_current, "OSMesaMakeCurrent");
-    find(a.get_current_context, "OSMesaGetCurrentContext");
-    find(a.destroy_context, "OSMesaDestroyContext");
-    find(a.get_proc_address, "OSMesaGetProcAddress");
+    if (!lib) return a;
+    find_symbol(lib, a.create_context_attribs, "OSMesaCreateContextAttribs");
+    find_symbol(lib, a.make_current, "OSMesaMakeCurrent");
+    find_symbol(lib, a.get_current_context, "OSMesaGetCurrentContext");
+    find_symbol(lib, a.destroy_context, "OSMesaDestroyContext");
+    find_symbol(lib, a.get_proc_address, "OSMesaGetProcAddress");
     return a;
   }();
   if (!api.create_context_attribs || !api.make_current || !api.get_current_context ||
