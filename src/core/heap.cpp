@@ -11,11 +11,11 @@ namespace snow {
 namespace {
 
 constexpr const char* kTunable = "glibc.malloc.hugetlb";
+constexpr const char* kReexecMarker = "SNOWMODEL_HUGE_PAGES_REEXEC";
 constexpr const char* kThresholdTunable = "glibc.malloc.mmap_threshold";
 constexpr int kMmapThreshold = 32 << 20;
-// What tune_heap did with the threshold, for mmap_threshold_status().
+// Whether tune_heap set the threshold, for mmap_threshold_status().
 bool threshold_set = false;
-constexpr const char* kReexecMarker = "SNOWMODEL_HUGE_PAGES_REEXEC";
 
 #if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
 constexpr bool kGlibcHasTunable = true;

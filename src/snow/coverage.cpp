@@ -831,14 +831,12 @@ struct GpuSide {
   }
 };
 
-}  // namespace
-
 // The BVH for a scene of `triangles` whose coverage is computed on `maps`.
 // Its walks scale with the receivers, its build with the triangles: where
 // the triangles outnumber the receivers (the layer texels with a surface)
 // 16 to 1, the Morton order's build saves more than its longer walks cost.
 // ToyCar (109k triangles, 16 x 16 texels x 3 layers): build 0.075-0.083 ->
-// 0.025-0.030 s, coverage 0.01 s either way. Where the receivers are many,
+// 0.013-0.015 s, coverage 0.01 s either way. Where the receivers are many,
 // the binned SAH's tree pays: building-small-a coverage 0.05 s against 0.06
 // s, SheenChair (40k triangles, 91 x 64 texels x 8 layers) level; the 1M
 // terrain at 2048 saves 0.2 s of build and loses 0.1-0.16 s of coverage.
@@ -848,6 +846,8 @@ Bvh::Build bvh_build_for(size_t triangles, const SnowMaps* maps) {
                                                 [](float y) { return !std::isnan(y); }));
   return triangles > 16 * receivers ? Bvh::Build::Morton : Bvh::Build::Sah;
 }
+
+}  // namespace
 
 struct CoverageRenderer::Impl {
   Impl(const Scene& scene, const SnowMaps* maps) : bounds(scene.bounds) {

@@ -138,10 +138,11 @@ class CoverageRenderer {
   /// Builds the scene's BVH (CPU, O(n log n)). Given the maps that compute()
   /// will be given, its build suits their size: a Morton-order BVH where the
   /// triangles far outnumber the maps' layer texels, whose rays are few (the
-  /// coverage is the same either way). The first compute() that needs GL (shadow maps, or rays on
-  /// the GPU) makes the programs and uploads the triangles in leaf order (the vertex buffer of the
-  /// one draw call per shadow map, and the exact pass's storage buffer) and nodes; compute() throws
-  /// GLError when GL fails (GL_OUT_OF_MEMORY included).
+  /// coverage is the same either way). The first compute() that needs GL
+  /// (shadow maps, or rays on the GPU) makes the programs and uploads the
+  /// triangles in leaf order (the vertex buffer of the one draw call per
+  /// shadow map, and the exact pass's storage buffer) and nodes; compute()
+  /// throws GLError when GL fails (GL_OUT_OF_MEMORY included).
   explicit CoverageRenderer(const Scene& scene, const SnowMaps* maps = nullptr);
   ~CoverageRenderer();
   CoverageRenderer(const CoverageRenderer&) = delete;
