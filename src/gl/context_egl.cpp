@@ -14,6 +14,7 @@
 #include <EGL/eglext.h>
 
 #include <cstring>
+#include <filesystem>
 #include <set>
 #include <string>
 #include <vector>
@@ -293,6 +294,14 @@ std::unique_ptr<Context> create_egl_device_context(const ContextOptions& options
 }
 
 std::optional<bool> egl_lists_hardware_device() {
+  // A hardware device has a device node: under /dev/dri (Mesa's drivers,
+  // virtual GPUs) or NVIDIA's /dev/nvidiactl. Without either, EGL lists none,
+  // and asking it would load libEGL and Mesa's vendor library (4.4-7 ms).
+  std::error_code error;
+  if (!std::filesystem::exists("/dev/dri", error) &&
+      !std::filesystem::exists("/dev/nvidiactl", error)) {
+    return false;
+  }
   const EglApi* api = nullptr;
   try {
     api = &egl();

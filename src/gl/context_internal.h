@@ -59,7 +59,9 @@ std::unique_ptr<Context> try_backends(const std::vector<Backend>& order,
                                       const ContextOptions& options);
 
 /// Whether EGL lists a hardware device (one without EGL_MESA_device_software),
-/// without creating a display; empty where EGL cannot list devices.
+/// without creating a display; false without asking EGL where the machine
+/// has no GPU device node (/dev/dri, /dev/nvidiactl); empty where EGL cannot
+/// list devices.
 std::optional<bool> egl_lists_hardware_device();
 
 /// Backend factories: create, make current and init_new_context(), or throw
