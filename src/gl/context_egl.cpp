@@ -6,8 +6,9 @@
 //
 // libEGL is opened at run time, on first use (open_library), as libOSMesa
 // is: the program starts without it (about 0.5 ms less per start, twice
-// with the huge-page re-execution), and the snow command's first EGL call,
-// the probe for a hardware device, runs beside the scene's load.
+// with the huge-page re-execution). The snow command's probe for a hardware
+// device asks EGL only where the machine has a GPU device node, and runs
+// beside the scene's load.
 #define EGL_NO_X11
 #define MESA_EGL_NO_X11_HEADERS
 #include <EGL/egl.h>
