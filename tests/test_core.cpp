@@ -101,8 +101,6 @@ TEST(ParallelFor, RethrowsTheFirstErrorAfterAllThreadsStop) {
   }
 }
 
-// A quiet thread prints nothing but still records its warnings; other
-// threads print as before.
 // tune_heap (without argv: no re-execution) sets glibc's mmap threshold, so
 // that a block of 8 MiB comes from the heap rather than a mapping of its
 // own (mallinfo2's hblks counts those), and says so in `info`'s line.
@@ -119,6 +117,8 @@ TEST(Heap, LargeBlocksComeFromTheHeap) {
   EXPECT_EQ(mallinfo2().hblks, mapped + 1);
 }
 
+// A quiet thread prints nothing but still records its warnings; other
+// threads print as before.
 TEST(Log, QuietThreadPrintsNothingAndKeepsWarnings) {
   snow::set_log_level(snow::LogLevel::Debug);
   snow::clear_warnings();

@@ -671,9 +671,9 @@ INSTANTIATE_TEST_SUITE_P(Bvh, BvhBuilds, ::testing::Values(Bvh::Build::Sah, Bvh:
 
 // A BVH large enough to be built on several threads (the SAH build's top
 // splits build their halves beside each other, spliced into one pre-order
-// array; the Morton build is serial): the
-// spliced skip links and boxes hold for every node, the leaves cover every
-// triangle once in order, and rays find what a walk over all triangles finds.
+// array; the Morton build is serial): the spliced skip links and boxes hold
+// for every node, the leaves cover every triangle once in order, and rays
+// find what a walk over all triangles finds.
 TEST_P(BvhBuilds, ParallelBuildIsOneValidTree) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> where(-50.0f, 50.0f), size(-0.3f, 0.3f);
