@@ -348,8 +348,9 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   const gl::Backend backend = gl::requested_backend(context_options);
   // Where the machine has a GPU device node, the probe lists EGL's devices,
   // which loads libEGL and Mesa's vendor library (about 5 ms): so it runs
-  // beside the load, and starts the warm-up it allows. (Declared after warm_gl: its destructor waits for the
-  // task, which sets warm_gl, before warm_gl goes.)
+  // beside the load, and starts the warm-up it allows. (Declared after
+  // warm_gl: its destructor waits for the task, which sets warm_gl, before
+  // warm_gl goes.)
   std::future<void> warm_gl;
   std::future<std::optional<bool>> probed = std::async(std::launch::async, [&] {
     const std::optional<bool> software =

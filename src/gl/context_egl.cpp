@@ -40,6 +40,7 @@ struct EglApi {
   decltype(&eglGetCurrentContext) get_current_context = nullptr;
   decltype(&eglDestroyContext) destroy_context = nullptr;
   decltype(&eglDestroySurface) destroy_surface = nullptr;
+  bool complete = false;  // every entry point found
 };
 
 const EglApi& egl() {
@@ -47,24 +48,21 @@ const EglApi& egl() {
     void* lib = open_library({"libEGL.so.1", "libEGL.so"});
     EglApi a;
     if (!lib) return a;
-    find_symbol(lib, a.get_proc_address, "eglGetProcAddress");
-    find_symbol(lib, a.get_error, "eglGetError");
-    find_symbol(lib, a.query_string, "eglQueryString");
-    find_symbol(lib, a.initialize, "eglInitialize");
-    find_symbol(lib, a.bind_api, "eglBindAPI");
-    find_symbol(lib, a.choose_config, "eglChooseConfig");
-    find_symbol(lib, a.create_context, "eglCreateContext");
-    find_symbol(lib, a.create_pbuffer_surface, "eglCreatePbufferSurface");
-    find_symbol(lib, a.make_current, "eglMakeCurrent");
-    find_symbol(lib, a.get_current_context, "eglGetCurrentContext");
-    find_symbol(lib, a.destroy_context, "eglDestroyContext");
-    find_symbol(lib, a.destroy_surface, "eglDestroySurface");
+    a.complete = find_symbol(lib, a.get_proc_address, "eglGetProcAddress") &&
+                 find_symbol(lib, a.get_error, "eglGetError") &&
+                 find_symbol(lib, a.query_string, "eglQueryString") &&
+                 find_symbol(lib, a.initialize, "eglInitialize") &&
+                 find_symbol(lib, a.bind_api, "eglBindAPI") &&
+                 find_symbol(lib, a.choose_config, "eglChooseConfig") &&
+                 find_symbol(lib, a.create_context, "eglCreateContext") &&
+                 find_symbol(lib, a.create_pbuffer_surface, "eglCreatePbufferSurface") &&
+                 find_symbol(lib, a.make_current, "eglMakeCurrent") &&
+                 find_symbol(lib, a.get_current_context, "eglGetCurrentContext") &&
+                 find_symbol(lib, a.destroy_context, "eglDestroyContext") &&
+                 find_symbol(lib, a.destroy_surface, "eglDestroySurface");
     return a;
   }();
-  if (!api.get_proc_address || !api.get_error || !api.query_string || !api.initialize ||
-      !api.bind_api || !api.choose_config || !api.create_context || !api.create_pbuffer_surface ||
-      !api.make_current || !api.get_current_context || !api.destroy_context ||
-      !api.destroy_surface) {
+  if (!api.complete) {
     throw GLError("egl: libEGL.so.1 with EGL 1.4 not found (install libegl1)");
   }
   return api;

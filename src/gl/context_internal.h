@@ -25,11 +25,13 @@ void* open_library(std::initializer_list<const char*> names);
 /// The address of `symbol` in `library` (from open_library); nullptr where
 /// the library lacks it.
 void* library_symbol(void* library, const char* symbol);
-/// The same, cast to the function pointer type of `fn` and stored there.
+/// The same, cast to the function pointer type of `fn` and stored there;
+/// whether the library has it.
 template <class Fn>
-void find_symbol(void* library, Fn& fn, const char* symbol) {
+bool find_symbol(void* library, Fn& fn, const char* symbol) {
   static_assert(std::is_pointer_v<Fn>);
   fn = reinterpret_cast<Fn>(library_symbol(library, symbol));
+  return fn != nullptr;
 }
 
 /// Loads the GL functions through `loader` (skipped when the functions

@@ -27,6 +27,7 @@ struct OSMesaApi {
   decltype(&OSMesaGetCurrentContext) get_current_context = nullptr;
   decltype(&OSMesaDestroyContext) destroy_context = nullptr;
   decltype(&OSMesaGetProcAddress) get_proc_address = nullptr;
+  bool complete = false;  // every entry point found
 };
 
 const OSMesaApi& osmesa() {
@@ -34,15 +35,14 @@ const OSMesaApi& osmesa() {
     void* lib = open_library({"libOSMesa.so.8", "libOSMesa.so"});
     OSMesaApi a;
     if (!lib) return a;
-    find_symbol(lib, a.create_context_attribs, "OSMesaCreateContextAttribs");
-    find_symbol(lib, a.make_current, "OSMesaMakeCurrent");
-    find_symbol(lib, a.get_current_context, "OSMesaGetCurrentContext");
-    find_symbol(lib, a.destroy_context, "OSMesaDestroyContext");
-    find_symbol(lib, a.get_proc_address, "OSMesaGetProcAddress");
+    a.complete = find_symbol(lib, a.create_context_attribs, "OSMesaCreateContextAttribs") &&
+                 find_symbol(lib, a.make_current, "OSMesaMakeCurrent") &&
+                 find_symbol(lib, a.get_current_context, "OSMesaGetCurrentContext") &&
+                 find_symbol(lib, a.destroy_context, "OSMesaDestroyContext") &&
+                 find_symbol(lib, a.get_proc_address, "OSMesaGetProcAddress");
     return a;
   }();
-  if (!api.create_context_attribs || !api.make_current || !api.get_current_context ||
-      !api.destroy_context || !api.get_proc_address) {
+  if (!api.complete) {
     throw GLError(
         "osmesa: libOSMesa.so.8 with OSMesaCreateContextAttribs not found (install "
         "libosmesa6)");
