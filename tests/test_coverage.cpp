@@ -451,6 +451,22 @@ TEST(Coverage, AutomaticMethodCastsRaysWhereReceiversAreFew) {
   car.software = building.software = true;
   EXPECT_EQ(choose_coverage_method(s, car), CoverageMethod::CpuRays);
   EXPECT_EQ(choose_coverage_method(s, building), CoverageMethod::CpuShadowMaps);
+  // Also where the receivers are many: the CPU counts them faster than
+  // llvmpipe's passes (the courtyard at 1024, SheenChair at 1024).
+  CoverageWork courtyard;
+  courtyard.triangles = 956;
+  courtyard.shadow_texels = 968256;
+  courtyard.receivers = 1367856;
+  CoverageWork chair;
+  chair.triangles = 39936;
+  chair.shadow_texels = 668136;
+  chair.receivers = 989833;
+  courtyard.software = chair.software = true;
+  EXPECT_EQ(choose_coverage_method(s, courtyard), CoverageMethod::CpuShadowMaps);
+  EXPECT_EQ(choose_coverage_method(s, chair), CoverageMethod::CpuShadowMaps);
+  courtyard.software = chair.software = false;
+  EXPECT_EQ(choose_coverage_method(s, courtyard), CoverageMethod::ShadowMaps);
+  EXPECT_EQ(choose_coverage_method(s, chair), CoverageMethod::ShadowMaps);
   CoverageWork huge = building;  // a map per core would not fit in 256 MiB
   huge.shadow_texels = 16384.0 * 16384.0;
   huge.receivers = 20000000;

@@ -50,21 +50,27 @@ constexpr int kMaxBatch = 32;               // shadow maps per batch (a 32-bit d
 // on the CPU's 2 cores 95-240 ns (terrains of 10k and 100k triangles at 512
 // texels, 1.9M and 2.2M rays: 0.18 and 0.27 s; SheenChair 0.54M: 0.13 s).
 // Counting a receiver on the shadow maps (the classification, and the
-// exact casts of the few uncertain pairs), per direction: on llvmpipe 16-45
-// ns (building-garage, the courtyard and grass-trees-tall at 1024: 2.8M,
-// 1.4M and 2.1M receivers, 3.1, 1.9 and 4.2 s), on the CPU 15-26 ns (2.7,
-// 2.3 and 3.6 s); and llvmpipe spends about 0.9 ms per direction on its
-// passes however small the maps (road-straight-lightposts at 364 texels,
-// 32k receivers: 0.14 s against 0.06 s on the CPU). A triangle drawn into
-// a CPU shadow map: 25 ns to set up (SheenChair at 91 texels, 40k triangles
-// on maps of 96 x 73: 0.08 s, against 0.13 s for its 0.5M rays), and its
-// texels about as many again as the map's.
+// exact casts of the uncertain pairs), per direction: on llvmpipe 9-28 ns
+// (100 ns on ToyCar, a quarter of whose receivers are uncertain), on the
+// CPU's 2 cores 1.0-1.9 times less (median 1.3: fewer uncertain pairs, cast
+// at CPU rays' cost). Coverage after the sky cull, llvmpipe / CPU, whole
+// runs in turns, 2026-11-26: building-garage and grass-trees-tall at 1024
+// (2.8M and 2.1M receivers) 1.6-2.1 / 1.5-1.6 s and 1.8-2.0 / 1.3-1.7 s,
+// the courtyard (1.4M) 1.0-1.1 / 0.8-1.0 s, SheenChair at 1024 (1.0M)
+// 2.0-2.2 / 1.3-1.4 s, building-small-a at 512 (0.76M) 0.63-0.65 /
+// 0.63-0.64 s, ToyCar at 1024 (0.36M) 2.7-3.5 / 1.6 s. And llvmpipe spends
+// about 0.9 ms per direction on its passes however small the maps
+// (road-straight-lightposts at 364 texels, 32k receivers: 0.14 s against
+// 0.06 s on the CPU). A triangle drawn into a CPU shadow map: 25 ns to set
+// up (SheenChair at 91 texels, 40k triangles on maps of 96 x 73: 0.08 s,
+// against 0.13 s for its 0.5M rays), and its texels about as many again as
+// the map's.
 constexpr double kShadowTexelCost = 1.0 / 40.0;
 constexpr double kGpuRayCost = 16.0;
 constexpr double kCpuRayCost = 2.0;
 constexpr double kGpuCountCost = 0.28;
 constexpr double kGpuPassCost = 11000.0;
-constexpr double kCpuCountCost = 0.33;
+constexpr double kCpuCountCost = 0.21;  // kGpuCountCost / 1.3
 constexpr double kCpuTriangleCost = 0.3;
 // CPU shadow maps in flight at once take at most this much memory (a map each).
 constexpr double kCpuShadowBytes = 256.0 * 1024 * 1024;
