@@ -103,7 +103,7 @@ TEST(Cli, InfoPrintsSceneSummary) {
                                    : "Stabilizer (--stabilizer auto): GPU passes"),
             std::string::npos)
       << r.output;
-  EXPECT_NE(r.output.find(software ? "Peel (--peel-device auto): the CPU for small maps"
+  EXPECT_NE(r.output.find(software ? "Peel (--peel-device auto): the CPU, unless"
                                    : "Peel (--peel-device auto): the GPU's passes"),
             std::string::npos)
       << r.output;

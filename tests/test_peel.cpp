@@ -38,7 +38,7 @@ gl::Context* context() {
   if (!context()) GTEST_SKIP() << "no OpenGL context"
 
 // The GPU passes unless `device` says otherwise ("auto" would peel these
-// small maps on the CPU under llvmpipe).
+// maps on the CPU under llvmpipe).
 PeelSettings settings_with_side(int side, int layers = 8, const char* device = "gpu") {
   PeelSettings s;
   s.max_side = side;
@@ -401,31 +401,51 @@ TEST(Peel, EmptySceneGivesEmptyMaps) {
   }
 }
 
-// The CPU peel is the reference's vertical rays; "auto" takes it for small
-// maps where GL runs in software (faster there: no passes to set up), the
-// GPU passes for large ones.
-TEST(Peel, DeviceChoosesTheCpuForSmallMapsInSoftware) {
+// The CPU peel is the reference's vertical rays; "auto" takes it where GL
+// runs in software (faster there at every size), the GPU passes on a GPU.
+TEST(Peel, DeviceChoosesTheCpuInSoftware) {
   REQUIRE_GL();
   const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
   const SnowMaps cpu = peel_layers(scene, settings_with_side(96, 6, "cpu"));
   const SnowMaps ref = reference::peel_layers(scene, cpu.grid, 6);
   EXPECT_EQ(compare_maps(cpu, ref).mismatched, 0u);
   EXPECT_EQ(cpu.ground.size(), ref.ground.size());
-  const SnowMaps small = peel_layers(scene, settings_with_side(96, 6, "auto"));
-  const SnowMaps gpu = peel_layers(scene, settings_with_side(96, 6, "gpu"));
-  const SnowMaps& expected = gl::renderer_is_software() ? cpu : gpu;
-  ASSERT_EQ(small.ground.size(), expected.ground.size());
-  EXPECT_EQ(
-      std::memcmp(small.ground.data(), expected.ground.data(), small.ground.size() * sizeof(float)),
-      0);
-  // 512 x 512 texels x 6 layers is over kCpuPeelLayerTexels: the GPU's passes.
-  const SnowMaps large = peel_layers(scene, settings_with_side(512, 6, "auto"));
-  const SnowMaps large_gpu = peel_layers(scene, settings_with_side(512, 6, "gpu"));
-  ASSERT_EQ(large.ground.size(), large_gpu.ground.size());
-  EXPECT_EQ(std::memcmp(large.ground.data(), large_gpu.ground.data(),
-                        large.ground.size() * sizeof(float)),
-            0);
+  for (int side : {96, 512}) {
+    const SnowMaps automatic = peel_layers(scene, settings_with_side(side, 6, "auto"));
+    const SnowMaps expected =
+        peel_layers(scene, settings_with_side(side, 6, gl::renderer_is_software() ? "cpu" : "gpu"));
+    ASSERT_EQ(automatic.ground.size(), expected.ground.size()) << side;
+    EXPECT_EQ(std::memcmp(automatic.ground.data(), expected.ground.data(),
+                          automatic.ground.size() * sizeof(float)),
+              0)
+        << side;
+  }
   EXPECT_THROW(peel_layers(scene, settings_with_side(96, 6, "tpu")), InputError);
+}
+
+// "auto" peels on the CPU while the triangles' boxes hold at most
+// kCpuPeelHits texel centres, or at most 4 per layer texel.
+TEST(Peel, CpuPeelKeepsItsHitsWithinTheMaps) {
+  REQUIRE_GL();
+  if (!gl::renderer_is_software()) GTEST_SKIP() << "auto peels on the GPU here";
+  // 3 stacked plates of 2 triangles, each box over nearly all of a 1024 x
+  // 1024 map: about 5.5M box texels, over kCpuPeelHits (4.2M).
+  SceneBuilder b;
+  for (int k = 0; k < 3; ++k) {
+    const float y = 0.1f * float(k);
+    b.add_mesh("Plate" + std::to_string(k), {{-1, y, -1}, {1, y, -1}, {1, y, 1}, {-1, y, 1}},
+               {0, 3, 2, 0, 2, 1});
+  }
+  const Scene scene = b.build();
+  PeelSettings s = settings_with_side(1024, 2, "auto");
+  EXPECT_TRUE(peels_on_cpu(scene, make_grid(scene.bounds, s), s));  // 4 x 2.1M layer texels
+  s.layers = 1;
+  EXPECT_FALSE(peels_on_cpu(scene, make_grid(scene.bounds, s), s));  // 4 x 1.05M
+  s.device = "cpu";
+  EXPECT_TRUE(peels_on_cpu(scene, make_grid(scene.bounds, s), s));
+  s.device = "gpu";
+  s.layers = 2;
+  EXPECT_FALSE(peels_on_cpu(scene, make_grid(scene.bounds, s), s));
 }
 
 // Many large stacked triangles would make the CPU peel store every hit of

@@ -28,7 +28,7 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
       std::printf("Stabilizer (--stabilizer auto): %s\n",
                   software ? "CPU passes (the GL renderer is software)" : "GPU passes");
       std::printf("Peel (--peel-device auto): %s\n",
-                  software ? "the CPU for small maps, else the GPU's passes" : "the GPU's passes");
+                  software ? "the CPU, unless the triangles stack deep" : "the GPU's passes");
       std::printf("Coverage (--coverage-method auto): %s\n",
                   software ? "shadow maps or rays on the CPU, or GL's shadow maps, whichever costs "
                              "less"

@@ -193,6 +193,13 @@ void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings
                    " budget; use a coarser texel size, e.g. --texel " + format_metres(suggest));
 }
 
+bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& settings) {
+  validate_peel_settings(settings);
+  if (settings.device != "auto") return settings.device == "cpu";
+  const size_t cap = std::max(kCpuPeelHits, 4 * grid.texels() * size_t(settings.layers));
+  return gl::renderer_is_software() && box_texels(scene, grid, cap) <= cap;
+}
+
 SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings) {
   return peel_layers(scene, make_grid(scene.bounds, settings), settings);
 }
@@ -217,10 +224,7 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
   const float scene_height = scene.bounds.empty() ? 0.0f : scene.bounds.size().y;
   check_memory_budget(grid, settings.layers, CoverageSettings{}, settings.memory_budget,
                       scene_height, scene.triangle_count());
-  const size_t layer_texels = grid.texels() * size_t(settings.layers);
-  if (settings.device == "cpu" ||
-      (settings.device == "auto" && layer_texels <= kCpuPeelLayerTexels &&
-       gl::renderer_is_software() && box_texels(scene, grid, kCpuPeelHits) <= kCpuPeelHits)) {
+  if (peels_on_cpu(scene, grid, settings)) {
     log_debug("peel: a vertical ray per texel on the CPU");
     Progress progress("peel", 1);
     SnowMaps maps = reference::peel_layers(scene, grid, settings.layers, settings.merge_distance);

@@ -23,22 +23,27 @@ struct PeelSettings {
   uint64_t memory_budget = 4ull << 30;  // bytes; peel_layers throws InputError before
                                         // allocating when estimate_memory exceeds it
   // "gpu" (depth passes), "cpu" (a vertical ray per texel:
-  // snow::reference::peel_layers) or "auto": the CPU for maps of at most
-  // kCpuPeelLayerTexels layer texels (and kCpuPeelHits) where GL runs in
-  // software, else the GPU.
+  // snow::reference::peel_layers) or "auto": the CPU where GL runs in
+  // software, unless the triangles stack deep (peels_on_cpu), else the GPU.
   std::string device = "auto";
 };
 
-/// Small maps peel faster on the CPU than in llvmpipe's passes, whose cost
-/// is mostly per pass and per triangle (SheenChair, 40k triangles at 91 x 64
-/// texels: 2 ms against 90 ms; a Kenney building at 110 texels: 6 ms
-/// against 35 ms); the courtyard at 1024 texels takes 0.9 s against 0.28 s.
-constexpr size_t kCpuPeelLayerTexels = size_t(1) << 18;
-/// The CPU peel keeps every hit of a texel's ray before sorting (8 bytes
-/// each); "auto" takes it only where the triangles' xz boxes hold at most
-/// this many texel centres (a scene of many large stacked triangles keeps
-/// the GPU's passes, which hold one surface per texel at a time).
+/// The CPU peel keeps every hit of a texel's ray before sorting (20 bytes
+/// each while it groups them); "auto" takes it only where the triangles' xz
+/// boxes, which hold every hit, hold at most this many texel centres or at
+/// most 4 per layer texel of the maps (80 bytes, less than the later stages
+/// take per layer texel: estimate_memory). A scene of many large stacked
+/// triangles keeps the GPU's passes, which hold one surface per texel at a
+/// time.
 constexpr size_t kCpuPeelHits = size_t(1) << 22;
+
+/// Whether peel_layers peels on the CPU (settings.device "cpu", or "auto"
+/// where GL runs in software and the hits stay within kCpuPeelHits); the
+/// CPU peel is faster there at every size measured: SheenChair at 91 x 64
+/// texels 2 ms against 90 ms, a Kenney building at 512 texels 0.05 against
+/// 0.24 s, the courtyard at 1024 0.09-0.11 against 0.29-0.32 s, the 1M
+/// terrain at 2048 0.38 against 2.5 s (2-core EPYC, llvmpipe, 2026-11-26).
+bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& settings);
 
 /// The map grid over the scene's horizontal (x, z) bounds plus the margin,
 /// centred on them. With settings.texel > 0 the texel is that size; with 0
