@@ -1231,6 +1231,22 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     // receivers only where a surface lies that close above one: 125462
     // against 125791 of 3.9M on the 1M-triangle terrain at 2048.
     std::vector<uint8_t> open(recv.size(), 0);
+    // A receiver with a surface of the maps straight above it, higher than
+    // its own (by twice own_surface, for the peel's rounding), is shaded
+    // along the vertical line of fall, which every cone holds: the test
+    // below would keep it. Most receivers under a layer are (the inside of
+    // solids, floors under roofs), so they skip the test, and their tiles'
+    // candidate leaves are the other receivers'. (One open after all would
+    // still be counted lit along every direction.) Culling, the same
+    // receivers kept: SheenChair at --depth 0.01 386 -> 135 ms, the
+    // courtyard 131 -> 74 ms, grass-trees 6.0 -> 3.6 ms.
+    const auto covered = [&](size_t r) {
+      const size_t k = recv_index[r];
+      if (k < texels) return false;  // layer 0
+      const float above = maps.ground[k - texels];
+      const float y = receiver_height(recv[r]);
+      return !std::isnan(above) && above > y + 2.0f * reference::own_surface(y);
+    };
     // Each triangle is tested by the receivers around it: its plane's terms
     // are worked out once, unless the triangles far outnumber the receivers
     // (a small, dense model tests few of its triangles).
@@ -1247,8 +1263,11 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     parallel_for(bands.size() - 1, [&](size_t b) {
       const size_t r0 = bands[b], r1 = bands[b + 1];
       const auto tile_of = [&](size_t r) { return (recv[r].x & 0xffffu) / uint32_t(kTile); };
-      std::vector<uint32_t> order(r1 - r0);
-      std::iota(order.begin(), order.end(), uint32_t(r0));
+      std::vector<uint32_t> order;
+      order.reserve(r1 - r0);
+      for (size_t r = r0; r < r1; ++r) {
+        if (!covered(r)) order.push_back(uint32_t(r));
+      }
       std::stable_sort(order.begin(), order.end(),
                        [&](uint32_t a, uint32_t c) { return tile_of(a) < tile_of(c); });
       std::vector<uint32_t> leaves;
