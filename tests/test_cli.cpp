@@ -157,6 +157,29 @@ TEST(Cli, InfoSaysWhetherTheHeapHasHugePages) {
       << threshold.output;
 }
 
+// snowmodel is a launcher (src/app/launcher.c) that starts snowmodel-core,
+// beside it, with the huge-page tunable set (the test above runs through
+// it); the core also runs on its own, and a launcher without its core says
+// what is missing.
+TEST(Cli, LauncherStartsTheCoreBesideIt) {
+  const RunResult core = snow::test::run_command("env -u GLIBC_TUNABLES " +
+                                                 std::string(SNOWMODEL_CORE_EXE) + " info --no-gl");
+  ASSERT_EQ(core.code, 0) << core.output;
+  if (core.output.find("this glibc has no") == std::string::npos) {
+    EXPECT_NE(core.output.find("GLIBC_TUNABLES glibc.malloc.hugetlb=1)"), std::string::npos)
+        << core.output;  // it re-executed itself
+  }
+  const fs::path dir = temp_dir("launcher");
+  fs::copy_file(SNOWMODEL_EXE, dir / "snowmodel");
+  const RunResult alone = snow::test::run_command(q(dir / "snowmodel") + " --version");
+  EXPECT_EQ(alone.code, 1) << alone.output;
+  EXPECT_NE(alone.output.find("cannot run " + (dir / "snowmodel-core").string()), std::string::npos)
+      << alone.output;
+  EXPECT_NE(alone.output.find("snowmodel is not installed whole"), std::string::npos)
+      << alone.output;
+  fs::remove_all(dir);
+}
+
 TEST(Cli, InfoJson) {
   const RunResult r = run("info --json " + q(kCourtyard));
   ASSERT_EQ(r.code, 0) << r.output;

@@ -11,7 +11,8 @@
 // later) backs its heap with transparent huge pages when its tunable
 // glibc.malloc.hugetlb is 1, but reads tunables only at program start, from
 // the environment: so the program re-executes itself once with it added to
-// GLIBC_TUNABLES.
+// GLIBC_TUNABLES. (snowmodel's launcher, src/app/launcher.c, sets it before
+// starting snowmodel-core, which saves that second start.)
 //
 // The mmap threshold: glibc gives each block over it a mapping of its own
 // and unmaps it when freed, so the next such block faults in fresh pages
