@@ -6,12 +6,13 @@
  * program start. That start loads and relocates the core's libraries
  * (libstdc++, OpenMesh, tinygltf, GLFW and X11's), 10 ms of its 13.7 ms
  * here; this program links libc alone and starts in about 3 ms
- * (grass-trees: 0.185-0.187 -> 0.179-0.180 s a run). It follows the
- * core's rules: a glibc.malloc.hugetlb the user set is kept, nothing is
- * added where glibc ignores tunables (setuid) or where a re-execution
- * already happened (the marker SNOWMODEL_HUGE_PAGES_REEXEC, which the core
- * removes), and the marker is set so that the core does not re-execute.
- * The arguments go through unchanged. */
+ * (snowmodel --version 27 -> 17 ms, ToyCar 0.081 -> 0.066-0.069 s;
+ * tools/RESULTS.md, after session 25). It follows the core's rules: a
+ * glibc.malloc.hugetlb the user set is kept, nothing is added where glibc
+ * ignores tunables (setuid) or where a re-execution already happened (the
+ * marker SNOWMODEL_HUGE_PAGES_REEXEC, which the core removes), and the
+ * marker is set so that the core does not re-execute. The arguments go
+ * through unchanged. */
 #define _GNU_SOURCE /* memrchr */
 #include <errno.h>
 #include <limits.h>
@@ -62,7 +63,8 @@ int main(int argc, char** argv) {
   (void)argc;
   /* The core's path: this program's directory, from /proc, else from argv[0]. */
   char core[PATH_MAX];
-  ssize_t n = readlink("/proc/self/exe", core, sizeof core - 1);
+  ssize_t n = readlink("/proc/self/exe", core, sizeof core);
+  if (n >= (ssize_t)sizeof core) n = -1; /* truncated */
   if (n < 0 && argv[0] != NULL && strchr(argv[0], '/') != NULL && strlen(argv[0]) < sizeof core) {
     n = (ssize_t)strlen(argv[0]);
     memcpy(core, argv[0], (size_t)n);
