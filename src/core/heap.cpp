@@ -1,27 +1,23 @@
 #include "core/heap.h"
 
 #include <malloc.h>
-#include <sys/auxv.h>
 #include <unistd.h>
 
 #include <cstdlib>
 #include <fstream>
 
+#include "core/heap_env.h"
+
 namespace snow {
 namespace {
 
-constexpr const char* kTunable = "glibc.malloc.hugetlb";
-constexpr const char* kReexecMarker = "SNOWMODEL_HUGE_PAGES_REEXEC";
+constexpr const char* kTunable = SNOW_HUGE_PAGE_TUNABLE;
 constexpr const char* kThresholdTunable = "glibc.malloc.mmap_threshold";
 constexpr int kMmapThreshold = 32 << 20;
 // Whether tune_heap set the threshold, for mmap_threshold_status().
 bool threshold_set = false;
 
-#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
-constexpr bool kGlibcHasTunable = true;
-#else
-constexpr bool kGlibcHasTunable = false;
-#endif
+constexpr bool kGlibcHasTunable = SNOW_GLIBC_HAS_HUGE_PAGE_TUNABLE;
 
 // AddressSanitizer brings its own allocator, which ignores glibc's tunables.
 #if defined(__SANITIZE_ADDRESS__)
@@ -39,20 +35,9 @@ constexpr bool kSanitizerHeap = false;
 // The value of `name` in GLIBC_TUNABLES ("" when not named).
 std::string tunable_value(const char* name = kTunable) {
   const char* env = std::getenv("GLIBC_TUNABLES");
-  if (env == nullptr) return "";
-  const std::string tunables = env;
-  const std::string key = std::string(name) + "=";
-  // Entries are separated by ':'; the last one naming the tunable wins.
-  std::string value;
-  size_t start = 0;
-  while (start <= tunables.size()) {
-    size_t end = tunables.find(':', start);
-    if (end == std::string::npos) end = tunables.size();
-    const std::string entry = tunables.substr(start, end - start);
-    if (entry.compare(0, key.size(), key) == 0) value = entry.substr(key.size());
-    start = end + 1;
-  }
-  return value;
+  size_t length = 0;
+  const char* value = env != nullptr ? snow_tunable_value(env, name, &length) : nullptr;
+  return value != nullptr ? std::string(value, length) : std::string();
 }
 
 }  // namespace
@@ -63,24 +48,20 @@ void tune_heap(char** argv) {
     threshold_set = mallopt(M_MMAP_THRESHOLD, kMmapThreshold) == 1;
   }
 #endif
-  // Set only across the re-execution, so it happens at most once even where
-  // glibc drops GLIBC_TUNABLES from the environment (setuid programs).
-  if (std::getenv(kReexecMarker) != nullptr) {
-    unsetenv(kReexecMarker);
+  // The marker is set only across the re-execution (or by the launcher).
+  if (std::getenv(SNOW_HUGE_PAGE_MARKER) != nullptr) {
+    unsetenv(SNOW_HUGE_PAGE_MARKER);
     return;
   }
-  if (!kGlibcHasTunable || argv == nullptr || argv[0] == nullptr) return;
-  if (getauxval(AT_SECURE) != 0) return;  // glibc ignores tunables there
-  if (!tunable_value().empty()) return;   // the user's choice
+  if (argv == nullptr || argv[0] == nullptr) return;
   const char* env = std::getenv("GLIBC_TUNABLES");
   const bool had = env != nullptr;
   const std::string before = had ? env : "";
-  const std::string tunables = (before.empty() ? "" : before + ":") + std::string(kTunable) + "=1";
-  if (setenv("GLIBC_TUNABLES", tunables.c_str(), 1) != 0) return;
-  if (setenv(kReexecMarker, "1", 1) == 0) execv("/proc/self/exe", argv);
+  if (!snow_add_huge_page_tunable()) return;
+  execv("/proc/self/exe", argv);
   // No /proc or no permission: go on with the usual pages, and leave the
   // environment as it was for any child process.
-  unsetenv(kReexecMarker);
+  unsetenv(SNOW_HUGE_PAGE_MARKER);
   if (had) {
     setenv("GLIBC_TUNABLES", before.c_str(), 1);
   } else {
