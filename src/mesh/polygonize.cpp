@@ -91,13 +91,19 @@ struct OMesh : OpenMesh::TriMesh_ArrayKernelT<SnowMeshTraits> {
     VertexHandle vl, vr;
     if (!side(v0v1, vl) || !side(v1v0, vr)) return false;
     if (vl == vr) return false;  // a lone edge, or both sides the same vertex
-    // Link condition: the one-rings of v0 and v1 share only vl and vr.
-    for (auto a = cvv_iter(v0); a.is_valid(); ++a) {
-      if (*a == vl || *a == vr) continue;
-      for (auto b = cvv_iter(v1); b.is_valid(); ++b) {
-        if (*a == *b) return false;
-      }
+    // Link condition: the one-rings of v0 and v1 share only vl and vr
+    // (v1's marked, then v0's looked up).
+    if (ring_mark_.size() != n_vertices()) ring_mark_.assign(n_vertices(), 0);
+    if (++ring_stamp_ == 0) {
+      std::fill(ring_mark_.begin(), ring_mark_.end(), 0u);
+      ring_stamp_ = 1;
     }
+    for_ring(v1, [&](VertexHandle b) { ring_mark_[size_t(b.idx())] = ring_stamp_; });
+    bool shared = false;
+    for_ring(v0, [&](VertexHandle a) {
+      shared = shared || (a != vl && a != vr && ring_mark_[size_t(a.idx())] == ring_stamp_);
+    });
+    if (shared) return false;
     // An edge between two boundary vertices must be a boundary edge.
     return !(is_boundary(v0) && is_boundary(v1) && !is_boundary(v0v1) && !is_boundary(v1v0));
   }
@@ -106,6 +112,17 @@ struct OMesh : OpenMesh::TriMesh_ArrayKernelT<SnowMeshTraits> {
   // find_halfedge into its library, where each circulator step checks its
   // handles in calls of their own (a fifth of polygonize on a small scene).
 
+  /// fn(w) for each vertex w at the end of an outgoing halfedge of v (the
+  /// vertices cvv_iter visits).
+  template <class Fn>
+  void for_ring(VertexHandle v, Fn fn) const {
+    const HalfedgeHandle start = halfedge_handle(v);
+    for (HalfedgeHandle h = start; h.is_valid();) {
+      fn(to_vertex_handle(h));
+      h = cw_rotated_halfedge_handle(h);
+      if (h == start) break;
+    }
+  }
   /// Outgoing halfedges of v, as PolyConnectivity::valence counts them.
   unsigned valence(VertexHandle v) const {
     const HalfedgeHandle start = halfedge_handle(v);
@@ -139,6 +156,11 @@ struct OMesh : OpenMesh::TriMesh_ArrayKernelT<SnowMeshTraits> {
     const auto at = [&](VertexHandle v) -> const Point& { return v == moved ? p : point(v); };
     return PolyMesh::calc_face_normal(at(c[0]), at(c[1]), at(c[2]));
   }
+
+ private:
+  // Scratch of is_collapse_ok: a stamp per vertex.
+  mutable std::vector<uint32_t> ring_mark_;
+  mutable uint32_t ring_stamp_ = 0;
 };
 
 /// Decimation priority and bound: the quadric error of Garland and Heckbert
@@ -186,10 +208,9 @@ class ModPlaneErrorT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   }
 
   /// The error of the collapse (m^2), or ILLEGAL_COLLAPSE where it is over
-  /// the bound or the two vertices' valences add up to too much; no normal
-  /// test. `valence0`: the valence of ci.v0 if known (the caller tries all
-  /// collapses of one vertex), else 0.
-  float bounded_error(const CollapseInfo& ci, unsigned& valence0) {
+  /// the bound or the two vertices' valences (`valence`, by vertex index)
+  /// add up to too much; no normal test.
+  float bounded_error(const CollapseInfo& ci, const std::vector<unsigned>& valence) {
     OpenMesh::Geometry::Quadricd q = Base::mesh().property(quadrics_, ci.v0);
     q += Base::mesh().property(quadrics_, ci.v1);
     const double err = q(ci.p1);
@@ -197,8 +218,7 @@ class ModPlaneErrorT : public OpenMesh::Decimater::ModBaseT<MeshT> {
     // Flat regions would otherwise collapse into a few vertices of huge
     // valence, which makes every later collapse test slow and the
     // triangles needle-thin.
-    if (valence0 == 0) valence0 = Base::mesh().valence(ci.v0);
-    if (valence0 + Base::mesh().valence(ci.v1) > kMaxValence + 4) {
+    if (valence[size_t(ci.v0.idx())] + valence[size_t(ci.v1.idx())] > kMaxValence + 4) {
       return float(Base::ILLEGAL_COLLAPSE);
     }
     return float(err);
@@ -264,17 +284,27 @@ class Decimater : public OpenMesh::Decimater::BaseDecimaterT<OMesh> {
     Heap heap(HeapInterface{mesh_, priority_, position_});
     heap.reserve(mesh_.n_vertices());
     // The best collapse of v, if any, keyed in the heap.
+    // The candidates within the bound are tested in order of their error
+    // (ties in circulation order), so the first that passes the topology and
+    // normal tests is the best, the one a test of each in circulation order
+    // keeps.
+    std::vector<std::pair<float, OMesh::HalfedgeHandle>> candidates;
     const auto key = [&](OMesh::VertexHandle v) {
       float best = std::numeric_limits<float>::max();
       OMesh::HalfedgeHandle target;
-      unsigned valence = 0;  // of v, once needed
+      candidates.clear();
       for (auto h : mesh_.voh_range(v)) {
+        const float err = plane_error.bounded_error(CollapseInfo(mesh_, h), valence_);
+        if (err >= 0.0f) candidates.emplace_back(err, h);
+      }
+      std::stable_sort(candidates.begin(), candidates.end(),
+                       [](const auto& a, const auto& b) { return a.first < b.first; });
+      for (const auto& [err, h] : candidates) {
         const CollapseInfo ci(mesh_, h);
-        const float err = plane_error.bounded_error(ci, valence);
-        if (err < 0.0f || !(err < best) || !collapse_legal(ci) || plane_error.flips_normal(ci))
-          continue;
+        if (!collapse_legal(ci) || plane_error.flips_normal(ci)) continue;
         best = err;
         target = h;
+        break;
       }
       mesh_.property(target_, v) = target;
       if (target.is_valid()) {
@@ -288,6 +318,8 @@ class Decimater : public OpenMesh::Decimater::BaseDecimaterT<OMesh> {
         mesh_.property(priority_, v) = -1.0f;
       }
     };
+    valence_.assign(mesh_.n_vertices(), 0);
+    for (auto v : mesh_.vertices()) valence_[size_t(v.idx())] = mesh_.valence(v);
     for (auto v : mesh_.vertices()) {
       heap.reset_heap_position(v);
       if (!mesh_.status(v).deleted()) key(v);
@@ -305,6 +337,9 @@ class Decimater : public OpenMesh::Decimater::BaseDecimaterT<OMesh> {
         if (!mesh_.status(f).deleted()) mesh_.set_normal(f, mesh_.face_normal(f));
       }
       postprocess_collapse(ci);
+      // Only v0's neighbours change valence: v1 takes v0's edges, and the
+      // two apexes lose one.
+      for (auto w : around) valence_[size_t(w.idx())] = mesh_.valence(w);
       for (auto w : around) key(w);
     }
   }
@@ -315,7 +350,7 @@ class Decimater : public OpenMesh::Decimater::BaseDecimaterT<OMesh> {
     if (mesh_.status(ci.v0).locked()) return false;
     if (!mesh_.is_collapse_ok(ci.v0v1)) return false;
     if (ci.vl.is_valid() && ci.vr.is_valid() && mesh_.has_halfedge(ci.vl, ci.vr) &&
-        mesh_.valence(ci.vl) == 3 && mesh_.valence(ci.vr) == 3) {
+        valence_[size_t(ci.vl.idx())] == 3 && valence_[size_t(ci.vr.idx())] == 3) {
       return false;
     }
     if (mesh_.status(ci.v0).feature() && !mesh_.status(mesh_.edge_handle(ci.v0v1)).feature())
@@ -350,6 +385,7 @@ class Decimater : public OpenMesh::Decimater::BaseDecimaterT<OMesh> {
   OpenMesh::VPropHandleT<OMesh::HalfedgeHandle> target_;
   OpenMesh::VPropHandleT<float> priority_;
   OpenMesh::VPropHandleT<int> position_;
+  std::vector<unsigned> valence_;  // by vertex index, kept up to date by decimate()
 };
 
 // ---------------------------------------------------------------------------
