@@ -71,8 +71,8 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
     const size_t n = cells_.size();
     depth_ = ZeroedArray<float>(n);
     lost_ = ZeroedArray<float>(n);
-    amount_.reset(new float[8 * n]);
-    code_.reset(new uint8_t[8 * n]);
+    amount_ = ZeroedArray<float>(8 * n);
+    code_ = ZeroedArray<uint8_t>(8 * n);
   } catch (const std::bad_alloc&) {
     throw InputError("stabilize: out of memory for maps of " + std::to_string(width_) + " x " +
                      std::to_string(height_) + " texels x " + std::to_string(layers_) +

@@ -154,14 +154,14 @@ class CpuStabilizer {
   // layers have no surface (core/zeroed.h).
   ZeroedArray<float> depth_;
   ZeroedArray<float> lost_;  // metres lost per layer texel (accumulated at the source)
-  // Outflow of the layer texels with a surface (written by the first pass
-  // before any read; left uninitialized, so the pages of layers that are
-  // mostly empty are never touched).
-  std::unique_ptr<float[]> amount_;  // 8 per layer texel, metres
-  std::unique_ptr<uint8_t[]> code_;  // 8 per layer texel
-  ZeroedArray<float> stable_;        // metres, highest snow surface each texel can keep (routing)
-  float residual_ = 0.0f;            // largest move of the last outflow pass
-  float residual_void_ = 0.0f;       // and the largest into the void
+  // Outflow of the layer texels with a surface (written by a pass before
+  // any read; only the columns that send snow are written, so most pages
+  // are never touched).
+  ZeroedArray<float> amount_;   // 8 per layer texel, metres
+  ZeroedArray<uint8_t> code_;   // 8 per layer texel
+  ZeroedArray<float> stable_;   // metres, highest snow surface each texel can keep (routing)
+  float residual_ = 0.0f;       // largest move of the last outflow pass
+  float residual_void_ = 0.0f;  // and the largest into the void
   bool route_pending_ = false;
 
   // Tiles of kTile x kTile columns, all layers.
