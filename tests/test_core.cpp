@@ -1,11 +1,15 @@
 #include <gtest/gtest.h>
 #include <malloc.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -14,6 +18,7 @@
 #include "core/heap.h"
 #include "core/log.h"
 #include "core/parallel.h"
+#include "core/zeroed.h"
 
 namespace fs = std::filesystem;
 
@@ -115,6 +120,48 @@ TEST(Heap, LargeBlocksComeFromTheHeap) {
   EXPECT_EQ(mallinfo2().hblks, mapped);
   std::vector<char> huge(size_t(40) << 20, 1);  // over the threshold: mapped
   EXPECT_EQ(mallinfo2().hblks, mapped + 1);
+}
+
+// A large ZeroedArray reads as zeros and costs only the pages written: one
+// write makes one small page resident, not the 2 MiB huge page (512 small
+// ones) that the heap's huge pages (or the kernel's THP mode "always")
+// would clear whole. Small arrays come from calloc, zeroed too.
+TEST(ZeroedArray, LargeArraysCostOnlyThePagesWritten) {
+  const size_t count = size_t(8) << 20;  // 32 MiB of floats
+  snow::ZeroedArray<float> large(count);
+  ASSERT_GE(count * sizeof(float), snow::ZeroedArray<float>::kMappedBytes);
+  EXPECT_EQ(large[0], 0.0f);
+  EXPECT_EQ(large[count - 1], 0.0f);
+  large[count / 2] = 1.0f;
+  const size_t page = size_t(sysconf(_SC_PAGESIZE));
+  const uintptr_t begin = reinterpret_cast<uintptr_t>(large.data()) / page * page;
+  const uintptr_t end = reinterpret_cast<uintptr_t>(large.data() + count);
+  std::vector<unsigned char> resident((end - begin + page - 1) / page);
+  ASSERT_EQ(mincore(reinterpret_cast<void*>(begin), end - begin, resident.data()), 0);
+  size_t pages = 0;
+  for (unsigned char r : resident) pages += r & 1;
+  EXPECT_LE(pages, 3u) << pages << " pages resident after one write";
+  EXPECT_EQ(large[count / 2], 1.0f);
+  // The kernel keeps it off huge pages whatever the heap or THP mode: its
+  // mapping carries the "nh" flag (MADV_NOHUGEPAGE).
+  std::ifstream smaps("/proc/self/smaps");
+  std::string line;
+  bool inside = false, no_huge = false;
+  while (std::getline(smaps, line)) {
+    unsigned long lo = 0, hi = 0;
+    if (std::sscanf(line.c_str(), "%lx-%lx ", &lo, &hi) == 2 && line.find(' ') < line.find(':')) {
+      inside = lo <= begin && end <= hi;
+    } else if (inside && line.rfind("VmFlags:", 0) == 0) {
+      no_huge = line.find(" nh") != std::string::npos;
+    }
+  }
+  EXPECT_TRUE(no_huge) << "the array's mapping is not marked MADV_NOHUGEPAGE";
+
+  snow::ZeroedArray<double> small(1000);
+  ASSERT_LT(1000 * sizeof(double), snow::ZeroedArray<double>::kMappedBytes);
+  for (size_t k = 0; k < small.size(); ++k) ASSERT_EQ(small[k], 0.0);
+  small[999] = 2.0;
+  EXPECT_EQ(small[999], 2.0);
 }
 
 // A quiet thread prints nothing but still records its warnings; other
