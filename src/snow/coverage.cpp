@@ -1133,6 +1133,12 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
         }
       }
     }
+    // Every layer texel with a surface is a receiver: reserved at once, so
+    // the lists are not copied as they grow (the courtyard's: 40 MB).
+    const size_t receivers = size_t(std::count_if(maps.ground.begin(), maps.ground.end(),
+                                                  [](float g) { return !std::isnan(g); }));
+    recv.reserve(receivers);
+    recv_index.reserve(receivers);
     for (int l = 0; l < maps.layers; ++l) {
       bool layer_has_snow = false;
       glm::ivec4 snowy(grid.width, grid.height, -1,
