@@ -10,8 +10,9 @@
 // Those blocks are mapped here in small pages (MADV_NOHUGEPAGE), not taken
 // from calloc: the heap has transparent huge pages (core/heap.h), and the
 // kernel clears a huge page whole, 2 MiB, at the first write anywhere in
-// it, which undoes the sparse writing (courtyard: peak 493 -> 297 MiB,
-// 3.31 -> 2.93 s; SheenChair at 1 cm: 490 -> 325 MiB, 3.27 -> 2.97 s).
+// it, which undoes the sparse writing (medians on a 2-core VM: courtyard
+// 3.59 -> 2.96 s, peak 495 -> 297 MiB; SheenChair at 1 cm 3.43 -> 3.04 s,
+// 490 -> 325 MiB).
 // Smaller blocks come from calloc, whose huge pages serve the small jobs
 // (their arrays are few and mostly written).
 #include <cstddef>

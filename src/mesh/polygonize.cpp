@@ -283,12 +283,12 @@ class Decimater : public OpenMesh::Decimater::BaseDecimaterT<OMesh> {
     PlaneError& plane_error = module(module_);
     Heap heap(HeapInterface{mesh_, priority_, position_});
     heap.reserve(mesh_.n_vertices());
-    // The best collapse of v, if any, keyed in the heap.
-    // The candidates within the bound are tested in order of their error
-    // (ties in circulation order), so the first that passes the topology and
-    // normal tests is the best, the one a test of each in circulation order
+    // The best collapse of v, if any, keyed in the heap. Its candidates
+    // within the bound are tested in order of their error (ties in
+    // circulation order), so the first that passes the topology and normal
+    // tests is the best, the one that testing each in circulation order
     // keeps.
-    std::vector<std::pair<float, OMesh::HalfedgeHandle>> candidates;
+    std::vector<std::pair<float, OMesh::HalfedgeHandle>> candidates;  // key's scratch
     const auto key = [&](OMesh::VertexHandle v) {
       float best = std::numeric_limits<float>::max();
       OMesh::HalfedgeHandle target;
