@@ -886,6 +886,43 @@ TEST(StabilizeGpu, MovesUnderMinMoveAreNotMade) {
   }
 }
 
+// The default min_move is automatic: a tenth of the tolerance. On the bump
+// above (single steps of 0.45-1 mm), a tolerance of 20 mm makes it 2 mm and
+// the bump stays, as with min_move 0.002; a tolerance of 1 mm makes it
+// 0.1 mm and the bump moves. An explicit min_move is kept.
+TEST(StabilizeCpu, AutomaticMinMoveIsATenthOfTheTolerance) {
+  StabilizeSettings settings;
+  EXPECT_LT(settings.min_move, 0.0f);
+  EXPECT_FLOAT_EQ(min_move_of(settings), 0.1f * settings.tolerance);
+  settings.min_move = 0.0f;
+  EXPECT_EQ(min_move_of(settings), 0.0f);
+  settings.min_move = std::nanf("");
+  EXPECT_THROW(check_stabilize_settings(settings), InputError);
+
+  const SnowMaps maps = make_maps(16, 16, 0.01f, 1, [](float, float) {
+    return std::vector<Surface>{{0.0f, kUp}};
+  });
+  std::vector<float> start = snow_on_top(maps, 0.3f);
+  const size_t bump = maps.index(0, 8, 8);
+  start[bump] += 0.012f;
+  settings = StabilizeSettings{};
+  settings.route_steep = false;
+  settings.max_stride = 1;
+  settings.max_iterations = 2;
+  check_stabilize_settings(settings);
+  for (float tolerance : {0.02f, 0.001f}) {
+    SCOPED_TRACE(tolerance);
+    settings.tolerance = tolerance;
+    std::vector<float> depth = start;
+    stabilize_cpu(maps, depth, settings);
+    if (tolerance > 0.01f) {
+      EXPECT_EQ(depth[bump], start[bump]);
+    } else {
+      EXPECT_LT(depth[bump], start[bump] - 3e-4f);
+    }
+  }
+}
+
 // --- Builder scenes (reference peel, GPU stabilizer) -------------------------
 
 SnowMaps scene_maps(const Scene& scene, int side, int layers = 8) {

@@ -85,7 +85,8 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("snow.tolerance", "--tolerance", "Stabilizer stops when the largest move is below this, metres",
     s.stabilize.tolerance);
   v("snow.min_move", "--min-move",
-    "Stabilizer moves smaller than this are not made, metres (0 = every move)",
+    "Stabilizer moves smaller than this are not made, metres (0 = every move; negative = "
+    "automatic: 0.1 x --tolerance)",
     s.stabilize.min_move);
   v("snow.max_iterations", "--max-iterations", "Stabilizer passes at most per step",
     s.stabilize.max_iterations);

@@ -44,8 +44,9 @@ void check_stabilize_settings(const StabilizeSettings& s) {
   if (!(s.tolerance >= 0.0f) || !std::isfinite(s.tolerance)) {
     bad("tolerance must be a finite number >= 0 metres, got " + std::to_string(s.tolerance));
   }
-  if (!(s.min_move >= 0.0f) || !std::isfinite(s.min_move)) {
-    bad("min_move must be a finite number >= 0 metres, got " + std::to_string(s.min_move));
+  if (!std::isfinite(s.min_move)) {
+    bad("min_move must be a finite number of metres (negative: automatic), got " +
+        std::to_string(s.min_move));
   }
   if (s.max_iterations < 0) bad("max_iterations must be >= 0");
   if (s.check_every < 1) bad("check_every must be >= 1");
@@ -506,7 +507,7 @@ void Stabilizer::Impl::set_common(const gl::Program& program) const {
   program.set("u_layers", layers);
   program.set("u_distance", distance);
   program.set("u_rise", kSurfaceContinuityTexels * grid.texel);
-  program.set("u_min_move", settings.min_move);
+  program.set("u_min_move", min_move_of(settings));
 }
 
 // draw(l) once per layer l with surfaces, into fbos[l] with u_layer = l and

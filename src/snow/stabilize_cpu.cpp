@@ -57,6 +57,7 @@ int log2_of(int stride) {
 CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& settings,
                              unsigned threads)
     : settings_(settings),
+      min_move_(min_move_of(settings)),
       threads_(threads),
       width_(maps.grid.width),
       height_(maps.grid.height),
@@ -284,7 +285,7 @@ bool CpuStabilizer::single_step_moves(int i, int j, const glm::vec4& cell, float
     const float top = cells_[km].x + depth_[km];
     wmax1 = std::max(wmax1, he - top - distance_[n] * (0.0f + cell.z));
   }
-  return wmax1 > 0.0f && std::min(s, std::max(0.5f * wmax1, over)) >= settings_.min_move;
+  return wmax1 > 0.0f && std::min(s, std::max(0.5f * wmax1, over)) >= min_move_;
 }
 
 // Mirrors shaders/stabilize_outflow.frag.
@@ -367,7 +368,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
     // never overshoots and piles end at the repose slope.
     // Moves under min_move are not made (rounding noise).
     float total = std::min(s, std::max(0.5f * wmax, over));
-    if (total < settings_.min_move) total = 0.0f;
+    if (total < min_move_) total = 0.0f;
     for (int n = 0; n < 8; ++n) out[n] = total * (w[n] / wsum);
   } else if (over > 0.0f && !kStrided) {
     // Snow deeper than its gap with nowhere downhill to go is squeezed

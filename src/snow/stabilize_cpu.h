@@ -141,6 +141,7 @@ class CpuStabilizer {
   }
 
   StabilizeSettings settings_;
+  float min_move_ = 0.0f;  // min_move_of(settings_), metres
   StrideSchedule schedule_{settings_};
   unsigned threads_ = 0;
   int width_ = 0, height_ = 0, layers_ = 0;
