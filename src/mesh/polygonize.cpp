@@ -98,12 +98,15 @@ struct OMesh : OpenMesh::TriMesh_ArrayKernelT<SnowMeshTraits> {
       std::fill(ring_mark_.begin(), ring_mark_.end(), 0u);
       ring_stamp_ = 1;
     }
-    for_ring(v1, [&](VertexHandle b) { ring_mark_[size_t(b.idx())] = ring_stamp_; });
-    bool shared = false;
-    for_ring(v0, [&](VertexHandle a) {
-      shared = shared || (a != vl && a != vr && ring_mark_[size_t(a.idx())] == ring_stamp_);
+    for_ring(v1, [&](VertexHandle b) {
+      ring_mark_[size_t(b.idx())] = ring_stamp_;
+      return false;
     });
-    if (shared) return false;
+    if (for_ring(v0, [&](VertexHandle a) {
+          return a != vl && a != vr && ring_mark_[size_t(a.idx())] == ring_stamp_;
+        })) {
+      return false;
+    }
     // An edge between two boundary vertices must be a boundary edge.
     return !(is_boundary(v0) && is_boundary(v1) && !is_boundary(v0v1) && !is_boundary(v1v0));
   }
@@ -113,36 +116,30 @@ struct OMesh : OpenMesh::TriMesh_ArrayKernelT<SnowMeshTraits> {
   // handles in calls of their own (a fifth of polygonize on a small scene).
 
   /// fn(w) for each vertex w at the end of an outgoing halfedge of v (the
-  /// vertices cvv_iter visits).
+  /// vertices cvv_iter visits, in PolyConnectivity::valence's order) until
+  /// fn returns true; whether one did.
   template <class Fn>
-  void for_ring(VertexHandle v, Fn fn) const {
+  bool for_ring(VertexHandle v, Fn fn) const {
     const HalfedgeHandle start = halfedge_handle(v);
     for (HalfedgeHandle h = start; h.is_valid();) {
-      fn(to_vertex_handle(h));
-      h = cw_rotated_halfedge_handle(h);
-      if (h == start) break;
-    }
-  }
-  /// Outgoing halfedges of v, as PolyConnectivity::valence counts them.
-  unsigned valence(VertexHandle v) const {
-    const HalfedgeHandle start = halfedge_handle(v);
-    unsigned count = 0;
-    for (HalfedgeHandle h = start; h.is_valid();) {
-      ++count;
-      h = cw_rotated_halfedge_handle(h);
-      if (h == start) break;
-    }
-    return count;
-  }
-  /// Whether a halfedge runs from a to b (PolyConnectivity::find_halfedge).
-  bool has_halfedge(VertexHandle a, VertexHandle b) const {
-    const HalfedgeHandle start = halfedge_handle(a);
-    for (HalfedgeHandle h = start; h.is_valid();) {
-      if (to_vertex_handle(h) == b) return true;
+      if (fn(to_vertex_handle(h))) return true;
       h = cw_rotated_halfedge_handle(h);
       if (h == start) break;
     }
     return false;
+  }
+  /// Outgoing halfedges of v, as PolyConnectivity::valence counts them.
+  unsigned valence(VertexHandle v) const {
+    unsigned count = 0;
+    for_ring(v, [&](VertexHandle) {
+      ++count;
+      return false;
+    });
+    return count;
+  }
+  /// Whether a halfedge runs from a to b (PolyConnectivity::find_halfedge).
+  bool has_halfedge(VertexHandle a, VertexHandle b) const {
+    return for_ring(a, [&](VertexHandle w) { return w == b; });
   }
   /// TriMeshT::calc_face_normal(f) (the same corners into the same
   /// arithmetic, so the same bits), with vertex `moved`, if it is a corner,
