@@ -97,10 +97,11 @@ TEST(Cli, InfoPrintsSceneSummary) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("OpenGL:"), std::string::npos);
   EXPECT_NE(r.output.find("triangles: 956"), std::string::npos) << r.output;
-  // Where the batch job's stabilizer runs by default: on llvmpipe, the CPU.
+  // Where the stabilizer runs by default: the batch job's on the CPU, the
+  // preview's on llvmpipe too.
   const bool software = r.output.find("llvmpipe") != std::string::npos;
-  EXPECT_NE(r.output.find(software ? "Stabilizer (--stabilizer auto): CPU passes"
-                                   : "Stabilizer (--stabilizer auto): GPU passes"),
+  EXPECT_NE(r.output.find(software ? "Stabilizer (--stabilizer auto): CPU passes (the preview: CPU"
+                                   : "Stabilizer (--stabilizer auto): CPU passes (the preview: GPU"),
             std::string::npos)
       << r.output;
   EXPECT_NE(r.output.find(software ? "Peel (--peel-device auto): the CPU, unless"

@@ -923,6 +923,33 @@ TEST(StabilizeCpu, AutomaticMinMoveIsATenthOfTheTolerance) {
   }
 }
 
+// --stabilizer auto: the batch job takes the CPU's passes whatever renders;
+// the live preview takes the GPU's unless the renderer is software. A
+// hardware renderer is stood in for by a context that is never made: an
+// OnDemandContext told it is not software answers renderer_is_software()
+// without making one.
+TEST(StabilizeDevice, AutoIsTheCpuForTheBatchJobAndTheRendererForThePreview) {
+  StabilizeSettings settings;
+  EXPECT_EQ(settings.device, "auto");
+  for (const bool software : {false, true}) {
+    SCOPED_TRACE(software);
+    gl::OnDemandContext hardware([]() -> std::unique_ptr<gl::Context> {
+      throw std::logic_error("no pass should need a context here");
+    }, software);
+    settings.device = "auto";
+    EXPECT_TRUE(stabilizes_on_cpu(settings));
+    EXPECT_TRUE(stabilizes_on_cpu(settings, StabilizerUse::Batch));
+    EXPECT_EQ(stabilizes_on_cpu(settings, StabilizerUse::Live), software);
+    EXPECT_FALSE(hardware.made());
+    for (const StabilizerUse use : {StabilizerUse::Batch, StabilizerUse::Live}) {
+      settings.device = "gpu";
+      EXPECT_FALSE(stabilizes_on_cpu(settings, use));
+      settings.device = "cpu";
+      EXPECT_TRUE(stabilizes_on_cpu(settings, use));
+    }
+  }
+}
+
 // --- Builder scenes (reference peel, GPU stabilizer) -------------------------
 
 SnowMaps scene_maps(const Scene& scene, int side, int layers = 8) {

@@ -25,8 +25,8 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
       std::printf("OpenGL: %s (%s)\n", context->description().c_str(),
                   gl::to_string(context->backend()).c_str());
       const bool software = gl::renderer_is_software();
-      std::printf("Stabilizer (--stabilizer auto): %s\n",
-                  software ? "CPU passes (the GL renderer is software)" : "GPU passes");
+      std::printf("Stabilizer (--stabilizer auto): CPU passes (the preview: %s)\n",
+                  software ? "CPU passes, the GL renderer is software" : "GPU passes");
       std::printf("Peel (--peel-device auto): %s\n",
                   software ? "the CPU, unless the triangles stack deep" : "the GPU's passes");
       std::printf("Coverage (--coverage-method auto): %s\n",

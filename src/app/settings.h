@@ -97,8 +97,8 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Start with single steps, longer moves only where the snow creeps (true/false)",
     s.stabilize.adaptive_stride);
   v("snow.device", "--stabilizer",
-    "Where the stabilizer runs: auto (the CPU on a software rasterizer such as llvmpipe, else "
-    "the GPU), gpu or cpu; same results",
+    "Where the stabilizer runs: auto (the CPU; the preview: the CPU on a software rasterizer "
+    "such as llvmpipe, else the GPU), gpu or cpu; same results",
     s.stabilize.device);
   v("snow.route_steep", "--route-steep",
     "Route snow off supports steeper than repose in one go (true/false)", s.stabilize.route_steep);

@@ -1109,8 +1109,9 @@ const MapGrid& Stabilizer::grid() const { return impl_->grid; }
 int Stabilizer::layers() const { return impl_->layers; }
 const StabilizeSettings& Stabilizer::settings() const { return impl_->settings; }
 
-bool stabilizes_on_cpu(const StabilizeSettings& settings) {
-  return settings.device == "cpu" || (settings.device == "auto" && gl::renderer_is_software());
+bool stabilizes_on_cpu(const StabilizeSettings& settings, StabilizerUse use) {
+  if (settings.device != "auto") return settings.device == "cpu";
+  return use == StabilizerUse::Batch || gl::renderer_is_software();
 }
 
 StabilizeResult stabilize(const SnowMaps& maps, std::vector<float>& depth,

@@ -53,8 +53,8 @@
 // (settings.active_tiles); a skipped tile would repeat a pass that moved
 // nothing there, so the result is bit for bit that of full passes. The CPU
 // stabilizer skips tiles by the same rule (stabilize_cpu.h), erodes in place
-// to the same kept heights in fewer rounds, and the batch job runs it where
-// the GL renderer is a software rasterizer (settings.device).
+// to the same kept heights in fewer rounds, and is what the batch job runs
+// unless settings.device asks for the GPU (stabilizes_on_cpu).
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -263,10 +263,19 @@ bool pressed_snow_due(const StabilizeSettings& settings, const StrideSchedule& s
 /// surface times texel^2, in double.
 double snow_volume(const SnowMaps& maps, const std::vector<float>& depth);
 
-/// Where settings.device puts the passes: true for the CPU ("cpu", or "auto"
-/// where the current GL renderer is software), false for the GPU. Needs a
-/// current GL context, or a gl::OnDemandContext, when the device is "auto".
-bool stabilizes_on_cpu(const StabilizeSettings& settings);
+/// Who runs the stabilizer: the batch job (passes to convergence, depth read
+/// once) or the live preview (a few passes a frame, depth drawn every frame).
+enum class StabilizerUse { Batch, Live };
+
+/// Where settings.device puts the passes: true for the CPU ("cpu"), false
+/// for the GPU ("gpu"). "auto" takes the CPU for the batch job everywhere:
+/// its passes beat the GPU's on an H100 with 16 cores too, and skip the
+/// textures' set-up (tools/RESULTS.md, "On a GPU"). The live preview takes
+/// the CPU where the GL renderer is software, else the GPU, whose depth
+/// texture is drawn without an upload per frame; it then needs a current GL
+/// context, or a gl::OnDemandContext.
+bool stabilizes_on_cpu(const StabilizeSettings& settings,
+                       StabilizerUse use = StabilizerUse::Batch);
 
 /// Stabilizes `depth` (metres per layer texel, maps' layout; NaN, negative
 /// or depth on texels without a surface is treated as 0 and cleared) in
