@@ -396,6 +396,52 @@ TEST(Polygonize, TableAndFloorAreTwoPatchesAcrossLayers) {
               table_snow, 100.0 * (table.volume / table_snow - 1.0));
 }
 
+// Floor under the open sky on both sides of a bridge that spans the map:
+// the two open parts meet only through the columns under the bridge (two
+// surfaces each), so the patch walks through them. With the north part
+// raised beyond the connecting step, the floor falls into two patches, even
+// where the bridge is not (the step runs the full width).
+TEST(Polygonize, OpenFloorJoinsThroughColumnsUnderABridge) {
+  const int size = 48;
+  for (const float raise : {0.0f, 0.5f}) {
+    SCOPED_TRACE(raise);
+    SnowMaps maps = make_maps(size, size, 0.1f, 3);
+    std::vector<float> depth(maps.ground.size(), 0.0f);
+    for (int j = 0; j < size; ++j) {
+      for (int i = 0; i < size; ++i) {
+        const float floor = j >= 24 ? raise : 0.0f;
+        if (j >= 20 && j < 28) {  // under the bridge deck (2.0-2.2 m)
+          set_layer(maps, 0, i, j, {2.2f, kOpenSky, {0, 1, 0}, 1});
+          set_layer(maps, 1, i, j, {2.0f, 2.2f, {0, -1, 0}, 1});
+          set_layer(maps, 2, i, j, {floor, 2.0f, {0, 1, 0}, 0});
+          depth[maps.index(2, i, j)] = 0.2f;
+        } else {
+          set_layer(maps, 0, i, j, {floor, kOpenSky, {0, 1, 0}, 0});
+          depth[maps.index(0, i, j)] = 0.2f;
+        }
+      }
+    }
+    const auto patches = polygonize(maps, depth, names_scene({"Floor", "Bridge"}), {});
+    const double texel_area = 0.1 * 0.1;
+    if (raise == 0.0f) {
+      ASSERT_EQ(patches.size(), 1u);
+      EXPECT_EQ(patches[0].mesh.name, "snow/Floor");
+      EXPECT_EQ(patches[0].texels, size_t(size * size));
+      EXPECT_NEAR(patches[0].depth_volume, size * size * 0.2 * texel_area, 1e-6);
+    } else {
+      ASSERT_EQ(patches.size(), 2u);
+      for (const SnowPatch& p : patches) {
+        EXPECT_EQ(p.object, 0);
+        EXPECT_EQ(p.texels, size_t(size * size / 2));
+        expect_closed(p);
+      }
+      // In seed order: the south part (rows 0-23) first.
+      for (const auto& q : patches[0].mesh.positions) EXPECT_LT(q.y, 0.21f);
+      for (const auto& q : patches[1].mesh.positions) EXPECT_GT(q.y, 0.49f);
+    }
+  }
+}
+
 TEST(Polygonize, TwoSeparatePatchesGetUniqueNames) {
   const SnowMaps maps = flat_floor(48, 0.1f);
   std::vector<float> depth(maps.ground.size(), 0.0f);

@@ -20,6 +20,7 @@
 #include "mesh/polygonize.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -405,6 +406,18 @@ TexelCoord coord_of(const SnowMaps& maps, size_t k) {
 }
 
 /// Connected components of snowy texels; see polygonize()'s contract.
+///
+/// Patches grow breadth first from seeds in index order, and take at most
+/// one layer per column. Most texels of a terrain or a floor are the one
+/// surface of a column under the open sky ("single" texels): between two of
+/// them the landing rule reduces to "tops within max_step", which is
+/// symmetric and never meets the one-layer rule. So those are first joined
+/// into clusters on all cores (union-find over strips of rows), and a patch
+/// that reaches a cluster takes all of it; only the texels of other columns,
+/// and the cluster texels beside them, are walked one by one. The patches
+/// hold the texels the walk of every texel would give them (an order of
+/// their texels aside), but where two layers of one column could both join
+/// a patch, the one reached first may differ from that walk's.
 std::vector<PatchTexels> find_patches(const SnowMaps& maps, const std::vector<float>& depth,
                                       float min_thickness, float max_step) {
   const size_t n = depth.size();
@@ -413,54 +426,132 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const std::vector<fl
   const int h = maps.grid.height;
   auto snowy = [&](size_t k) { return depth[k] > min_thickness; };
   auto top = [&](size_t k) { return maps.ground[k] + depth[k]; };
+  constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+  static const int kDi[4] = {1, -1, 0, 0};
+  static const int kDj[4] = {0, 0, 1, -1};
 
-  // Columns holding one surface under the open sky (most of a terrain or a
-  // floor): there the landing rule reduces to "the other snow top lies no
-  // higher" both ways, which the search below takes without walking columns.
-  std::vector<uint8_t> single(per_layer, 0);
+  // Single snowy texels (layer 0; their index is their column's).
+  std::vector<uint8_t> single(per_layer, 0), clustered(per_layer, 0);
   parallel_for(size_t(h), [&](size_t j) {
     for (size_t c = j * size_t(w); c < (j + 1) * size_t(w); ++c) {
       single[c] = !std::isnan(maps.ground[c]) && std::isinf(maps.ceiling[c]) &&
                   maps.ceiling[c] > 0.0f &&
                   (maps.layers == 1 || std::isnan(maps.ground[c + per_layer]));
+      clustered[c] = single[c] && snowy(c);
     }
   });
-  std::vector<int32_t> label(n, -1);
+  auto joined = [&](size_t a, size_t b) {
+    return clustered[a] && clustered[b] && std::abs(top(b) - top(a)) <= max_step;
+  };
+  // Union-find, each cluster's root its lowest index: strips of rows on all
+  // cores, then the rows where strips meet.
+  std::vector<uint32_t> root(per_layer, kNone);
+  auto find = [&](uint32_t a) {
+    while (root[a] != a) a = root[a] = root[root[a]];
+    return a;
+  };
+  auto unite = [&](uint32_t a, uint32_t b) {
+    a = find(a);
+    b = find(b);
+    if (a != b) root[std::max(a, b)] = std::min(a, b);
+  };
+  const size_t strips = std::min<size_t>(size_t(h), 4 * size_t(default_threads()));
+  auto strip_row = [&](size_t s) { return int(s * size_t(h) / strips); };
+  parallel_for(strips, [&](size_t s) {
+    for (int j = strip_row(s); j < strip_row(s + 1); ++j) {
+      for (int i = 0; i < w; ++i) {
+        const uint32_t c = uint32_t(j) * uint32_t(w) + uint32_t(i);
+        if (!clustered[c]) continue;
+        root[c] = c;
+        if (i > 0 && joined(c, c - 1)) unite(c, c - 1);
+        if (j > strip_row(s) && joined(c, c - uint32_t(w))) unite(c, c - uint32_t(w));
+      }
+    }
+  });
+  for (size_t s = 1; s < strips; ++s) {
+    const uint32_t row = uint32_t(strip_row(s)) * uint32_t(w);
+    for (uint32_t c = row; c < row + uint32_t(w); ++c) {
+      if (joined(c, c - uint32_t(w))) unite(c, c - uint32_t(w));
+    }
+  }
+  std::vector<uint32_t> cluster(per_layer, kNone);  // each clustered texel's root
+  parallel_for(size_t(h), [&](size_t j) {
+    for (size_t c = j * size_t(w); c < (j + 1) * size_t(w); ++c) {
+      if (!clustered[c]) continue;
+      uint32_t r = uint32_t(c);
+      while (root[r] != r) r = root[r];
+      cluster[c] = r;
+    }
+  });
+  root = std::vector<uint32_t>();
+  // The cluster texels beside a column that is not single, by cluster: the
+  // only ones a walk must visit.
+  std::vector<std::pair<uint32_t, uint32_t>> edge;  // (root, texel)
+  {
+    std::vector<std::vector<std::pair<uint32_t, uint32_t>>> rows(static_cast<size_t>(h));
+    parallel_for(size_t(h), [&](size_t j) {
+      for (int i = 0; i < w; ++i) {
+        const size_t c = j * size_t(w) + size_t(i);
+        if (!clustered[c]) continue;
+        for (int d = 0; d < 4; ++d) {
+          const int ni = i + kDi[d], nj = int(j) + kDj[d];
+          if (ni < 0 || nj < 0 || ni >= w || nj >= h) continue;
+          if (!single[size_t(nj) * size_t(w) + size_t(ni)]) {
+            rows[j].emplace_back(cluster[c], uint32_t(c));
+            break;
+          }
+        }
+      }
+    });
+    size_t count = 0;
+    for (const auto& row : rows) count += row.size();
+    edge.reserve(count);
+    for (const auto& row : rows) edge.insert(edge.end(), row.begin(), row.end());
+    std::sort(edge.begin(), edge.end());
+  }
+
+  std::vector<uint8_t> claimed(n, 0);                // texels outside clusters
+  std::vector<int32_t> cluster_patch(per_layer, -1);  // by root
   std::vector<int32_t> column_stamp(per_layer, -1);
   std::vector<PatchTexels> patches;
-  static const int kDi[4] = {1, -1, 0, 0};
-  static const int kDj[4] = {0, 0, 1, -1};
-
+  constexpr size_t kClusterItem = size_t(1) << 63;  // a queue item that is a cluster's root
+  std::vector<size_t> queue;
   for (size_t seed = 0; seed < n; ++seed) {
-    if (label[seed] >= 0 || !snowy(seed)) continue;
+    if (!snowy(seed)) continue;
+    const bool in_cluster = seed < per_layer && clustered[seed];
+    if (in_cluster ? cluster_patch[cluster[seed]] >= 0 : claimed[seed] != 0) continue;
     const int32_t id = int32_t(patches.size());
     patches.emplace_back();
     PatchTexels& patch = patches.back();
     auto claim = [&](size_t k) {
-      label[k] = id;
+      if (k < per_layer && clustered[k]) {
+        cluster_patch[cluster[k]] = id;
+        queue.push_back(kClusterItem | cluster[k]);
+        return;
+      }
+      claimed[k] = 1;
       column_stamp[k % per_layer] = id;
       patch.texels.push_back(k);
+      queue.push_back(k);
     };
-    claim(seed);
-    // Breadth first: the patch's texels are the queue, in the order claimed.
-    for (size_t next = 0; next < patch.texels.size(); ++next) {
-      const size_t a = patch.texels[next];
+    auto unclaimed = [&](size_t k) {
+      return k < per_layer && clustered[k] ? cluster_patch[cluster[k]] < 0 : claimed[k] == 0;
+    };
+    // The walk from texel a: the neighbours it joins by the landing rule.
+    auto walk = [&](size_t a) {
       const TexelCoord ca = coord_of(maps, a);
+      const bool a_clustered = a < per_layer && clustered[a];
       const float ha = top(a);
       for (int d = 0; d < 4; ++d) {
         const int ni = ca.i + kDi[d];
         const int nj = ca.j + kDj[d];
         if (ni < 0 || nj < 0 || ni >= w || nj >= h) continue;
         const size_t col = size_t(nj) * size_t(w) + size_t(ni);
-        if (column_stamp[col] == id) continue;  // one layer per column and patch
+        if (a_clustered && single[col]) continue;  // its cluster, or not joined
+        if (column_stamp[col] == id) continue;     // one layer per column and patch
         auto consider = [&](size_t b) {
-          if (label[b] < 0 && snowy(b) && column_stamp[col] != id) claim(b);
+          if (unclaimed(b) && snowy(b) && column_stamp[col] != id) claim(b);
         };
-        if (ca.l == 0 && single[a] && single[col]) {
-          // Both rules below on two such columns: b's top within max_step of a's.
-          if (std::abs(top(col) - ha) <= max_step) consider(col);
-          continue;
-        }
         // Snow leaving a lands on b (b lies at most max_step lower) ...
         const int lb = landing_layer(maps, depth.data(), ni, nj, ha);
         if (lb >= 0) {
@@ -476,7 +567,25 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const std::vector<fl
           if (landing_layer(maps, depth.data(), ca.i, ca.j, hb) == ca.l) consider(b);
         }
       }
+    };
+    queue.clear();
+    claim(seed);
+    for (size_t next = 0; next < queue.size(); ++next) {
+      const size_t item = queue[next];
+      if (!(item & kClusterItem)) {
+        walk(item);
+        continue;
+      }
+      const uint32_t r = uint32_t(item & ~kClusterItem);
+      for (auto e = std::lower_bound(edge.begin(), edge.end(), std::make_pair(r, uint32_t(0)));
+           e != edge.end() && e->first == r; ++e) {
+        walk(e->second);
+      }
     }
+  }
+  // The clusters' texels join their patches.
+  for (size_t c = 0; c < per_layer; ++c) {
+    if (clustered[c]) patches[size_t(cluster_patch[cluster[c]])].texels.push_back(c);
   }
   return patches;
 }
@@ -1397,6 +1506,10 @@ std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>
     throw InputError("polygonize: snow depth has " + std::to_string(depth.size()) +
                      " values, the maps have " + std::to_string(n) + " layer texels");
   }
+  if (maps.grid.texels() >= size_t(std::numeric_limits<uint32_t>::max())) {
+    throw InputError("polygonize: maps of 2^32 texels or more are not supported; use a coarser "
+                     "texel size");
+  }
   const float texel = maps.grid.texel;
   const float min_thickness = std::max(settings.min_thickness, 0.0f);
   const float connect = std::clamp(settings.connect_slope, 0.0f, 89.0f);
@@ -1409,7 +1522,13 @@ std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>
     if (!std::isnan(maps.ground[k]) && std::isfinite(v) && v > 0.0f) d[k] = v;
   }
 
+  const auto t0 = std::chrono::steady_clock::now();
   const std::vector<PatchTexels> found = find_patches(maps, d, min_thickness, max_step);
+  char found_line[96];
+  std::snprintf(found_line, sizeof found_line, "polygonize: %zu patches found in %.3f s",
+                found.size(),
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  log_debug(found_line);
   // Patches are meshed in parallel, largest first (the ground often outweighs
   // the rest), then named and kept in their found order.
   std::vector<size_t> order(found.size());
