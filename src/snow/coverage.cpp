@@ -98,6 +98,12 @@ std::string number(double v) {
   return text;
 }
 
+std::string seconds(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3f s", v);
+  return text;
+}
+
 void validate(const CoverageSettings& s) {
   if (s.directions < 1 || s.directions > 4096) {
     throw InputError("directions must be in 1..4096, got " + std::to_string(s.directions));
@@ -861,9 +867,12 @@ struct CoverageRenderer::Impl {
       throw InputError("scene has " + std::to_string(scene.triangle_count()) +
                        " triangles, more than one draw call can take");
     }
+    const double t0 = now_seconds();
     build = bvh_build_for(scene.triangle_count(), maps);
     bvh = Bvh(scene.positions, build);
     triangles = bvh.triangle_count();
+    log_debug("coverage: BVH of " + std::to_string(triangles) + " triangles in " +
+              seconds(now_seconds() - t0));
   }
 
   // The GL side, made on first use. The shadow passes draw the triangles in
@@ -1133,43 +1142,68 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
         }
       }
     }
-    // Every layer texel with a surface is a receiver: reserved at once, so
-    // the lists are not copied as they grow (the courtyard's: 40 MB).
-    const size_t receivers = size_t(std::count_if(maps.ground.begin(), maps.ground.end(),
-                                                  [](float g) { return !std::isnan(g); }));
-    recv.reserve(receivers);
-    recv_index.reserve(receivers);
-    for (int l = 0; l < maps.layers; ++l) {
-      bool layer_has_snow = false;
-      glm::ivec4 snowy(grid.width, grid.height, -1,
-                       -1);  // texel bounds (min i, min j, max i, max j)
-      for (int j = 0; j < grid.height; ++j) {
-        for (int i = 0; i < grid.width; ++i) {
-          const size_t k = maps.index(l, i, j);
-          const float g = maps.ground[k];
-          if (std::isnan(g)) continue;
-          float y = g;
-          glm::vec3 n = maps.normal[k];
-          if (snow_depth) {
-            const float s = (*snow_depth)[k];
-            if (std::isfinite(s) && s > 0.0f) {
-              y = top[k];
-              n = gradient_normal(maps, top, l, i, j);
-              layer_has_snow = true;
-              snowy = glm::ivec4(std::min(snowy.x, i), std::min(snowy.y, j), std::max(snowy.z, i),
-                                 std::max(snowy.w, j));
-            }
+    // Every layer texel with a surface is a receiver, listed in layer, row,
+    // column order: each row of each layer on all cores, at the offset that
+    // the rows before it take (the serial loop took 0.1-0.3 s of the
+    // 1M-triangle terrain at 2048).
+    const size_t rows = size_t(maps.layers) * size_t(grid.height);
+    std::vector<size_t> row_start(rows + 1, 0);
+    parallel_for(rows, [&](size_t row) {
+      const size_t k0 = row * size_t(grid.width);
+      row_start[row + 1] = size_t(std::count_if(
+          maps.ground.begin() + ptrdiff_t(k0), maps.ground.begin() + ptrdiff_t(k0 + grid.width),
+          [](float g) { return !std::isnan(g); }));
+    });
+    std::partial_sum(row_start.begin(), row_start.end(), row_start.begin());
+    recv.resize(row_start[rows]);
+    recv_index.resize(row_start[rows]);
+    struct RowBounds {
+      float y_lo = kOpenSky, y_hi = -kOpenSky;
+      glm::ivec4 snowy{std::numeric_limits<int>::max(), std::numeric_limits<int>::max(), -1, -1};
+    };
+    std::vector<RowBounds> row_bounds(rows);
+    parallel_for(rows, [&](size_t row) {
+      const int l = int(row / size_t(grid.height));
+      const int j = int(row % size_t(grid.height));
+      RowBounds& b = row_bounds[row];
+      size_t r = row_start[row];
+      for (int i = 0; i < grid.width; ++i) {
+        const size_t k = maps.index(l, i, j);
+        const float g = maps.ground[k];
+        if (std::isnan(g)) continue;
+        float y = g;
+        glm::vec3 n = maps.normal[k];
+        if (snow_depth) {
+          const float s = (*snow_depth)[k];
+          if (std::isfinite(s) && s > 0.0f) {
+            y = top[k];
+            n = gradient_normal(maps, top, l, i, j);
+            b.snowy = glm::ivec4(std::min(b.snowy.x, i), std::min(b.snowy.y, j),
+                                 std::max(b.snowy.z, i), std::max(b.snowy.w, j));
           }
-          y_lo = std::min(y_lo, y);
-          y_hi = std::max(y_hi, y);
-          uint32_t y_word;
-          std::memcpy(&y_word, &y, sizeof y);
-          recv.push_back(glm::uvec4(uint32_t(i) | (uint32_t(j) << 16), y_word,
-                                    glm::packHalf2x16(glm::vec2(n.x, n.y)),
-                                    glm::packHalf2x16(glm::vec2(n.z, 0.0f))));
-          recv_index.push_back(uint32_t(k));
         }
+        b.y_lo = std::min(b.y_lo, y);
+        b.y_hi = std::max(b.y_hi, y);
+        uint32_t y_word;
+        std::memcpy(&y_word, &y, sizeof y);
+        recv[r] = glm::uvec4(uint32_t(i) | (uint32_t(j) << 16), y_word,
+                             glm::packHalf2x16(glm::vec2(n.x, n.y)),
+                             glm::packHalf2x16(glm::vec2(n.z, 0.0f)));
+        recv_index[r] = uint32_t(k);
+        ++r;
       }
+    });
+    for (int l = 0; l < maps.layers; ++l) {
+      // Texel bounds of the layer's snow (min i, min j, max i, max j).
+      glm::ivec4 snowy(grid.width, grid.height, -1, -1);
+      for (int j = 0; j < grid.height; ++j) {
+        const RowBounds& b = row_bounds[size_t(l) * size_t(grid.height) + size_t(j)];
+        y_lo = std::min(y_lo, b.y_lo);
+        y_hi = std::max(y_hi, b.y_hi);
+        snowy = glm::ivec4(glm::min(glm::ivec2(snowy), glm::ivec2(b.snowy)),
+                           glm::max(glm::ivec2(snowy.z, snowy.w), glm::ivec2(b.snowy.z, b.snowy.w)));
+      }
+      const bool layer_has_snow = snowy.z >= 0;
       if (layer_has_snow && grid.width > 1 && grid.height > 1) {
         // Quads with a snowy corner: quad (i, j) has corners i..i+1, j..j+1.
         snowy_layers.push_back(l);
@@ -1182,6 +1216,8 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     throw InputError("coverage: out of memory for " + std::to_string(total) +
                      " layer texels; use a coarser texel size");
   }
+  log_debug("coverage: " + std::to_string(recv.size()) + " receivers listed in " +
+            seconds(now_seconds() - t_start));
   if (recv.empty()) return coverage;
   if (recv.size() > size_t(std::numeric_limits<int32_t>::max())) {
     throw InputError("coverage: " + std::to_string(recv.size()) +
