@@ -16,6 +16,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/parallel.h"
 #include "gl/context.h"
 #include "gl/gl.h"
 #include "gl/objects.h"
@@ -265,14 +266,20 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
     maps.add_layer();
     return maps;
   }
-  // Per triangle: unit geometric normal as wound, and object index.
-  for (size_t t = 0; t < tri_normal.size(); ++t) {
-    const glm::dvec3 a(scene.positions[3 * t]);
-    const glm::dvec3 n = glm::cross(glm::dvec3(scene.positions[3 * t + 1]) - a,
-                                    glm::dvec3(scene.positions[3 * t + 2]) - a);
-    const double len = glm::length(n);
-    tri_normal[t] = len > 0 ? glm::vec3(n / len) : glm::vec3(0.0f);
-  }
+  // Per triangle: unit geometric normal as wound, and object index. The
+  // loops over triangles and texels below run on all cores (each writes its
+  // own elements).
+  constexpr size_t kChunk = 1 << 14;
+  const auto chunks = [](size_t count) { return (count + kChunk - 1) / kChunk; };
+  parallel_for(chunks(tri_normal.size()), [&](size_t c) {
+    for (size_t t = c * kChunk; t < std::min(tri_normal.size(), (c + 1) * kChunk); ++t) {
+      const glm::dvec3 a(scene.positions[3 * t]);
+      const glm::dvec3 n = glm::cross(glm::dvec3(scene.positions[3 * t + 1]) - a,
+                                      glm::dvec3(scene.positions[3 * t + 2]) - a);
+      const double len = glm::length(n);
+      tri_normal[t] = len > 0 ? glm::vec3(n / len) : glm::vec3(0.0f);
+    }
+  });
   for (size_t o = 0; o < scene.objects.size(); ++o) {
     const SceneObject& obj = scene.objects[o];
     for (uint32_t k = 0; k < obj.triangle_count && obj.first_triangle + k < tri_object.size();
@@ -363,15 +370,17 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
     }
     maps.add_layer();
     const size_t base = size_t(l) * texels;
-    for (size_t t = 0; t < texels; ++t) {
-      const glm::uvec2& s = surface[t];
-      const uint32_t tri = s.y;
-      if (s.x == empty_bits || tri >= tri_normal.size()) continue;
-      maps.ground[base + t] = height_of(s.x);
-      maps.normal[base + t] = tri_normal[tri];
-      maps.object[base + t] = tri_object[tri];
-      if (l > 0) maps.ceiling[base + t] = maps.ground[base - texels + t];
-    }
+    parallel_for(chunks(texels), [&](size_t c) {
+      for (size_t t = c * kChunk; t < std::min(texels, (c + 1) * kChunk); ++t) {
+        const glm::uvec2& s = surface[t];
+        const uint32_t tri = s.y;
+        if (s.x == empty_bits || tri >= tri_normal.size()) continue;
+        maps.ground[base + t] = height_of(s.x);
+        maps.normal[base + t] = tri_normal[tri];
+        maps.object[base + t] = tri_object[tri];
+        if (l > 0) maps.ceiling[base + t] = maps.ground[base - texels + t];
+      }
+    });
     progress.update(l + 1);
   }
   progress.finish();
