@@ -355,6 +355,9 @@ TEST(Export, UnwritablePathIsAnIOErrorAndLeavesNothing) {
   EXPECT_THROW(write_combined_gltf(dir / "absent.gltf", patches, dir / "out.obj"), InputError);
   std::ofstream(dir / "garbage.gltf") << "{ not json";
   EXPECT_THROW(write_combined_gltf(dir / "garbage.gltf", patches, dir / "out.glb"), InputError);
+  // Read ahead, the input fails the same way.
+  EXPECT_THROW(read_combined_input(dir / "absent.gltf"), IOError);
+  EXPECT_THROW(read_combined_input(dir / "garbage.gltf"), InputError);
   EXPECT_FALSE(fs::exists(dir / "out.glb"));
 }
 
@@ -593,6 +596,17 @@ TEST(Export, CombinedKeepsTheInputAndEmbedsItsImages) {
   for (const auto& e : fs::directory_iterator(dir / "out")) files.insert(e.path().filename());
   EXPECT_EQ(files, (std::set<std::string>{"combined.glb", "combined.gltf", "combined.bin"}));
   expect_valid_gltf({dir / "out" / "combined.glb", dir / "out" / "combined.gltf"});
+  // The input read ahead (as the batch job does) gives the same file, and an
+  // output that is not glTF is refused at the write.
+  fs::create_directories(dir / "ahead");
+  write_combined_gltf(read_combined_input(input), patches, dir / "ahead" / "combined.glb");
+  const auto bytes = [](const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_EQ(bytes(dir / "ahead" / "combined.glb"), bytes(dir / "out" / "combined.glb"));
+  EXPECT_THROW(write_combined_gltf(read_combined_input(input), patches, dir / "ahead" / "x.obj"),
+               InputError);
 }
 
 TEST(Export, CombinedToyCarKeepsItsCounts) {

@@ -364,6 +364,14 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   Scene scene;
   stage("load", [&] { scene = load_scene(o.input, s.load); });
   const std::optional<bool> software = probed.get();
+  // The scene plus snow is written from the input as tinygltf reads it: read
+  // on another thread while the snow is computed.
+  const bool combined = !o.output.empty() && !o.snow_only &&
+                        (format == MeshFormat::Glb || format == MeshFormat::Gltf);
+  std::future<CombinedInputPtr> combined_input;
+  if (combined) {
+    combined_input = std::async(std::launch::async, [&o] { return read_combined_input(o.input); });
+  }
   warn_unmatched(scene, s.ignore, "--ignore");
   warn_unmatched(scene, s.no_snow_on, "--no-snow-on");
   const size_t triangles_in = scene.triangle_count();
@@ -411,12 +419,10 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
 
   stage("export", [&] {
     if (!o.output.empty()) {
-      const bool combined =
-          !o.snow_only && (format == MeshFormat::Glb || format == MeshFormat::Gltf);
       if (!o.snow_only && !combined)
         log_info(std::string(format_name(format)) + " holds the snow only");
       if (combined) {
-        write_combined_gltf(o.input, patches, o.output);
+        write_combined_gltf(combined_input.get(), patches, o.output);
       } else {
         write_snow_meshes(patches, o.output, format);
       }

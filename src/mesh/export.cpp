@@ -197,38 +197,64 @@ void write_snow_meshes(const std::vector<SnowPatch>& patches, const fs::path& pa
   }
 }
 
-void write_combined_gltf(const fs::path& input_scene, const std::vector<SnowPatch>& patches,
-                         const fs::path& out) {
+struct CombinedInput {
+  fs::path path;
+  tinygltf::Model model;
+  std::string warnings;  // tinygltf's, one per line
+};
+
+void CombinedInputDeleter::operator()(CombinedInput* input) const { delete input; }
+
+namespace {
+
+void check_combined_output(const fs::path& out) {
   const std::string out_ext = lower_extension(out);
   if (out_ext != ".glb" && out_ext != ".gltf") {
     throw InputError(out.string() + ": the scene plus snow is written as .glb or .gltf only");
   }
   check_output_path(out);
+}
+
+}  // namespace
+
+CombinedInputPtr read_combined_input(const fs::path& input_scene) {
   std::error_code ec;
   if (!fs::is_regular_file(input_scene, ec)) {
     throw IOError("cannot read " + input_scene.string() + ": no such file");
   }
-  tinygltf::Model model;
+  CombinedInputPtr input(new CombinedInput);
+  input->path = input_scene;
   tinygltf::TinyGLTF loader;
   loader.SetImageLoader(keep_image_bytes, nullptr);
-  std::string err, warn;
+  std::string err;
   const bool binary = lower_extension(input_scene) == ".glb";
-  const bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, input_scene.string())
-                         : loader.LoadASCIIFromFile(&model, &err, &warn, input_scene.string());
-  if (!warn.empty()) {
-    std::istringstream lines(warn);
-    for (std::string line; std::getline(lines, line);) {
-      if (!line.empty()) log_warn(input_scene.string() + ": " + line);
-    }
-  }
+  const bool ok =
+      binary ? loader.LoadBinaryFromFile(&input->model, &err, &input->warnings, input_scene.string())
+             : loader.LoadASCIIFromFile(&input->model, &err, &input->warnings, input_scene.string());
   if (!ok) {
     throw InputError(input_scene.string() + ": " +
                      (err.empty() ? std::string("not a valid glTF file") : first_line(err)));
   }
+  return input;
+}
+
+void write_combined_gltf(CombinedInputPtr input, const std::vector<SnowPatch>& patches,
+                         const fs::path& out) {
+  check_combined_output(out);
+  std::istringstream lines(input->warnings);
+  for (std::string line; std::getline(lines, line);) {
+    if (!line.empty()) log_warn(input->path.string() + ": " + line);
+  }
   const std::vector<TriMesh> snow = patch_meshes(patches);
-  embed_images(model, input_scene, mesh_buffer_bytes(snow));
-  append_meshes(model, snow, {snow_material()}, "Snow");
-  save_gltf(std::move(model), out);
+  embed_images(input->model, input->path, mesh_buffer_bytes(snow));
+  append_meshes(input->model, snow, {snow_material()}, "Snow");
+  save_gltf(std::move(input->model), out);
+}
+
+void write_combined_gltf(const fs::path& input_scene, const std::vector<SnowPatch>& patches,
+                         const fs::path& out) {
+  check_combined_output(out);  // before reading the input
+  write_combined_gltf(read_combined_input(input_scene), patches, out);
 }
 
 }  // namespace snow

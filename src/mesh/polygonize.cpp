@@ -1516,13 +1516,15 @@ std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>
   const float max_step = texel * std::tan(glm::radians(connect));
 
   // Clean depth: NaN, negative or surface-less snow is no snow.
-  std::vector<float> d(n, 0.0f);
-  for (size_t k = 0; k < n; ++k) {
-    const float v = depth[k];
-    if (!std::isnan(maps.ground[k]) && std::isfinite(v) && v > 0.0f) d[k] = v;
-  }
-
   const auto t0 = std::chrono::steady_clock::now();
+  std::vector<float> d(n, 0.0f);
+  parallel_for((n + kFieldChunk - 1) / kFieldChunk, [&](size_t c) {
+    for (size_t k = c * kFieldChunk; k < std::min(n, (c + 1) * kFieldChunk); ++k) {
+      const float v = depth[k];
+      if (!std::isnan(maps.ground[k]) && std::isfinite(v) && v > 0.0f) d[k] = v;
+    }
+  });
+
   const std::vector<PatchTexels> found = find_patches(maps, d, min_thickness, max_step);
   char found_line[96];
   std::snprintf(found_line, sizeof found_line, "polygonize: %zu patches found in %.3f s",
