@@ -116,11 +116,19 @@ Bvh::Bvh(const std::vector<glm::vec3>& corners, Build how) {
     build_morton(0, n, codes);
     return;
   }
+  // The loops over all triangles before and after the build run on all
+  // cores, each writing its own elements.
+  constexpr size_t kChunk = size_t(1) << 14;
+  const size_t chunks = (size_t(n) + kChunk - 1) / kChunk;
+  const auto chunk_end = [&](size_t c) { return std::min(size_t(n), (c + 1) * kChunk); };
   std::vector<Prim> prims(n);
-  for (uint32_t t = 0; t < n; ++t) {
-    const glm::vec3 &a = corners[3 * t], &b = corners[3 * t + 1], &c = corners[3 * t + 2];
-    prims[t] = {glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c)), (a + b + c) / 3.0f, t};
-  }
+  parallel_for(chunks, [&](size_t c) {
+    for (size_t t = c * kChunk; t < chunk_end(c); ++t) {
+      const glm::vec3 &a = corners[3 * t], &b = corners[3 * t + 1], &c3 = corners[3 * t + 2];
+      prims[t] = {glm::min(a, glm::min(b, c3)), glm::max(a, glm::max(b, c3)), (a + b + c3) / 3.0f,
+                  uint32_t(t)};
+    }
+  });
   // The halves of a split are built beside each other while they hold about
   // 16k triangles or more, at most one level past one task per thread: each
   // level's splices copy and fault in its right halves' nodes. 1M terrain,
@@ -132,10 +140,12 @@ Bvh::Bvh(const std::vector<glm::vec3>& corners, Build how) {
   while (parallel_levels < max_levels && (n >> parallel_levels) >= (1u << 14)) ++parallel_levels;
   build(0, n, prims, nodes_, parallel_levels);
   // Store the triangles in leaf order.
-  for (uint32_t k = 0; k < n; ++k) {
-    order_[k] = prims[k].index;
-    for (int c = 0; c < 3; ++c) corners_[3 * size_t(k) + c] = corners[3 * size_t(order_[k]) + c];
-  }
+  parallel_for(chunks, [&](size_t c) {
+    for (size_t k = c * kChunk; k < chunk_end(c); ++k) {
+      order_[k] = prims[k].index;
+      for (int v = 0; v < 3; ++v) corners_[3 * k + v] = corners[3 * size_t(order_[k]) + v];
+    }
+  });
 }
 
 void Bvh::build_morton(uint32_t first, uint32_t count, const std::vector<uint32_t>& codes) {
