@@ -79,6 +79,29 @@ TEST(ParallelFor, CallsEveryIndexOnce) {
   EXPECT_EQ(none, 0);
 }
 
+// parallel_sum adds its parts in range order: the bits of the serial sum of
+// the parts, whatever the number of cores, where a sum in another order
+// rounds differently.
+TEST(ParallelSum, AddsThePartsInOrder) {
+  std::vector<double> values(100003);
+  for (size_t i = 0; i < values.size(); ++i) values[i] = 1.0 / double(i + 1) * (i % 2 ? 1e8 : 1.0);
+  const size_t chunk = 1000;
+  const auto part = [&](size_t begin, size_t end) {
+    double s = 0.0;
+    for (size_t i = begin; i < end; ++i) s += values[i];
+    return s;
+  };
+  double serial = 0.0;
+  for (size_t begin = 0; begin < values.size(); begin += chunk) {
+    serial += part(begin, std::min(values.size(), begin + chunk));
+  }
+  for (int run = 0; run < 5; ++run) {
+    EXPECT_EQ(snow::parallel_sum(values.size(), chunk, part), serial);
+  }
+  EXPECT_EQ(snow::parallel_sum(0, chunk, part), 0.0);
+  EXPECT_EQ(snow::parallel_sum(5, 0, part), part(0, 5));  // a chunk of 0 is taken as 1
+}
+
 TEST(ParallelFor, RethrowsTheFirstErrorAfterAllThreadsStop) {
   for (unsigned threads : {1u, 4u}) {
     std::atomic<int> calls{0};

@@ -10,6 +10,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/parallel.h"
 #include "snow/stabilize_cpu.h"
 
 namespace snow {
@@ -111,10 +112,14 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
         ++result.coverage_updates;
       }
       stabilizer.add_snow(result.coverage, per_step);
-      double added = 0;
-      for (size_t k = 0; k < result.coverage.size(); ++k) {
-        if (!std::isnan(maps.ground[k])) added += double(result.coverage[k] * per_step);
-      }
+      const double added =
+          parallel_sum(result.coverage.size(), kSumChunk, [&](size_t begin, size_t end) {
+            double part = 0.0;
+            for (size_t k = begin; k < end; ++k) {
+              if (!std::isnan(maps.ground[k])) part += double(result.coverage[k] * per_step);
+            }
+            return part;
+          });
       result.fallen_volume += added * texel_area;
       result.last = stabilize_step(stabilizer, stabilize,
                                    [&](double done) { progress.update(double(step) + done); });

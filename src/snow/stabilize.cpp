@@ -216,11 +216,14 @@ void StabilizeResult::add(const StabilizeResult& later) {
 }
 
 double snow_volume(const SnowMaps& maps, const std::vector<float>& depth) {
-  double sum = 0.0;
   const size_t n = std::min(depth.size(), maps.ground.size());
-  for (size_t k = 0; k < n; ++k) {
-    if (!std::isnan(maps.ground[k]) && depth[k] > 0.0f) sum += double(depth[k]);
-  }
+  const double sum = parallel_sum(n, kSumChunk, [&](size_t begin, size_t end) {
+    double part = 0.0;
+    for (size_t k = begin; k < end; ++k) {
+      if (!std::isnan(maps.ground[k]) && depth[k] > 0.0f) part += double(depth[k]);
+    }
+    return part;
+  });
   return sum * double(maps.grid.texel) * double(maps.grid.texel);
 }
 

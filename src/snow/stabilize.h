@@ -259,8 +259,12 @@ bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule
 constexpr int kPressedEvery = 16;
 bool pressed_snow_due(const StabilizeSettings& settings, const StrideSchedule& schedule,
                       float residual);
+/// Layer texels per part of the sums over the maps (parallel_sum: the same
+/// bits on any number of cores).
+constexpr size_t kSumChunk = size_t(1) << 16;
+
 /// Snow volume (m^3): sum of depth (m) over the layer texels that have a
-/// surface times texel^2, in double.
+/// surface times texel^2, in double (parts of kSumChunk texels).
 double snow_volume(const SnowMaps& maps, const std::vector<float>& depth);
 
 /// Who runs the stabilizer: the batch job (passes to convergence, depth read
