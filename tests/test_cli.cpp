@@ -100,9 +100,10 @@ TEST(Cli, InfoPrintsSceneSummary) {
   // Where the stabilizer runs by default: the batch job's on the CPU, the
   // preview's on llvmpipe too.
   const bool software = r.output.find("llvmpipe") != std::string::npos;
-  EXPECT_NE(r.output.find(software ? "Stabilizer (--stabilizer auto): CPU passes (the preview: CPU"
-                                   : "Stabilizer (--stabilizer auto): CPU passes (the preview: GPU"),
-            std::string::npos)
+  EXPECT_NE(
+      r.output.find(software ? "Stabilizer (--stabilizer auto): CPU passes (the preview: CPU"
+                             : "Stabilizer (--stabilizer auto): CPU passes (the preview: GPU"),
+      std::string::npos)
       << r.output;
   EXPECT_NE(r.output.find(software ? "Peel (--peel-device auto): the CPU, unless"
                                    : "Peel (--peel-device auto): the GPU's passes"),

@@ -854,18 +854,33 @@ TEST(StabilizeGpu, RoutingPressesSnowOutFromUnderACeiling) {
   EXPECT_LE(tiled[maps.index(2, 16, 24)], 0.1f);
 }
 
-TEST(StabilizeGpu, MovesUnderMinMoveAreNotMade) {
-  REQUIRE_GL();
-  // Flat ground, 1 cm texels, 0.3 m of snow and a 12 mm bump at (8, 8): its
-  // excess over the edge neighbours is 0.9..2 mm (45 +- 3 degrees), so a pass
-  // moves about half of that. Two single-step passes without routing; the map
-  // edges drain into the void, 6 texels away.
-  const SnowMaps maps = make_maps(16, 16, 0.01f, 1, [](float, float) {
+// Flat ground, 1 cm texels, 0.3 m of snow and a 12 mm bump at (8, 8): its
+// excess over the edge neighbours is 0.9..2 mm (45 +- 3 degrees), so a pass
+// moves about half of that. The map edges drain into the void, 6 texels away.
+struct Bump {
+  SnowMaps maps = make_maps(16, 16, 0.01f, 1, [](float, float) {
     return std::vector<Surface>{{0.0f, kUp}};
   });
-  std::vector<float> start = snow_on_top(maps, 0.3f);
-  const size_t bump = maps.index(0, 8, 8);
-  start[bump] += 0.012f;
+  size_t at = maps.index(0, 8, 8);
+  std::vector<float> start = [this] {
+    std::vector<float> depth = snow_on_top(maps, 0.3f);
+    depth[at] += 0.012f;
+    return depth;
+  }();
+  // After two single-step passes: the bump stays, or it has moved.
+  void expect(const std::vector<float>& after, bool stays) const {
+    if (stays) {
+      EXPECT_EQ(after[at], start[at]);
+    } else {
+      EXPECT_LT(after[at], start[at] - 3e-4f);
+    }
+  }
+};
+
+TEST(StabilizeGpu, MovesUnderMinMoveAreNotMade) {
+  REQUIRE_GL();
+  // Two single-step passes on the bump without routing.
+  const Bump bump;
   StabilizeSettings settings;
   settings.route_steep = false;
   settings.max_stride = 1;
@@ -874,15 +889,11 @@ TEST(StabilizeGpu, MovesUnderMinMoveAreNotMade) {
   for (float min_move : {0.0f, 0.002f}) {
     SCOPED_TRACE(min_move);
     settings.min_move = min_move;
-    std::vector<float> cpu = start, gpu = start;
-    stabilize_cpu(maps, cpu, settings);
-    stabilize(maps, gpu, settings);
+    std::vector<float> cpu = bump.start, gpu = bump.start;
+    stabilize_cpu(bump.maps, cpu, settings);
+    stabilize(bump.maps, gpu, settings);
     expect_same(gpu, cpu, 1e-6f);
-    if (min_move > 0.0f) {
-      EXPECT_EQ(gpu[bump], start[bump]);
-    } else {
-      EXPECT_LT(gpu[bump], start[bump] - 3e-4f);
-    }
+    bump.expect(gpu, min_move > 0.0f);
   }
 }
 
@@ -899,12 +910,7 @@ TEST(StabilizeCpu, AutomaticMinMoveIsATenthOfTheTolerance) {
   settings.min_move = std::nanf("");
   EXPECT_THROW(check_stabilize_settings(settings), InputError);
 
-  const SnowMaps maps = make_maps(16, 16, 0.01f, 1, [](float, float) {
-    return std::vector<Surface>{{0.0f, kUp}};
-  });
-  std::vector<float> start = snow_on_top(maps, 0.3f);
-  const size_t bump = maps.index(0, 8, 8);
-  start[bump] += 0.012f;
+  const Bump bump;
   settings = StabilizeSettings{};
   settings.route_steep = false;
   settings.max_stride = 1;
@@ -913,13 +919,9 @@ TEST(StabilizeCpu, AutomaticMinMoveIsATenthOfTheTolerance) {
   for (float tolerance : {0.02f, 0.001f}) {
     SCOPED_TRACE(tolerance);
     settings.tolerance = tolerance;
-    std::vector<float> depth = start;
-    stabilize_cpu(maps, depth, settings);
-    if (tolerance > 0.01f) {
-      EXPECT_EQ(depth[bump], start[bump]);
-    } else {
-      EXPECT_LT(depth[bump], start[bump] - 3e-4f);
-    }
+    std::vector<float> depth = bump.start;
+    stabilize_cpu(bump.maps, depth, settings);
+    bump.expect(depth, tolerance > 0.01f);
   }
 }
 
@@ -933,9 +935,11 @@ TEST(StabilizeDevice, AutoIsTheCpuForTheBatchJobAndTheRendererForThePreview) {
   EXPECT_EQ(settings.device, "auto");
   for (const bool software : {false, true}) {
     SCOPED_TRACE(software);
-    gl::OnDemandContext hardware([]() -> std::unique_ptr<gl::Context> {
-      throw std::logic_error("no pass should need a context here");
-    }, software);
+    gl::OnDemandContext hardware(
+        []() -> std::unique_ptr<gl::Context> {
+          throw std::logic_error("no pass should need a context here");
+        },
+        software);
     settings.device = "auto";
     EXPECT_TRUE(stabilizes_on_cpu(settings));
     EXPECT_TRUE(stabilizes_on_cpu(settings, StabilizerUse::Batch));

@@ -152,13 +152,20 @@ void parallel_for(size_t count, const std::function<void(size_t)>& fn, unsigned 
   if (loop.error) std::rethrow_exception(loop.error);
 }
 
+void parallel_for_ranges(size_t count, size_t chunk,
+                         const std::function<void(size_t begin, size_t end)>& fn,
+                         unsigned threads) {
+  chunk = std::max<size_t>(chunk, 1);
+  parallel_for((count + chunk - 1) / chunk,
+               [&](size_t c) { fn(c * chunk, std::min(count, (c + 1) * chunk)); }, threads);
+}
+
 double parallel_sum(size_t count, size_t chunk,
                     const std::function<double(size_t begin, size_t end)>& part) {
   chunk = std::max<size_t>(chunk, 1);
   std::vector<double> parts((count + chunk - 1) / chunk, 0.0);
-  parallel_for(parts.size(), [&](size_t c) {
-    parts[c] = part(c * chunk, std::min(count, (c + 1) * chunk));
-  });
+  parallel_for_ranges(count, chunk,
+                      [&](size_t begin, size_t end) { parts[begin / chunk] = part(begin, end); });
   double sum = 0.0;
   for (const double p : parts) sum += p;
   return sum;

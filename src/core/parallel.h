@@ -16,9 +16,15 @@ unsigned default_threads();
 /// safe to call concurrently for different i.
 void parallel_for(size_t count, const std::function<void(size_t)>& fn, unsigned threads = 0);
 
-/// The sum of part(begin, end) over [0, count) cut into ranges of `chunk`
-/// indices (the last one shorter): the parts on all cores, then added in
-/// range order, so the result is the same bits on any number of threads.
+/// parallel_for over [0, count) cut into ranges of `chunk` indices (the last
+/// one shorter; a chunk of 0 is taken as 1): fn(begin, end) once per range.
+void parallel_for_ranges(size_t count, size_t chunk,
+                         const std::function<void(size_t begin, size_t end)>& fn,
+                         unsigned threads = 0);
+
+/// The sum of part(begin, end) over the ranges of parallel_for_ranges: the
+/// parts on all cores, then added in range order, so the result is the same
+/// bits on any number of threads.
 double parallel_sum(size_t count, size_t chunk,
                     const std::function<double(size_t begin, size_t end)>& part);
 

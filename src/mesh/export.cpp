@@ -229,8 +229,9 @@ CombinedInputPtr read_combined_input(const fs::path& input_scene) {
   std::string err;
   const bool binary = lower_extension(input_scene) == ".glb";
   const bool ok =
-      binary ? loader.LoadBinaryFromFile(&input->model, &err, &input->warnings, input_scene.string())
-             : loader.LoadASCIIFromFile(&input->model, &err, &input->warnings, input_scene.string());
+      binary
+          ? loader.LoadBinaryFromFile(&input->model, &err, &input->warnings, input_scene.string())
+          : loader.LoadASCIIFromFile(&input->model, &err, &input->warnings, input_scene.string());
   if (!ok) {
     throw InputError(input_scene.string() + ": " +
                      (err.empty() ? std::string("not a valid glTF file") : first_line(err)));
@@ -238,23 +239,33 @@ CombinedInputPtr read_combined_input(const fs::path& input_scene) {
   return input;
 }
 
+namespace {
+
+// write_combined_gltf once `out` is checked.
+void write_checked_combined(CombinedInput& input, const std::vector<SnowPatch>& patches,
+                            const fs::path& out) {
+  std::istringstream lines(input.warnings);
+  for (std::string line; std::getline(lines, line);) {
+    if (!line.empty()) log_warn(input.path.string() + ": " + line);
+  }
+  const std::vector<TriMesh> snow = patch_meshes(patches);
+  embed_images(input.model, input.path, mesh_buffer_bytes(snow));
+  append_meshes(input.model, snow, {snow_material()}, "Snow");
+  save_gltf(std::move(input.model), out);
+}
+
+}  // namespace
+
 void write_combined_gltf(CombinedInputPtr input, const std::vector<SnowPatch>& patches,
                          const fs::path& out) {
   check_combined_output(out);
-  std::istringstream lines(input->warnings);
-  for (std::string line; std::getline(lines, line);) {
-    if (!line.empty()) log_warn(input->path.string() + ": " + line);
-  }
-  const std::vector<TriMesh> snow = patch_meshes(patches);
-  embed_images(input->model, input->path, mesh_buffer_bytes(snow));
-  append_meshes(input->model, snow, {snow_material()}, "Snow");
-  save_gltf(std::move(input->model), out);
+  write_checked_combined(*input, patches, out);
 }
 
 void write_combined_gltf(const fs::path& input_scene, const std::vector<SnowPatch>& patches,
                          const fs::path& out) {
   check_combined_output(out);  // before reading the input
-  write_combined_gltf(read_combined_input(input_scene), patches, out);
+  write_checked_combined(*read_combined_input(input_scene), patches, out);
 }
 
 }  // namespace snow

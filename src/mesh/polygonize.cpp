@@ -510,7 +510,7 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const std::vector<fl
     std::sort(edge.begin(), edge.end());
   }
 
-  std::vector<uint8_t> claimed(n, 0);                // texels outside clusters
+  std::vector<uint8_t> claimed(n, 0);                 // texels outside clusters
   std::vector<int32_t> cluster_patch(per_layer, -1);  // by root
   std::vector<int32_t> column_stamp(per_layer, -1);
   std::vector<PatchTexels> patches;
@@ -652,16 +652,12 @@ PatchField build_field(const SnowMaps& maps, const std::vector<float>& depth,
   f.gz.assign(count, 0.0f);
   // Each step below writes each sample once and reads only what the steps
   // before wrote, so it runs on all cores in chunks with the serial result.
-  const size_t texels = patch.texels.size();
-  const size_t chunks = (texels + kFieldChunk - 1) / kFieldChunk;
   const unsigned threads = threads_for(count);
   auto each_texel = [&](const std::function<void(size_t)>& fn) {
-    parallel_for(
-        chunks,
-        [&](size_t q) {
-          for (size_t t = q * kFieldChunk; t < std::min(texels, (q + 1) * kFieldChunk); ++t) {
-            fn(patch.texels[t]);
-          }
+    parallel_for_ranges(
+        patch.texels.size(), kFieldChunk,
+        [&](size_t begin, size_t end) {
+          for (size_t t = begin; t < end; ++t) fn(patch.texels[t]);
         },
         threads);
   };
@@ -1507,8 +1503,9 @@ std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>
                      " values, the maps have " + std::to_string(n) + " layer texels");
   }
   if (maps.grid.texels() >= size_t(std::numeric_limits<uint32_t>::max())) {
-    throw InputError("polygonize: maps of 2^32 texels or more are not supported; use a coarser "
-                     "texel size");
+    throw InputError(
+        "polygonize: maps of 2^32 texels or more are not supported; use a coarser "
+        "texel size");
   }
   const float texel = maps.grid.texel;
   const float min_thickness = std::max(settings.min_thickness, 0.0f);
@@ -1518,8 +1515,8 @@ std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>
   // Clean depth: NaN, negative or surface-less snow is no snow.
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<float> d(n, 0.0f);
-  parallel_for((n + kFieldChunk - 1) / kFieldChunk, [&](size_t c) {
-    for (size_t k = c * kFieldChunk; k < std::min(n, (c + 1) * kFieldChunk); ++k) {
+  parallel_for_ranges(n, kFieldChunk, [&](size_t begin, size_t end) {
+    for (size_t k = begin; k < end; ++k) {
       const float v = depth[k];
       if (!std::isnan(maps.ground[k]) && std::isfinite(v) && v > 0.0f) d[k] = v;
     }

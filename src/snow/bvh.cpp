@@ -119,11 +119,9 @@ Bvh::Bvh(const std::vector<glm::vec3>& corners, Build how) {
   // The loops over all triangles before and after the build run on all
   // cores, each writing its own elements.
   constexpr size_t kChunk = size_t(1) << 14;
-  const size_t chunks = (size_t(n) + kChunk - 1) / kChunk;
-  const auto chunk_end = [&](size_t c) { return std::min(size_t(n), (c + 1) * kChunk); };
   std::vector<Prim> prims(n);
-  parallel_for(chunks, [&](size_t c) {
-    for (size_t t = c * kChunk; t < chunk_end(c); ++t) {
+  parallel_for_ranges(n, kChunk, [&](size_t begin, size_t end) {
+    for (size_t t = begin; t < end; ++t) {
       const glm::vec3 &a = corners[3 * t], &b = corners[3 * t + 1], &c3 = corners[3 * t + 2];
       prims[t] = {glm::min(a, glm::min(b, c3)), glm::max(a, glm::max(b, c3)), (a + b + c3) / 3.0f,
                   uint32_t(t)};
@@ -140,8 +138,8 @@ Bvh::Bvh(const std::vector<glm::vec3>& corners, Build how) {
   while (parallel_levels < max_levels && (n >> parallel_levels) >= (1u << 14)) ++parallel_levels;
   build(0, n, prims, nodes_, parallel_levels);
   // Store the triangles in leaf order.
-  parallel_for(chunks, [&](size_t c) {
-    for (size_t k = c * kChunk; k < chunk_end(c); ++k) {
+  parallel_for_ranges(n, kChunk, [&](size_t begin, size_t end) {
+    for (size_t k = begin; k < end; ++k) {
       order_[k] = prims[k].index;
       for (int v = 0; v < 3; ++v) corners_[3 * k + v] = corners[3 * size_t(order_[k]) + v];
     }

@@ -1150,9 +1150,9 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     std::vector<size_t> row_start(rows + 1, 0);
     parallel_for(rows, [&](size_t row) {
       const size_t k0 = row * size_t(grid.width);
-      row_start[row + 1] = size_t(std::count_if(
-          maps.ground.begin() + ptrdiff_t(k0), maps.ground.begin() + ptrdiff_t(k0 + grid.width),
-          [](float g) { return !std::isnan(g); }));
+      row_start[row + 1] = size_t(std::count_if(maps.ground.begin() + ptrdiff_t(k0),
+                                                maps.ground.begin() + ptrdiff_t(k0 + grid.width),
+                                                [](float g) { return !std::isnan(g); }));
     });
     std::partial_sum(row_start.begin(), row_start.end(), row_start.begin());
     recv.resize(row_start[rows]);
@@ -1200,8 +1200,9 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
         const RowBounds& b = row_bounds[size_t(l) * size_t(grid.height) + size_t(j)];
         y_lo = std::min(y_lo, b.y_lo);
         y_hi = std::max(y_hi, b.y_hi);
-        snowy = glm::ivec4(glm::min(glm::ivec2(snowy), glm::ivec2(b.snowy)),
-                           glm::max(glm::ivec2(snowy.z, snowy.w), glm::ivec2(b.snowy.z, b.snowy.w)));
+        snowy =
+            glm::ivec4(glm::min(glm::ivec2(snowy), glm::ivec2(b.snowy)),
+                       glm::max(glm::ivec2(snowy.z, snowy.w), glm::ivec2(b.snowy.z, b.snowy.w)));
       }
       const bool layer_has_snow = snowy.z >= 0;
       if (layer_has_snow && grid.width > 1 && grid.height > 1) {
@@ -1296,10 +1297,8 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     if (im.triangles <= 4 * recv.size()) {
       planes.resize(im.triangles);
       constexpr size_t kChunk = 4096;
-      parallel_for((im.triangles + kChunk - 1) / kChunk, [&](size_t c) {
-        for (size_t t = c * kChunk; t < std::min(im.triangles, (c + 1) * kChunk); ++t) {
-          planes[t] = triangle_plane(&im.bvh.corners()[3 * t]);
-        }
+      parallel_for_ranges(im.triangles, kChunk, [&](size_t begin, size_t end) {
+        for (size_t t = begin; t < end; ++t) planes[t] = triangle_plane(&im.bvh.corners()[3 * t]);
       });
     }
     parallel_for(bands.size() - 1, [&](size_t b) {

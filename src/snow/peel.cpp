@@ -270,9 +270,8 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
   // loops over triangles and texels below run on all cores (each writes its
   // own elements).
   constexpr size_t kChunk = 1 << 14;
-  const auto chunks = [](size_t count) { return (count + kChunk - 1) / kChunk; };
-  parallel_for(chunks(tri_normal.size()), [&](size_t c) {
-    for (size_t t = c * kChunk; t < std::min(tri_normal.size(), (c + 1) * kChunk); ++t) {
+  parallel_for_ranges(tri_normal.size(), kChunk, [&](size_t begin, size_t end) {
+    for (size_t t = begin; t < end; ++t) {
       const glm::dvec3 a(scene.positions[3 * t]);
       const glm::dvec3 n = glm::cross(glm::dvec3(scene.positions[3 * t + 1]) - a,
                                       glm::dvec3(scene.positions[3 * t + 2]) - a);
@@ -370,8 +369,8 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
     }
     maps.add_layer();
     const size_t base = size_t(l) * texels;
-    parallel_for(chunks(texels), [&](size_t c) {
-      for (size_t t = c * kChunk; t < std::min(texels, (c + 1) * kChunk); ++t) {
+    parallel_for_ranges(texels, kChunk, [&](size_t begin, size_t end) {
+      for (size_t t = begin; t < end; ++t) {
         const glm::uvec2& s = surface[t];
         const uint32_t tri = s.y;
         if (s.x == empty_bits || tri >= tri_normal.size()) continue;

@@ -278,8 +278,7 @@ enum class StabilizerUse { Batch, Live };
 /// the CPU where the GL renderer is software, else the GPU, whose depth
 /// texture is drawn without an upload per frame; it then needs a current GL
 /// context, or a gl::OnDemandContext.
-bool stabilizes_on_cpu(const StabilizeSettings& settings,
-                       StabilizerUse use = StabilizerUse::Batch);
+bool stabilizes_on_cpu(const StabilizeSettings& settings, StabilizerUse use = StabilizerUse::Batch);
 
 /// Stabilizes `depth` (metres per layer texel, maps' layout; NaN, negative
 /// or depth on texels without a surface is treated as 0 and cleared) in
