@@ -467,6 +467,25 @@ TEST(Coverage, AutomaticMethodCastsRaysWhereReceiversAreFew) {
   courtyard.software = chair.software = false;
   EXPECT_EQ(choose_coverage_method(s, courtyard), CoverageMethod::ShadowMaps);
   EXPECT_EQ(choose_coverage_method(s, chair), CoverageMethod::ShadowMaps);
+  // On a GPU whose driver has not started, the CPU takes what it does in
+  // under kCpuSecondsBeforeGl: the car and the building (0.04 s estimated on
+  // 2 cores), not the courtyard or the chair at 1024 (1.7 and 1.3 s on 2
+  // cores, 0.2 s on 16).
+  for (const unsigned threads : {2u, 16u}) {
+    for (CoverageWork* w : {&car, &building, &courtyard, &chair}) {
+      w->software = false;
+      w->gl_cold = true;
+      w->threads = threads;
+    }
+    EXPECT_EQ(choose_coverage_method(s, car), CoverageMethod::CpuRays);
+    EXPECT_EQ(choose_coverage_method(s, building), CoverageMethod::CpuShadowMaps);
+    EXPECT_EQ(choose_coverage_method(s, courtyard), CoverageMethod::ShadowMaps);
+    EXPECT_EQ(choose_coverage_method(s, chair), CoverageMethod::ShadowMaps);
+  }
+  car.gl_cold = building.gl_cold = false;  // its driver started: the GPU
+  EXPECT_EQ(choose_coverage_method(s, car), CoverageMethod::GpuRays);
+  EXPECT_EQ(choose_coverage_method(s, building), CoverageMethod::ShadowMaps);
+  car.software = building.software = true;
   CoverageWork huge = building;  // a map per core would not fit in 256 MiB
   huge.shadow_texels = 16384.0 * 16384.0;
   huge.receivers = 20000000;

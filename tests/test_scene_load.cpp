@@ -340,6 +340,22 @@ TEST_F(SceneLoad, MirroredNodeKeepsCounterClockwiseFacing) {
   }
 }
 
+// What a load reads, judged before it (the batch job starts a GPU's driver
+// early only for large inputs): a .glb's size, a .gltf's plus the .bin files
+// beside it; 0 for a missing file.
+TEST(GltfInputBytes, CountsTheFileAndTheBuffersBesideAGltf) {
+  const fs::path dir = temp_dir("input_bytes");
+  write_text(dir / "scene.gltf", std::string(100, ' '));
+  write_bytes(dir / "scene.bin", std::vector<uint8_t>(1000));
+  write_bytes(dir / "more.BIN", std::vector<uint8_t>(20));
+  write_bytes(dir / "texture.png", std::vector<uint8_t>(5000));
+  write_bytes(dir / "other.glb", std::vector<uint8_t>(300));
+  EXPECT_EQ(snow::gltf_input_bytes(dir / "scene.gltf"), 1120u);
+  EXPECT_EQ(snow::gltf_input_bytes(dir / "other.glb"), 300u);
+  EXPECT_EQ(snow::gltf_input_bytes(dir / "missing.glb"), 0u);
+  fs::remove_all(dir);
+}
+
 TEST_F(SceneLoad, FileWithoutScenesLoadsEveryRootNode) {
   int mesh = 0;
   Gltf g = triangle_gltf(&mesh);

@@ -28,11 +28,14 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
       std::printf("Stabilizer (--stabilizer auto): CPU passes (the preview: %s)\n",
                   software ? "CPU passes, the GL renderer is software" : "GPU passes");
       std::printf("Peel (--peel-device auto): %s\n",
-                  software ? "the CPU, unless the triangles stack deep" : "the GPU's passes");
+                  software ? "the CPU, unless the triangles stack deep"
+                           : "the GPU's passes (the CPU for a small scene in `snow`, which then "
+                             "may never start the driver)");
       std::printf("Coverage (--coverage-method auto): %s\n",
                   software ? "shadow maps or rays on the CPU, or GL's shadow maps, whichever costs "
                              "less"
-                           : "shadow maps, or rays on the GPU where they cost less");
+                           : "shadow maps, or rays on the GPU where they cost less (the CPU where "
+                             "`snow` has not started the driver and the CPU takes under 0.05 s)");
     }
     if (!options->json) {
       std::printf("Huge pages for the heap: %s\n", huge_pages_status().c_str());

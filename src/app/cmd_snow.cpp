@@ -27,6 +27,7 @@
 #include "mesh/write_maps.h"
 #include "render/preview.h"
 #include "scene/builder.h"
+#include "scene/load_gltf.h"
 #include "snow/stabilize.h"
 
 namespace snow::app {
@@ -111,6 +112,10 @@ void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth) {
   log_warn(line);
 }
 
+/// Inputs this large (bytes) load for long enough to hide a GPU driver's
+/// start (0.09-0.17 s on an H100; its loads ran at about 0.5 GB/s).
+constexpr uint64_t kWarmUpInputBytes = uint64_t(16) << 20;
+
 /// Creating the first llvmpipe context loads and relocates the driver (about
 /// 0.1 s). A throwaway context made on another thread while the scene loads
 /// does that ahead: EGL displays stay initialized for the process, so the
@@ -120,10 +125,14 @@ void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth) {
 /// (its destructor also waits). None for GLFW, which must start on the main
 /// thread, nor where GL is known to render in software (`software`): there
 /// small scenes need no GL at all, and the other thread would take a core
-/// from their CPU passes.
+/// from their CPU passes. Nor on a GPU for inputs under kWarmUpInputBytes
+/// (gltf_input_bytes): their load hides little of the driver's start, their
+/// passes may all run on the CPU before it (peels_on_cpu,
+/// choose_coverage_method), and the process would wait for the warm-up.
 std::future<void> warm_up_gl(const GlobalOptions& global, gl::Backend backend,
-                             std::optional<bool> software) {
+                             std::optional<bool> software, uint64_t input) {
   if (backend == gl::Backend::Glfw || software == true) return {};
+  if (software == false && input < kWarmUpInputBytes) return {};
   return std::async(std::launch::async, [&global] {
     const QuietThread quiet;
     try {
@@ -355,7 +364,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   std::future<std::optional<bool>> probed = std::async(std::launch::async, [&] {
     const std::optional<bool> software =
         backend == gl::Backend::Auto ? gl::probe_software(context_options) : std::nullopt;
-    warm_gl = warm_up_gl(global, backend, software);
+    warm_gl = warm_up_gl(global, backend, software, gltf_input_bytes(o.input));
     return software;
   });
   // Textures, normals and UVs only show in the preview (ToyCar's textures:

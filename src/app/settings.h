@@ -47,7 +47,8 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Surfaces closer than this in metres count as one layer", s.peel.merge_distance);
   v("maps.device", "--peel-device",
     "Where the maps are peeled: gpu (depth passes), cpu (a vertical ray per texel) or auto (the "
-    "CPU where GL runs in software, such as llvmpipe, unless the triangles stack deep)",
+    "CPU where GL runs in software, such as llvmpipe, unless the triangles stack deep, and on a "
+    "GPU for small scenes before its driver has started)",
     s.peel.device);
   v("maps.memory_budget_gib", "--memory-budget",
     "Memory budget in GiB; larger runs stop before allocating", s.memory_budget_gib);

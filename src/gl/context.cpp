@@ -5,6 +5,7 @@
 
 #include <dlfcn.h>
 
+#include <atomic>
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
@@ -25,6 +26,8 @@ constexpr int kMinMinor = 3;
 
 // The loader whose functions glad holds now (nullptr: none or unknown).
 detail::ProcAddressFn g_loaded_from = nullptr;
+// Whether create_context has made a context in this process (on any thread).
+std::atomic<bool> g_context_made{false};
 
 const char* debug_type_name(GLenum type) {
   switch (type) {
@@ -250,11 +253,15 @@ std::unique_ptr<Context> try_backends(const std::vector<Backend>& order,
 
 std::unique_ptr<Context> create_context(const ContextOptions& options) {
   const Backend backend = requested_backend(options);
-  if (backend == Backend::Auto) {
-    return detail::try_backends({Backend::EglDevice, Backend::EglSurfaceless, Backend::OSMesa},
-                                options);
-  }
-  return detail::try_backends({backend}, options);
+  std::unique_ptr<Context> context =
+      backend == Backend::Auto
+          ? detail::try_backends({Backend::EglDevice, Backend::EglSurfaceless, Backend::OSMesa},
+                                 options)
+          : detail::try_backends({backend}, options);
+  g_context_made.store(true, std::memory_order_relaxed);
+  return context;
 }
+
+bool context_made() { return g_context_made.load(std::memory_order_relaxed); }
 
 }  // namespace snow::gl

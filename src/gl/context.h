@@ -61,6 +61,11 @@ bool renderer_is_software();
 /// GLError whose message lists each backend tried and why it failed.
 std::unique_ptr<Context> create_context(const ContextOptions& options = {});
 
+/// Whether create_context has made a context in this process, on any
+/// thread: after that the driver is loaded, and further contexts come
+/// cheaply (EGL displays stay initialized).
+bool context_made();
+
 /// The backend create_context(options) tries: options.backend, or for Auto
 /// the one SNOWMODEL_GL_BACKEND names (if set; InputError for a bad name).
 Backend requested_backend(const ContextOptions& options);

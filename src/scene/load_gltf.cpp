@@ -1728,6 +1728,28 @@ class GltfLoader {
 
 }  // namespace
 
+uint64_t gltf_input_bytes(const std::filesystem::path& path) {
+  const auto extension_is = [](const std::filesystem::path& p, const char* ext) {
+    std::string e = p.extension().string();
+    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return std::tolower(c); });
+    return e == ext;
+  };
+  std::error_code error;
+  uintmax_t bytes = std::filesystem::file_size(path, error);
+  if (error) return 0;
+  if (extension_is(path, ".gltf")) {
+    const std::filesystem::path folder =
+        path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
+    for (const auto& entry : std::filesystem::directory_iterator(folder, error)) {
+      std::error_code size_error;
+      if (!extension_is(entry.path(), ".bin")) continue;
+      const uintmax_t size = entry.file_size(size_error);
+      if (!size_error) bytes += size;
+    }
+  }
+  return uint64_t(bytes);
+}
+
 bool gltf_draco_supported() {
 #ifdef SNOW_HAVE_DRACO
   return true;

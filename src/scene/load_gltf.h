@@ -70,6 +70,12 @@ struct LoadSettings {
 /// scene file itself cannot be read.
 Scene load_scene(const std::filesystem::path& path, const LoadSettings& settings = {});
 
+/// The bytes load_scene reads from `path`, near enough, without reading
+/// them: the file's size, and for a .gltf (by its extension) the sizes of
+/// the .bin files in its folder, where its buffers usually are. 0 where the
+/// file cannot be read.
+uint64_t gltf_input_bytes(const std::filesystem::path& path);
+
 /// True when this build decodes KHR_draco_mesh_compression.
 bool gltf_draco_supported();
 

@@ -65,6 +65,7 @@ constexpr int kMaxBatch = 32;               // shadow maps per batch (a 32-bit d
 // up (SheenChair at 91 texels, 40k triangles on maps of 96 x 73: 0.08 s,
 // against 0.13 s for its 0.5M rays), and its texels about as many again as
 // the map's.
+constexpr double kCostUnitSeconds = 80e-9;  // a drawn triangle on llvmpipe, 2 cores
 constexpr double kShadowTexelCost = 1.0 / 40.0;
 constexpr double kGpuRayCost = 16.0;
 constexpr double kCpuRayCost = 2.0;
@@ -456,14 +457,26 @@ CoverageMethod choose_coverage_method(const CoverageSettings& settings, const Co
       w.triangles + texels + receivers * kGpuCountCost + (w.software ? kGpuPassCost : 0.0);
   const double gpu_rays = receivers * kGpuRayCost * (w.snow ? 2.0 : 1.0);
   const double gpu = std::min(shadow, gpu_rays);
-  if (w.software && !w.snow) {
+  if ((w.software || w.gl_cold) && !w.snow) {
     // CPU shadow maps take a map per core; beyond kCpuShadowBytes fewer cores.
-    const bool maps_fit = 4.0 * w.shadow_texels * default_threads() <= kCpuShadowBytes;
+    const unsigned threads = w.threads > 0 ? w.threads : default_threads();
+    const bool maps_fit = 4.0 * w.shadow_texels * threads <= kCpuShadowBytes;
     const double cpu_shadow =
         w.triangles * kCpuTriangleCost + 2.0 * texels + receivers * kCpuCountCost;
     const double cpu_rays = receivers * kCpuRayCost;
-    if (cpu_rays < gpu && (cpu_rays <= cpu_shadow || !maps_fit)) return CoverageMethod::CpuRays;
-    if (maps_fit && cpu_shadow < gpu) return CoverageMethod::CpuShadowMaps;
+    const bool rays = cpu_rays <= cpu_shadow || !maps_fit;
+    if (w.software) {
+      if (rays && cpu_rays < gpu) return CoverageMethod::CpuRays;
+      if (maps_fit && cpu_shadow < gpu) return CoverageMethod::CpuShadowMaps;
+    } else {
+      // The costs are measured on 2 cores; a GPU's passes cost next to
+      // nothing beside its driver's start.
+      const double seconds =
+          (rays ? cpu_rays : cpu_shadow) * settings.directions * kCostUnitSeconds * 2.0 / threads;
+      if (seconds <= kCpuSecondsBeforeGl) {
+        return rays ? CoverageMethod::CpuRays : CoverageMethod::CpuShadowMaps;
+      }
+    }
   }
   return gpu_rays < shadow ? CoverageMethod::GpuRays : CoverageMethod::ShadowMaps;
 }
@@ -1240,6 +1253,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
   for (const glm::ivec4& q : snowy_quads) work.triangles += 2.0 * (q.y - q.x) * (q.w - q.z);
   work.snow = !snowy_layers.empty();
   work.software = gl::renderer_is_software();
+  work.gl_cold = !work.software && !gl::context_made();
   CoverageMethod method = CoverageMethod::ShadowMaps;
 
   // Receivers open to the sky along every direction are lit without GPU work.

@@ -76,14 +76,24 @@ enum class CoverageMethod {
 /// map (per direction). The inputs come from the pass: `triangles` drawn
 /// per shadow map (the scene, plus the snow surface's), the shadow map's
 /// texels, the receivers left after the sky cull, whether a snow surface
-/// is drawn, and whether the GL renderer is a software rasterizer.
+/// is drawn, whether the GL renderer is a software rasterizer, and for a
+/// GPU, whether no GL context has been made in the process yet (its driver
+/// still to load).
 struct CoverageWork {
   double triangles = 0;
   double shadow_texels = 0;
   size_t receivers = 0;
   bool snow = false;
   bool software = false;
+  bool gl_cold = false;
+  unsigned threads = 0;  // CPU cores the CPU methods run on (0: default_threads())
 };
+
+/// On a GPU whose driver has not started (CoverageWork::gl_cold), "auto"
+/// takes a CPU method where it is estimated to take at most this long
+/// (seconds): the first GL context of a process took 0.09-0.17 s on an
+/// H100 (tools/RESULTS.md), so a small scene then needs no GL at all.
+constexpr double kCpuSecondsBeforeGl = 0.05;
 
 /// The method settings.method asks for: "shadow-maps", "cpu-shadow-maps",
 /// "rays" (GpuRays), "cpu-rays", or "auto": the cheapest by the costs
@@ -95,9 +105,10 @@ struct CoverageWork {
 /// scenes mapped finer than their triangles (a 440-triangle building at 110
 /// texels: 35k receivers) draw shadow maps. Where GL runs in software, both
 /// are done on the CPU cores when that costs less (llvmpipe's passes cost
-/// about 1 ms per direction however small the maps), never with a snow
-/// surface (its triangles would need a BVH of their own), nor where a
-/// shadow map per core would take more than 256 MiB.
+/// about 1 ms per direction however small the maps), or on a GPU whose
+/// driver has not started, when they take at most kCpuSecondsBeforeGl;
+/// never with a snow surface (its triangles would need a BVH of their
+/// own), nor where a shadow map per core would take more than 256 MiB.
 CoverageMethod choose_coverage_method(const CoverageSettings& settings, const CoverageWork& work);
 
 /// Shadow maps per batch for maps of `shadow_texels` texels: settings.batch,

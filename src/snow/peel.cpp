@@ -197,8 +197,12 @@ void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings
 bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& settings) {
   validate_peel_settings(settings);
   if (settings.device != "auto") return settings.device == "cpu";
-  const size_t cap = std::max(kCpuPeelHits, 4 * grid.texels() * size_t(settings.layers));
-  return gl::renderer_is_software() && box_texels(scene, grid, cap) <= cap;
+  if (gl::renderer_is_software()) {
+    const size_t cap = std::max(kCpuPeelHits, 4 * grid.texels() * size_t(settings.layers));
+    return box_texels(scene, grid, cap) <= cap;
+  }
+  return !gl::context_made() &&
+         box_texels(scene, grid, kCpuPeelHitsBeforeGl) <= kCpuPeelHitsBeforeGl;
 }
 
 SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings) {

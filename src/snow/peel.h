@@ -24,7 +24,8 @@ struct PeelSettings {
                                         // allocating when estimate_memory exceeds it
   // "gpu" (depth passes), "cpu" (a vertical ray per texel:
   // snow::reference::peel_layers) or "auto": the CPU where GL runs in
-  // software, unless the triangles stack deep (peels_on_cpu), else the GPU.
+  // software, unless the triangles stack deep, and for small scenes before
+  // the GPU's driver has started (peels_on_cpu), else the GPU.
   std::string device = "auto";
 };
 
@@ -37,13 +38,23 @@ struct PeelSettings {
 /// time.
 constexpr size_t kCpuPeelHits = size_t(1) << 22;
 
+/// On a GPU, "auto" takes the CPU peel only before any GL context is made in
+/// the process, where the triangles' boxes hold at most this many texel
+/// centres: the first context loads the driver (0.09-0.17 s on an H100,
+/// tools/RESULTS.md), more than the CPU peel of such a scene takes on one
+/// core (the Kenney tiles at their automatic 110-120 texels: under 0.01 s),
+/// and a small scene then may need no GL at all.
+constexpr size_t kCpuPeelHitsBeforeGl = size_t(1) << 19;
+
 /// Whether peel_layers peels on the CPU: settings.device "cpu", or "auto"
 /// where GL runs in software and the triangles' boxes hold at most
-/// kCpuPeelHits texel centres or 4 per layer texel. The CPU peel is faster
-/// there at every size measured: SheenChair at 91 x 64 texels 2 ms against
-/// 90 ms, a Kenney building at 512 texels 0.05 against 0.24 s, the
-/// courtyard at 1024 0.09-0.11 against 0.29-0.32 s, the 1M terrain at 2048
-/// 0.38 against 2.5 s (2-core EPYC, llvmpipe, 2026-11-26).
+/// kCpuPeelHits texel centres or 4 per layer texel, or where it runs on a
+/// GPU, no context is made yet (gl::context_made) and they hold at most
+/// kCpuPeelHitsBeforeGl. In software the CPU peel is faster at every size
+/// measured: SheenChair at 91 x 64 texels 2 ms against 90 ms, a Kenney
+/// building at 512 texels 0.05 against 0.24 s, the courtyard at 1024
+/// 0.09-0.11 against 0.29-0.32 s, the 1M terrain at 2048 0.38 against 2.5 s
+/// (2-core EPYC, llvmpipe, 2026-11-26).
 bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& settings);
 
 /// The map grid over the scene's horizontal (x, z) bounds plus the margin,
