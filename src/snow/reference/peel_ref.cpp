@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/error.h"
+#include "core/parallel.h"
 
 namespace snow::reference {
 namespace {
@@ -17,9 +18,12 @@ struct Hit {
 };
 
 struct TexelHit {
-  uint32_t texel;
+  uint32_t texel;  // within its band
   Hit hit;
 };
+
+// Triangles per task of the loops over all triangles.
+constexpr size_t kTriangleChunk = size_t(1) << 14;
 
 }  // namespace
 
@@ -32,54 +36,42 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
   }
   const size_t texels = grid.texels();
   if (texels > size_t(UINT32_MAX)) throw InputError("reference peel: more than 2^32 texels");
-  // Every hit in one array, grouped by texel below (no allocation per
-  // texel).
-  std::vector<TexelHit> found;
   const double ox = grid.origin.x, oz = grid.origin.y, t = grid.texel;
-
   const size_t triangle_count = scene.triangle_count();
-  for (size_t tri = 0; tri < triangle_count; ++tri) {
-    const glm::dvec3 a(scene.positions[3 * tri]);
-    const glm::dvec3 b(scene.positions[3 * tri + 1]);
-    const glm::dvec3 c(scene.positions[3 * tri + 2]);
-    // Signed doubled area of the xz projection; 0: seen edge-on, no hit.
-    const double area = (b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z);
-    if (area == 0.0 || !std::isfinite(area)) continue;
-    const double min_x = std::min({a.x, b.x, c.x}), max_x = std::max({a.x, b.x, c.x});
-    const double min_z = std::min({a.z, b.z, c.z}), max_z = std::max({a.z, b.z, c.z});
-    // Texel centres x = ox + (i + 0.5) t inside [min_x, max_x].
-    const int i0 = std::max(0, int(std::ceil((min_x - ox) / t - 0.5)));
-    const int i1 = std::min(grid.width - 1, int(std::floor((max_x - ox) / t - 0.5)));
-    const int j0 = std::max(0, int(std::ceil((min_z - oz) / t - 0.5)));
-    const int j1 = std::min(grid.height - 1, int(std::floor((max_z - oz) / t - 0.5)));
-    for (int j = j0; j <= j1; ++j) {
-      const double pz = oz + (j + 0.5) * t;
-      for (int i = i0; i <= i1; ++i) {
-        const double px = ox + (i + 0.5) * t;
-        // Barycentric weights from edge functions (same sign as area inside).
-        const double wa = (b.x - px) * (c.z - pz) - (c.x - px) * (b.z - pz);
-        const double wb = (c.x - px) * (a.z - pz) - (a.x - px) * (c.z - pz);
-        const double wc = (a.x - px) * (b.z - pz) - (b.x - px) * (a.z - pz);
-        const bool inside =
-            area > 0 ? (wa >= 0 && wb >= 0 && wc >= 0) : (wa <= 0 && wb <= 0 && wc <= 0);
-        if (!inside) continue;
-        const double y = (wa * a.y + wb * b.y + wc * c.y) / area;
-        found.push_back(
-            {uint32_t(size_t(j) * size_t(grid.width) + size_t(i)), {float(y), uint32_t(tri)}});
-      }
-    }
-  }
+  const size_t width = size_t(grid.width);
 
-  // Per-triangle unit normal (as wound) and object, as the GPU pass uploads.
+  // Per triangle: the texel box its centres can fall in (i0 > i1 or j0 > j1:
+  // none, as for a triangle seen edge-on), its unit normal (as wound) and
+  // object, as the GPU pass uploads them. On all cores.
+  struct Box {
+    int i0, i1, j0, j1;
+  };
+  std::vector<Box> box(triangle_count);
   std::vector<glm::vec3> tri_normal(triangle_count);
   std::vector<int32_t> tri_object(triangle_count, -1);
-  for (size_t tri = 0; tri < triangle_count; ++tri) {
-    const glm::dvec3 a(scene.positions[3 * tri]);
-    const glm::dvec3 n = glm::cross(glm::dvec3(scene.positions[3 * tri + 1]) - a,
-                                    glm::dvec3(scene.positions[3 * tri + 2]) - a);
-    const double len = glm::length(n);
-    tri_normal[tri] = len > 0 ? glm::vec3(n / len) : glm::vec3(0.0f);
-  }
+  parallel_for_ranges(triangle_count, kTriangleChunk, [&](size_t begin, size_t end) {
+    for (size_t tri = begin; tri < end; ++tri) {
+      const glm::dvec3 a(scene.positions[3 * tri]);
+      const glm::dvec3 b(scene.positions[3 * tri + 1]);
+      const glm::dvec3 c(scene.positions[3 * tri + 2]);
+      const glm::dvec3 n = glm::cross(b - a, c - a);
+      const double len = glm::length(n);
+      tri_normal[tri] = len > 0 ? glm::vec3(n / len) : glm::vec3(0.0f);
+      // Signed doubled area of the xz projection; 0: seen edge-on, no hit.
+      const double area = (b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z);
+      if (area == 0.0 || !std::isfinite(area)) {
+        box[tri] = {0, -1, 0, -1};
+        continue;
+      }
+      const double min_x = std::min({a.x, b.x, c.x}), max_x = std::max({a.x, b.x, c.x});
+      const double min_z = std::min({a.z, b.z, c.z}), max_z = std::max({a.z, b.z, c.z});
+      // Texel centres x = ox + (i + 0.5) t inside [min_x, max_x].
+      box[tri] = {std::max(0, int(std::ceil((min_x - ox) / t - 0.5))),
+                  std::min(grid.width - 1, int(std::floor((max_x - ox) / t - 0.5))),
+                  std::max(0, int(std::ceil((min_z - oz) / t - 0.5))),
+                  std::min(grid.height - 1, int(std::floor((max_z - oz) / t - 0.5)))};
+    }
+  });
   for (size_t o = 0; o < scene.objects.size(); ++o) {
     const SceneObject& obj = scene.objects[o];
     for (uint32_t k = 0; k < obj.triangle_count && obj.first_triangle + k < triangle_count; ++k) {
@@ -87,26 +79,29 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
     }
   }
 
-  // The hits grouped by texel (counting sort): texel t's are hits[start[t],
-  // start[t + 1]).
-  std::vector<size_t> start(texels + 1, 0);
-  for (const TexelHit& f : found) ++start[f.texel + 1];
-  for (size_t t = 0; t < texels; ++t) start[t + 1] += start[t];
-  std::vector<Hit> hits(found.size());
-  {
-    std::vector<size_t> next(start.begin(), start.end() - 1);
-    for (const TexelHit& f : found) hits[next[f.texel]++] = f.hit;
-  }
-  found = {};
-
+  // Each band of rows gathers the hits of the triangles whose boxes meet it
+  // into one array, grouped by texel (counting sort: texel t's are
+  // hits[start[t - first], start[t - first + 1]), first = the band's first
+  // texel), sorted from the top down. The bands run on all cores; a texel's
+  // hits and their order do not depend on the bands.
+  struct Band {
+    int j0 = 0, j1 = 0;  // rows [j0, j1)
+    std::vector<Hit> hits;
+    std::vector<size_t> start;
+    int used = 1;  // layers its columns fill
+  };
+  const size_t band_count =
+      std::min<size_t>(size_t(grid.height), std::max<size_t>(1, 4 * size_t(default_threads())));
+  std::vector<Band> bands(band_count);
   // Each column's hits top down; the surfaces kept (at least merge_distance
   // apart, at most `layers`) go to fn(layer, hit, height above); returns
   // whether some were left over.
-  const auto surfaces = [&](size_t texel, auto&& fn) {
+  const auto surfaces = [&](const Band& band, size_t texel, auto&& fn) {
+    const size_t at = texel - size_t(band.j0) * width;
     float last = kOpenSky;
     int layer = 0;
-    for (size_t h = start[texel]; h < start[texel + 1]; ++h) {
-      const Hit& hit = hits[h];
+    for (size_t h = band.start[at]; h < band.start[at + 1]; ++h) {
+      const Hit& hit = band.hits[h];
       if (layer > 0 && !(hit.y < last - merge_distance)) continue;
       if (layer == layers) return true;
       fn(layer, hit, last);
@@ -115,28 +110,79 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
     }
     return false;
   };
+  parallel_for(band_count, [&](size_t b) {
+    Band& band = bands[b];
+    band.j0 = int(b * size_t(grid.height) / band_count);
+    band.j1 = int((b + 1) * size_t(grid.height) / band_count);
+    const size_t first = size_t(band.j0) * width;
+    const size_t band_texels = size_t(band.j1 - band.j0) * width;
+    std::vector<TexelHit> found;
+    for (size_t tri = 0; tri < triangle_count; ++tri) {
+      const Box& r = box[tri];
+      const int j0 = std::max(r.j0, band.j0), j1 = std::min(r.j1, band.j1 - 1);
+      if (r.i0 > r.i1 || j0 > j1) continue;
+      const glm::dvec3 a(scene.positions[3 * tri]);
+      const glm::dvec3 b(scene.positions[3 * tri + 1]);
+      const glm::dvec3 c(scene.positions[3 * tri + 2]);
+      const double area = (b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z);
+      for (int j = j0; j <= j1; ++j) {
+        const double pz = oz + (j + 0.5) * t;
+        for (int i = r.i0; i <= r.i1; ++i) {
+          const double px = ox + (i + 0.5) * t;
+          // Barycentric weights from edge functions (same sign as area inside).
+          const double wa = (b.x - px) * (c.z - pz) - (c.x - px) * (b.z - pz);
+          const double wb = (c.x - px) * (a.z - pz) - (a.x - px) * (c.z - pz);
+          const double wc = (a.x - px) * (b.z - pz) - (b.x - px) * (a.z - pz);
+          const bool inside =
+              area > 0 ? (wa >= 0 && wb >= 0 && wc >= 0) : (wa <= 0 && wb <= 0 && wc <= 0);
+          if (!inside) continue;
+          const double y = (wa * a.y + wb * b.y + wc * c.y) / area;
+          found.push_back(
+              {uint32_t(size_t(j) * width + size_t(i) - first), {float(y), uint32_t(tri)}});
+        }
+      }
+    }
+    band.start.assign(band_texels + 1, 0);
+    for (const TexelHit& f : found) ++band.start[f.texel + 1];
+    for (size_t k = 0; k < band_texels; ++k) band.start[k + 1] += band.start[k];
+    band.hits.resize(found.size());
+    {
+      std::vector<size_t> next(band.start.begin(), band.start.end() - 1);
+      for (const TexelHit& f : found) band.hits[next[f.texel]++] = f.hit;
+    }
+    found = {};
+    for (size_t k = 0; k < band_texels; ++k) {
+      std::sort(band.hits.begin() + std::ptrdiff_t(band.start[k]),
+                band.hits.begin() + std::ptrdiff_t(band.start[k + 1]),
+                [](const Hit& p, const Hit& q) {
+                  return p.y != q.y ? p.y > q.y : p.triangle < q.triangle;
+                });
+      surfaces(band, first + k,
+               [&](int layer, const Hit&, float) { band.used = std::max(band.used, layer + 1); });
+    }
+  });
+
   // Only the layers some column fills are allocated (allocating all and
   // dropping the empty ones cost the Kenney tiles 10 ms of fresh memory).
   int used = 1;
-  for (size_t texel = 0; texel < texels; ++texel) {
-    std::sort(hits.begin() + std::ptrdiff_t(start[texel]),
-              hits.begin() + std::ptrdiff_t(start[texel + 1]), [](const Hit& p, const Hit& q) {
-                return p.y != q.y ? p.y > q.y : p.triangle < q.triangle;
-              });
-    surfaces(texel, [&](int layer, const Hit&, float) { used = std::max(used, layer + 1); });
-  }
+  for (const Band& band : bands) used = std::max(used, band.used);
   SnowMaps maps;
   maps.allocate(grid, used);
-  for (size_t texel = 0; texel < texels; ++texel) {
-    const int i = int(texel % grid.width), j = int(texel / grid.width);
-    maps.overflow_columns += surfaces(texel, [&](int layer, const Hit& hit, float above) {
-      const size_t k = maps.index(layer, i, j);
-      maps.ground[k] = hit.y;
-      maps.ceiling[k] = above;
-      maps.normal[k] = tri_normal[hit.triangle];
-      maps.object[k] = tri_object[hit.triangle];
-    });
-  }
+  std::vector<uint64_t> overflow(band_count, 0);
+  parallel_for(band_count, [&](size_t b) {
+    const Band& band = bands[b];
+    for (size_t texel = size_t(band.j0) * width; texel < size_t(band.j1) * width; ++texel) {
+      const int i = int(texel % width), j = int(texel / width);
+      overflow[b] += surfaces(band, texel, [&](int layer, const Hit& hit, float above) {
+        const size_t k = maps.index(layer, i, j);
+        maps.ground[k] = hit.y;
+        maps.ceiling[k] = above;
+        maps.normal[k] = tri_normal[hit.triangle];
+        maps.object[k] = tri_object[hit.triangle];
+      });
+    }
+  });
+  for (const uint64_t o : overflow) maps.overflow_columns += o;
   return maps;
 }
 

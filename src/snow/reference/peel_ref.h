@@ -1,5 +1,7 @@
 #pragma once
-// CPU reference of the depth-peeling pass (snow/peel.h), for tests.
+// CPU reference of the depth-peeling pass (snow/peel.h): the tests check the
+// GPU pass against it, and "auto" peels with it where that is faster
+// (snow::peels_on_cpu).
 #include "scene/scene.h"
 #include "snow/maps.h"
 
@@ -14,7 +16,8 @@ namespace snow::reference {
 /// geometric normal as wound, object index; trailing empty layers dropped)
 /// and counts overflow columns.
 /// Exact up to ties on triangle edges, which the GPU resolves by its fill
-/// rule. Throws InputError for layers outside 1..64 or an empty grid.
+/// rule. Runs on all cores, in bands of rows; the maps are the same on any
+/// number. Throws InputError for layers outside 1..64 or an empty grid.
 SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers,
                      float merge_distance = 1e-3f);
 
