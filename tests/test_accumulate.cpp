@@ -94,6 +94,26 @@ TEST(Accumulate, SmallSceneOnAColdGpuMakesNoContext) {
   EXPECT_THROW(peel_layers(scene, peel), std::logic_error);
 }
 
+// The coverage's BVH built ahead (as the batch job builds it beside the
+// peel on a GPU), of either kind, gives the same snow.
+TEST(Accumulate, BvhBuiltAheadGivesTheSameSnow) {
+  REQUIRE_GL();
+  const Scene scene = make_table_scene();
+  const SnowMaps maps = scene_maps(scene, 64);
+  AccumulateSettings settings;
+  const SnowResult plain = accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings);
+  for (const Bvh::Build build : {Bvh::Build::Sah, Bvh::Build::Morton}) {
+    CoverageBvh bvh = build_coverage_bvh(scene, build);
+    EXPECT_EQ(bvh.bvh.triangle_count(), scene.triangle_count());
+    const SnowResult ahead =
+        accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings, {}, &bvh);
+    ASSERT_EQ(ahead.depth.size(), plain.depth.size());
+    EXPECT_EQ(
+        std::memcmp(ahead.depth.data(), plain.depth.data(), plain.depth.size() * sizeof(float)), 0);
+    EXPECT_EQ(ahead.coverage, plain.coverage);
+  }
+}
+
 TEST(Accumulate, StepsSplitTheFall) {
   REQUIRE_GL();
   const Scene scene = make_table_scene();

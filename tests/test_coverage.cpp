@@ -538,6 +538,15 @@ TEST(Coverage, AutomaticMethodCastsRaysWhereReceiversAreFew) {
   EXPECT_EQ(std::memcmp(a.data(), am.data(), a.size() * sizeof(float)), 0);
   EXPECT_EQ(CoverageRenderer(make_table_scene(0.75f, 1.0f, 4.0f), &maps).bvh_build(),
             Bvh::Build::Sah);
+  // Built ahead from the grid alone (the batch job on a GPU, beside the
+  // peel): 80k triangles over 576 texels, Morton order; the same coverage.
+  EXPECT_EQ(coverage_bvh_build(80000, 576), Bvh::Build::Morton);
+  EXPECT_EQ(coverage_bvh_build(9000, 576), Bvh::Build::Sah);
+  CoverageRenderer ahead(scene, build_coverage_bvh(scene, coverage_bvh_build(scene.triangle_count(),
+                                                                             maps.grid.texels())));
+  EXPECT_EQ(ahead.bvh_build(), Bvh::Build::Morton);
+  const std::vector<float> aa = ahead.compute(maps, CoverageSettings{});
+  EXPECT_EQ(std::memcmp(a.data(), aa.data(), a.size() * sizeof(float)), 0);
   CoverageSettings rays;
   rays.method = "rays";
   const std::vector<float> r = renderer.compute(maps, rays);

@@ -406,6 +406,20 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
     if (!software.has_value()) context->make();  // only a context can tell what renders
     return context;
   };
+  // The coverage's BVH needs the scene alone. On a GPU, whose peel leaves
+  // the CPU cores idle, it is built on another thread meanwhile (on an
+  // H100 the 1M-triangle terrain's BVH took 0.19 s and its peel 0.24 s);
+  // in software the CPU peel takes every core. Its kind is judged from the
+  // grid's texels, as the maps' surfaces are not known yet (the coverage is
+  // the same either way).
+  std::future<CoverageBvh> bvh_ahead;
+  if (software == false) {
+    bvh_ahead = std::async(std::launch::async, [&] {
+      return build_coverage_bvh(snow_scene,
+                                coverage_bvh_build(snow_scene.triangle_count(),
+                                                   make_grid(snow_scene.bounds, s.peel).texels()));
+    });
+  }
   SnowMaps maps;
   stage("peel", [&] {
     const auto context = stage_context();
@@ -418,7 +432,17 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   SnowResult snow;
   stage("snowfall", [&] {
     const auto context = stage_context();
-    snow = accumulate(snow_scene, maps, s.coverage, s.stabilize, s.accumulate, receives);
+    std::optional<CoverageBvh> bvh;
+    if (bvh_ahead.valid()) {
+      try {
+        bvh = bvh_ahead.get();
+      } catch (const std::bad_alloc&) {
+        throw InputError("coverage: out of memory building the BVH of " +
+                         std::to_string(snow_scene.triangle_count()) + " triangles");
+      }
+    }
+    snow = accumulate(snow_scene, maps, s.coverage, s.stabilize, s.accumulate, receives,
+                      bvh ? &*bvh : nullptr);
   });
   warn_if_unsettled(snow, s.stabilize);
   warn_if_sheltered(snow_scene, maps, snow.coverage);

@@ -70,7 +70,7 @@ void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
 
 SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSettings& coverage,
                       const StabilizeSettings& stabilize, const AccumulateSettings& settings,
-                      const std::vector<uint8_t>& receives) {
+                      const std::vector<uint8_t>& receives, CoverageBvh* bvh) {
   if (!std::isfinite(settings.fall_depth) || settings.fall_depth < 0 ||
       settings.fall_depth > 1000) {
     throw InputError("snow depth must be between 0 and 1000 m, got " +
@@ -85,7 +85,12 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   }
 
   SnowResult result;
-  std::optional<CoverageRenderer> shadows(std::in_place, scene, &maps);
+  std::optional<CoverageRenderer> shadows;
+  if (bvh) {
+    shadows.emplace(scene, std::move(*bvh));
+  } else {
+    shadows.emplace(scene, &maps);
+  }
   result.coverage = shadows->compute(maps, coverage);
   result.coverage_method = shadows->timings().method;
   mask_coverage(maps, receives, result.coverage);

@@ -46,10 +46,11 @@ void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
 /// CPU as stabilize.device says). Objects
 /// with receives[object] == 0 get no fresh snow (snow sliding onto them
 /// still rests there). Reports progress. Needs a current GL context, or a
-/// gl::OnDemandContext that the passes make when they use GL. Throws
-/// InputError for bad settings, GLError for GL trouble.
+/// gl::OnDemandContext that the passes make when they use GL. `bvh`, if
+/// given, is the coverage's BVH built ahead over `scene` (build_coverage_bvh;
+/// taken from). Throws InputError for bad settings, GLError for GL trouble.
 SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSettings& coverage,
                       const StabilizeSettings& stabilize, const AccumulateSettings& settings,
-                      const std::vector<uint8_t>& receives = {});
+                      const std::vector<uint8_t>& receives = {}, CoverageBvh* bvh = nullptr);
 
 }  // namespace snow

@@ -869,23 +869,34 @@ Bvh::Build bvh_build_for(size_t triangles, const SnowMaps* maps) {
   if (!maps) return Bvh::Build::Sah;
   const size_t receivers = size_t(std::count_if(maps->ground.begin(), maps->ground.end(),
                                                 [](float y) { return !std::isnan(y); }));
-  return triangles > 16 * receivers ? Bvh::Build::Morton : Bvh::Build::Sah;
+  return coverage_bvh_build(triangles, receivers);
 }
 
 }  // namespace
 
+Bvh::Build coverage_bvh_build(size_t triangles, size_t receivers) {
+  return triangles > 16 * receivers ? Bvh::Build::Morton : Bvh::Build::Sah;
+}
+
+CoverageBvh build_coverage_bvh(const Scene& scene, Bvh::Build build) {
+  if (scene.triangle_count() * 3 > size_t(0x7fffffff)) {
+    throw InputError("scene has " + std::to_string(scene.triangle_count()) +
+                     " triangles, more than one draw call can take");
+  }
+  const double t0 = now_seconds();
+  CoverageBvh out;
+  out.build = build;
+  out.bvh = Bvh(scene.positions, build);
+  out.seconds = now_seconds() - t0;
+  return out;
+}
+
 struct CoverageRenderer::Impl {
-  Impl(const Scene& scene, const SnowMaps* maps) : bounds(scene.bounds) {
-    if (scene.triangle_count() * 3 > size_t(0x7fffffff)) {
-      throw InputError("scene has " + std::to_string(scene.triangle_count()) +
-                       " triangles, more than one draw call can take");
-    }
-    const double t0 = now_seconds();
-    build = bvh_build_for(scene.triangle_count(), maps);
-    bvh = Bvh(scene.positions, build);
+  Impl(const Scene& scene, CoverageBvh built)
+      : bounds(scene.bounds), build(built.build), bvh(std::move(built.bvh)) {
     triangles = bvh.triangle_count();
     log_debug("coverage: BVH of " + std::to_string(triangles) + " triangles in " +
-              seconds(now_seconds() - t0));
+              seconds(built.seconds));
   }
 
   // The GL side, made on first use. The shadow passes draw the triangles in
@@ -1063,12 +1074,16 @@ struct CoverageRenderer::Impl {
 
 CoverageRenderer::CoverageRenderer(const Scene& scene, const SnowMaps* maps) {
   try {
-    impl_ = std::make_unique<Impl>(scene, maps);
+    impl_ = std::make_unique<Impl>(
+        scene, build_coverage_bvh(scene, bvh_build_for(scene.triangle_count(), maps)));
   } catch (const std::bad_alloc&) {
     throw InputError("coverage: out of memory uploading " + std::to_string(scene.triangle_count()) +
                      " triangles");
   }
 }
+
+CoverageRenderer::CoverageRenderer(const Scene& scene, CoverageBvh bvh)
+    : impl_(std::make_unique<Impl>(scene, std::move(bvh))) {}
 CoverageRenderer::~CoverageRenderer() = default;
 
 const CoverageRenderer::Timings& CoverageRenderer::timings() const { return impl_->timings; }

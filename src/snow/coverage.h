@@ -144,6 +144,23 @@ std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& settings);
 /// a compute has used GL (made through gl::require_context where a
 /// gl::OnDemandContext is installed), that context must be current in every
 /// later call, including destruction; the CPU methods use none.
+/// The BVH a CoverageRenderer builds over `triangles` triangles for maps of
+/// `receivers` layer texels with a surface: Morton order where the
+/// triangles far outnumber them (more than 16 per texel), whose rays are
+/// few, else SAH splits. Either gives the same coverage.
+Bvh::Build coverage_bvh_build(size_t triangles, size_t receivers);
+
+/// A CoverageRenderer's BVH built ahead, e.g. on another thread while the
+/// maps are peeled (it needs the scene alone); `seconds` is its build time.
+struct CoverageBvh {
+  Bvh bvh;
+  Bvh::Build build = Bvh::Build::Sah;
+  double seconds = 0.0;
+};
+/// Builds it. Throws InputError for a scene with more triangles than one
+/// draw call takes, std::bad_alloc when memory runs out.
+CoverageBvh build_coverage_bvh(const Scene& scene, Bvh::Build build);
+
 class CoverageRenderer {
  public:
   /// Builds the scene's BVH (CPU, O(n log n)). Given the maps that compute()
@@ -155,6 +172,8 @@ class CoverageRenderer {
   /// shadow map, and the exact pass's storage buffer) and nodes; compute()
   /// throws GLError when GL fails (GL_OUT_OF_MEMORY included).
   explicit CoverageRenderer(const Scene& scene, const SnowMaps* maps = nullptr);
+  /// The same with the BVH built ahead (build_coverage_bvh over `scene`).
+  CoverageRenderer(const Scene& scene, CoverageBvh bvh);
   ~CoverageRenderer();
   CoverageRenderer(const CoverageRenderer&) = delete;
   CoverageRenderer& operator=(const CoverageRenderer&) = delete;
