@@ -93,6 +93,31 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
   const size_t band_count =
       std::min<size_t>(size_t(grid.height), std::max<size_t>(1, 4 * size_t(default_threads())));
   std::vector<Band> bands(band_count);
+  std::vector<uint32_t> band_of_row(size_t(grid.height));
+  for (size_t b = 0; b < band_count; ++b) {
+    bands[b].j0 = int(b * size_t(grid.height) / band_count);
+    bands[b].j1 = int((b + 1) * size_t(grid.height) / band_count);
+    for (int j = bands[b].j0; j < bands[b].j1; ++j) band_of_row[size_t(j)] = uint32_t(b);
+  }
+  // The triangles whose boxes meet each band (in index order): band b's are
+  // listed[listed_start[b], listed_start[b + 1]).
+  std::vector<size_t> listed_start(band_count + 1, 0);
+  const auto each_band_of = [&](size_t tri, auto&& fn) {
+    const Box& r = box[tri];
+    if (r.i0 > r.i1 || r.j0 > r.j1) return;
+    for (uint32_t b = band_of_row[size_t(r.j0)]; b <= band_of_row[size_t(r.j1)]; ++b) fn(b);
+  };
+  for (size_t tri = 0; tri < triangle_count; ++tri) {
+    each_band_of(tri, [&](uint32_t b) { ++listed_start[b + 1]; });
+  }
+  for (size_t b = 0; b < band_count; ++b) listed_start[b + 1] += listed_start[b];
+  std::vector<uint32_t> listed(listed_start.back());
+  {
+    std::vector<size_t> next(listed_start.begin(), listed_start.end() - 1);
+    for (size_t tri = 0; tri < triangle_count; ++tri) {
+      each_band_of(tri, [&](uint32_t b) { listed[next[b]++] = uint32_t(tri); });
+    }
+  }
   // Each column's hits top down; the surfaces kept (at least merge_distance
   // apart, at most `layers`) go to fn(layer, hit, height above); returns
   // whether some were left over.
@@ -112,15 +137,13 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
   };
   parallel_for(band_count, [&](size_t b) {
     Band& band = bands[b];
-    band.j0 = int(b * size_t(grid.height) / band_count);
-    band.j1 = int((b + 1) * size_t(grid.height) / band_count);
     const size_t first = size_t(band.j0) * width;
     const size_t band_texels = size_t(band.j1 - band.j0) * width;
     std::vector<TexelHit> found;
-    for (size_t tri = 0; tri < triangle_count; ++tri) {
+    for (size_t at = listed_start[b]; at < listed_start[b + 1]; ++at) {
+      const size_t tri = listed[at];
       const Box& r = box[tri];
       const int j0 = std::max(r.j0, band.j0), j1 = std::min(r.j1, band.j1 - 1);
-      if (r.i0 > r.i1 || j0 > j1) continue;
       const glm::dvec3 a(scene.positions[3 * tri]);
       const glm::dvec3 b(scene.positions[3 * tri + 1]);
       const glm::dvec3 c(scene.positions[3 * tri + 2]);
