@@ -35,6 +35,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/parallel.h"
 
 namespace snow {
 namespace {
@@ -315,6 +316,10 @@ bool extension_supported_when_required(const std::string& name) {
 }
 
 // ---------------------------------------------------------------------------
+
+// Vertices or triangles per task of the loops that put a primitive's
+// triangles into the scene.
+constexpr size_t kLoadChunk = size_t(1) << 15;
 
 struct BufferSlot {
   bool loaded = false;
@@ -1544,23 +1549,33 @@ class GltfLoader {
                                              glm::cross(linear[2], linear[0]),
                                              glm::cross(linear[0], linear[1])) *
                                   sign);
+    // Vertices, then triangles, in chunks on all cores; each chunk writes its
+    // own elements, and what it finds (the first vertex not finite, its kept
+    // triangles, their bounds) is combined in chunk order, so the scene is
+    // the same on any number of cores.
     const size_t vertex_count = g.positions.size();
+    const size_t vertex_chunks = (vertex_count + kLoadChunk - 1) / kLoadChunk;
     wp.resize(vertex_count);
-    for (size_t v = 0; v < vertex_count; ++v) {
-      const glm::dvec3 p = glm::dvec3(world * glm::dvec4(glm::dvec3(g.positions[v]), 1.0));
-      wp[v] = glm::vec3(p);
-      if (!std::isfinite(wp[v].x) || !std::isfinite(wp[v].y) || !std::isfinite(wp[v].z))
-        fail(node_label(instance.node) + ": vertex " + std::to_string(v) + " of " +
-             mesh_label(instance.mesh) + " is not finite in world space");
-    }
+    std::vector<size_t> not_finite(vertex_chunks, SIZE_MAX);  // per chunk, the first
     const bool has_normals = !g.normals.empty();
-    if (has_normals) {
-      wn.resize(vertex_count);
-      for (size_t v = 0; v < vertex_count; ++v) {
+    if (has_normals) wn.resize(vertex_count);
+    parallel_for_ranges(vertex_count, kLoadChunk, [&](size_t begin, size_t end) {
+      for (size_t v = begin; v < end; ++v) {
+        const glm::dvec3 p = glm::dvec3(world * glm::dvec4(glm::dvec3(g.positions[v]), 1.0));
+        wp[v] = glm::vec3(p);
+        if (!std::isfinite(wp[v].x) || !std::isfinite(wp[v].y) || !std::isfinite(wp[v].z)) {
+          not_finite[begin / kLoadChunk] = std::min(not_finite[begin / kLoadChunk], v);
+        }
+        if (!has_normals) continue;
         const glm::vec3 n = normal_matrix * g.normals[v];
         const float length = glm::length(n);
         wn[v] = length > 1e-30f && std::isfinite(length) ? n / length : glm::vec3(0.0f);
       }
+    });
+    for (const size_t v : not_finite) {
+      if (v == SIZE_MAX) continue;
+      fail(node_label(instance.node) + ": vertex " + std::to_string(v) + " of " +
+           mesh_label(instance.mesh) + " is not finite in world space");
     }
     const bool has_uvs = !g.uvs.empty();
     if (has_uvs && scene_.uvs.empty() && !scene_.positions.empty())
@@ -1575,39 +1590,73 @@ class GltfLoader {
     object.primitive = primitive;
     object.material = g.material;
     object.first_triangle = uint32_t(scene_.triangle_count());
-    uint64_t kept = 0;
-    for (uint64_t t = 0; t < triangle_count; ++t) {
-      uint32_t a = g.triangles[3 * t], b = g.triangles[3 * t + 1], c = g.triangles[3 * t + 2];
-      if (flip) std::swap(b, c);
-      if (a == b || b == c || a == c) {
-        ++scene_.stats.degenerate_dropped;
-        continue;
-      }
-      const glm::vec3 pa = wp[a], pb = wp[b], pc = wp[c];
+    // Triangle t's corners as wound in world space, or false where it is
+    // degenerate: a repeated index, or zero area (the height is below 1e-7
+    // of the longest edge).
+    const auto corners = [&](uint64_t t, uint32_t(&v)[3]) {
+      v[0] = g.triangles[3 * t];
+      v[1] = g.triangles[3 * t + 1];
+      v[2] = g.triangles[3 * t + 2];
+      if (flip) std::swap(v[1], v[2]);
+      if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) return false;
+      const glm::vec3 pa = wp[v[0]], pb = wp[v[1]], pc = wp[v[2]];
       const glm::dvec3 e0 = glm::dvec3(pb - pa), e1 = glm::dvec3(pc - pa), e2 = glm::dvec3(pc - pb);
       const glm::dvec3 cross = glm::cross(e0, e1);
       const double area2 = glm::dot(cross, cross);
       const double longest2 = std::max({glm::dot(e0, e0), glm::dot(e1, e1), glm::dot(e2, e2)});
-      // Zero area: the height is below 1e-7 of the longest edge.
-      if (!(area2 > 1e-14 * longest2 * longest2)) {
-        ++scene_.stats.degenerate_dropped;
-        continue;
+      return area2 > 1e-14 * longest2 * longest2;
+    };
+    const size_t chunks = size_t((triangle_count + kLoadChunk - 1) / kLoadChunk);
+    std::vector<size_t> chunk_kept(chunks + 1, 0);  // then each chunk's first output triangle
+    parallel_for(chunks, [&](size_t c) {
+      uint32_t v[3];
+      for (uint64_t t = c * kLoadChunk;
+           t < std::min<uint64_t>(triangle_count, (c + 1) * kLoadChunk); ++t) {
+        chunk_kept[c + 1] += corners(t, v);
       }
-      scene_.positions.push_back(pa);
-      scene_.positions.push_back(pb);
-      scene_.positions.push_back(pc);
-      scene_.bounds.extend(pa);
-      scene_.bounds.extend(pb);
-      scene_.bounds.extend(pc);
-      ++kept;
-      if (!settings_.shading) continue;
-      const glm::vec3 face = glm::vec3(cross / std::sqrt(area2));
-      for (uint32_t v : {a, b, c}) {
-        glm::vec3 n = face;
-        if (has_normals && (wn[v].x != 0.0f || wn[v].y != 0.0f || wn[v].z != 0.0f)) n = wn[v];
-        scene_.normals.push_back(n);
-        if (write_uvs) scene_.uvs.push_back(has_uvs ? g.uvs[v] : glm::vec2(0.0f));
+    });
+    for (size_t c = 0; c < chunks; ++c) chunk_kept[c + 1] += chunk_kept[c];
+    const uint64_t kept = chunk_kept[chunks];
+    scene_.stats.degenerate_dropped += triangle_count - kept;
+    const size_t out = scene_.positions.size();
+    scene_.positions.resize(out + 3 * kept);
+    if (settings_.shading) {
+      scene_.normals.resize(out + 3 * kept);
+      if (write_uvs) scene_.uvs.resize(out + 3 * kept);
+    }
+    std::vector<Bounds> chunk_bounds(chunks);
+    parallel_for(chunks, [&](size_t c) {
+      size_t at = out + 3 * chunk_kept[c];
+      uint32_t v[3];
+      for (uint64_t t = c * kLoadChunk;
+           t < std::min<uint64_t>(triangle_count, (c + 1) * kLoadChunk); ++t) {
+        if (!corners(t, v)) continue;
+        glm::vec3 face(0.0f);
+        if (settings_.shading) {
+          const glm::dvec3 cross =
+              glm::cross(glm::dvec3(wp[v[1]] - wp[v[0]]), glm::dvec3(wp[v[2]] - wp[v[0]]));
+          face = glm::vec3(cross / std::sqrt(glm::dot(cross, cross)));
+        }
+        for (const uint32_t corner : v) {
+          scene_.positions[at] = wp[corner];
+          chunk_bounds[c].extend(wp[corner]);
+          if (settings_.shading) {
+            glm::vec3 n = face;
+            if (has_normals &&
+                (wn[corner].x != 0.0f || wn[corner].y != 0.0f || wn[corner].z != 0.0f)) {
+              n = wn[corner];
+            }
+            scene_.normals[at] = n;
+            if (write_uvs) scene_.uvs[at] = has_uvs ? g.uvs[corner] : glm::vec2(0.0f);
+          }
+          ++at;
+        }
       }
+    });
+    for (const Bounds& b : chunk_bounds) {
+      if (b.empty()) continue;
+      scene_.bounds.extend(b.min);
+      scene_.bounds.extend(b.max);
     }
     if (kept == 0) return;
     if (scene_.triangle_count() > UINT32_MAX) fail("the scene has more than 2^32 triangles");
