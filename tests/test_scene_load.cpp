@@ -340,6 +340,47 @@ TEST_F(SceneLoad, MirroredNodeKeepsCounterClockwiseFacing) {
   }
 }
 
+// A primitive of many triangles is put into the scene in chunks on all
+// cores: the degenerate ones (here every 1000th repeats an index, across
+// the chunks' borders) are dropped, the rest keep their order and winding
+// (a mirrored node flips each), and the bounds hold them all.
+TEST_F(SceneLoad, LargePrimitiveKeepsItsTrianglesInOrder) {
+  constexpr uint32_t kCount = 100000;
+  std::vector<glm::vec3> p;
+  std::vector<uint32_t> idx;
+  for (uint32_t t = 0; t < kCount; ++t) {
+    const float x = float(t % 400), z = float(t / 400);
+    p.insert(p.end(), {{x, 0.001f * float(t), z}, {x, 0.0f, z + 1.0f}, {x + 1.0f, 0.0f, z}});
+    const uint32_t v = 3 * t;
+    if (t % 1000 == 999) {
+      idx.insert(idx.end(), {v, v, v + 2});
+    } else {
+      idx.insert(idx.end(), {v, v + 1, v + 2});
+    }
+  }
+  Gltf g;
+  const int mesh = g.mesh(json::array(
+      {{{"attributes", {{"POSITION", g.positions(p)}}}, {"indices", g.indices32(idx)}}}));
+  g.scene({g.node({{"mesh", mesh}, {"scale", {-1, 1, 1}}})});
+  for (const bool shading : {false, true}) {
+    snow::LoadSettings settings;
+    settings.shading = shading;
+    const snow::Scene s = snow::load_scene(g.write_glb(dir_, "large"), settings);
+    ASSERT_EQ(s.triangle_count(), kCount - kCount / 1000);
+    EXPECT_EQ(s.stats.degenerate_dropped, kCount / 1000);
+    EXPECT_EQ(s.normals.size(), shading ? s.positions.size() : 0u);
+    uint32_t t = 0;
+    for (size_t k = 0; k < s.triangle_count(); ++k, ++t) {
+      if (t % 1000 == 999) ++t;  // dropped
+      const glm::vec3 a = p[3 * t];
+      ASSERT_EQ(s.positions[3 * k], glm::vec3(-a.x, a.y, a.z)) << k;
+      ASSERT_EQ(s.positions[3 * k + 1].x, -(a.x + 1.0f)) << k;  // mirrored: b and c swap
+    }
+    EXPECT_EQ(s.bounds.min, glm::vec3(-400.0f, 0.0f, 0.0f));
+    EXPECT_EQ(s.bounds.max, glm::vec3(0.0f, 0.001f * float(kCount - 2), float(kCount / 400)));
+  }
+}
+
 // What a load reads, judged before it (the batch job starts a GPU's driver
 // early only for large inputs): a .glb's size, a .gltf's plus the .bin files
 // beside it; 0 for a missing file.
