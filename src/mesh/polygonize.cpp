@@ -583,7 +583,16 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const std::vector<fl
       }
     }
   }
-  // The clusters' texels join their patches.
+  // The clusters' texels join their patches, each patch's list grown once
+  // (a 4M-texel ground grown by doubling: 0.13-0.16 s of copies and fresh
+  // pages on 2 cores).
+  std::vector<size_t> joining(patches.size(), 0);
+  for (size_t c = 0; c < per_layer; ++c) {
+    if (clustered[c]) ++joining[size_t(cluster_patch[cluster[c]])];
+  }
+  for (size_t p = 0; p < patches.size(); ++p) {
+    patches[p].texels.reserve(patches[p].texels.size() + joining[p]);
+  }
   for (size_t c = 0; c < per_layer; ++c) {
     if (clustered[c]) patches[size_t(cluster_patch[cluster[c]])].texels.push_back(c);
   }
