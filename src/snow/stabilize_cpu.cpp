@@ -83,11 +83,13 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
   const size_t columns = size_t(width_) * size_t(height_);
   column_layers_.assign(columns, 0);
   column_sent_.assign(columns, 0);
-  for (size_t c = 0; c < columns; ++c) {
-    int l = 0;
-    while (l < layers_ && (cell_flags(cells_[size_t(l) * columns + c]) & kCellSurface)) ++l;
-    column_layers_[c] = uint8_t(l);
-  }
+  parallel_for_ranges(columns, kSumChunk, [&](size_t begin, size_t end) {
+    for (size_t c = begin; c < end; ++c) {
+      int l = 0;
+      while (l < layers_ && (cell_flags(cells_[size_t(l) * columns + c]) & kCellSurface)) ++l;
+      column_layers_[c] = uint8_t(l);
+    }
+  });
   tiles_x_ = (width_ + kTile - 1) / kTile;
   tiles_y_ = (height_ + kTile - 1) / kTile;
   const size_t tiles = size_t(tiles_x_) * size_t(tiles_y_);
@@ -210,18 +212,23 @@ void CpuStabilizer::add_snow(const std::vector<float>& amount, float scale) {
                      " entries, the maps have " + std::to_string(cells_.size()) + " layer texels");
   }
   // Mirrors shaders/stabilize_add.frag.
-  for (size_t k = 0; k < cells_.size(); ++k) {
-    const float add = amount[k] * scale;
-    if ((cell_flags(cells_[k]) & kCellSurface) && add > 0.0f) depth_[k] = depth_[k] + add;
-  }
+  parallel_for_ranges(cells_.size(), kSumChunk, [&](size_t begin, size_t end) {
+    for (size_t k = begin; k < end; ++k) {
+      const float add = amount[k] * scale;
+      if ((cell_flags(cells_[k]) & kCellSurface) && add > 0.0f) depth_[k] = depth_[k] + add;
+    }
+  });
   touch_all();
   route_pending_ = true;
   schedule_.restart();
 }
 
 double CpuStabilizer::lost_volume() const {
-  double sum = 0.0;
-  for (float v : lost_) sum += double(v);
+  const double sum = parallel_sum(lost_.size(), kSumChunk, [&](size_t begin, size_t end) {
+    double part = 0.0;
+    for (size_t k = begin; k < end; ++k) part += double(lost_[k]);
+    return part;
+  });
   return sum * double(texel_) * double(texel_);
 }
 
@@ -843,10 +850,13 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
 }
 
 double CpuStabilizer::snow_volume() const {
-  double sum = 0.0;
-  for (size_t k = 0; k < depth_.size(); ++k) {
-    if (cell_flags(cells_[k]) & kCellSurface) sum += double(depth_[k]);
-  }
+  const double sum = parallel_sum(depth_.size(), kSumChunk, [&](size_t begin, size_t end) {
+    double part = 0.0;
+    for (size_t k = begin; k < end; ++k) {
+      if (cell_flags(cells_[k]) & kCellSurface) part += double(depth_[k]);
+    }
+    return part;
+  });
   return sum * double(texel_) * double(texel_);
 }
 
