@@ -396,9 +396,12 @@ TEST(Cli, SmallScenesInSoftwareNeedNoGl) {
   EXPECT_EQ(cpu.output.find("OpenGL:"), std::string::npos) << cpu.output;
   EXPECT_EQ(cpu.output.find("GL context"), std::string::npos) << cpu.output;
   EXPECT_NE(cpu.output.find("on the CPU; stabilizer"), std::string::npos) << cpu.output;
+  EXPECT_NE(cpu.output.find("passes on the CPU; OpenGL not started"), std::string::npos)
+      << cpu.output;
   const RunResult gl = run(common + " --coverage-method shadow-maps -o " + q(dir / "gl.glb"));
   ASSERT_EQ(gl.code, 0) << gl.output;
   EXPECT_NE(gl.output.find("OpenGL:"), std::string::npos) << gl.output;
+  EXPECT_EQ(gl.output.find("OpenGL not started"), std::string::npos) << gl.output;
   EXPECT_EQ(gl.output.find("OpenGL:"), gl.output.rfind("OpenGL:")) << gl.output;
   EXPECT_NE(gl.output.find("coverage by shadow maps;"), std::string::npos) << gl.output;
 }

@@ -505,14 +505,15 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
       summary, sizeof summary,
       "summary: %.2f s (%s); peak memory %.0f MiB; triangles in %zu, snow out %zu in %zu "
       "patches; snow %.3f m^3 (fell %.3f, lost off the domain %.3f); coverage by %s; stabilizer "
-      "%d passes on the %s",
+      "%d passes on the %s%s",
       total, timing.c_str(), peak_memory_mib(), triangles_in, triangles_out, patches.size(),
       snow.volume, snow.fallen_volume, snow.lost_volume,
       snow.coverage_method == CoverageMethod::CpuRays         ? "rays on the CPU"
       : snow.coverage_method == CoverageMethod::GpuRays       ? "rays on the GPU"
       : snow.coverage_method == CoverageMethod::CpuShadowMaps ? "shadow maps on the CPU"
                                                               : "shadow maps",
-      snow.iterations, snow.stabilized_on_cpu ? "CPU" : "GPU");
+      snow.iterations, snow.stabilized_on_cpu ? "CPU" : "GPU",
+      gl::context_made() ? "" : "; OpenGL not started");
   log_info(summary);
 }
 
