@@ -130,9 +130,9 @@ constexpr uint64_t kWarmUpInputBytes = uint64_t(16) << 20;
 /// passes may all run on the CPU before it (peels_on_cpu,
 /// choose_coverage_method), and the process would wait for the warm-up.
 std::future<void> warm_up_gl(const GlobalOptions& global, gl::Backend backend,
-                             std::optional<bool> software, uint64_t input) {
+                             std::optional<bool> software, const std::string& input) {
   if (backend == gl::Backend::Glfw || software == true) return {};
-  if (software == false && input < kWarmUpInputBytes) return {};
+  if (software == false && gltf_input_bytes(input) < kWarmUpInputBytes) return {};
   return std::async(std::launch::async, [&global] {
     const QuietThread quiet;
     try {
@@ -364,7 +364,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   std::future<std::optional<bool>> probed = std::async(std::launch::async, [&] {
     const std::optional<bool> software =
         backend == gl::Backend::Auto ? gl::probe_software(context_options) : std::nullopt;
-    warm_gl = warm_up_gl(global, backend, software, gltf_input_bytes(o.input));
+    warm_gl = warm_up_gl(global, backend, software, o.input);
     return software;
   });
   // Textures, normals and UVs only show in the preview (ToyCar's textures:
