@@ -1789,10 +1789,13 @@ uint64_t gltf_input_bytes(const std::filesystem::path& path) {
   if (extension_is(path, ".gltf")) {
     const std::filesystem::path folder =
         path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
-    for (const auto& entry : std::filesystem::directory_iterator(folder, error)) {
+    // Never throws: a folder that cannot be listed, or changes meanwhile,
+    // counts what was seen.
+    for (std::filesystem::directory_iterator it(folder, error), end; !error && it != end;
+         it.increment(error)) {
       std::error_code size_error;
-      if (!extension_is(entry.path(), ".bin")) continue;
-      const uintmax_t size = entry.file_size(size_error);
+      if (!extension_is(it->path(), ".bin")) continue;
+      const uintmax_t size = it->file_size(size_error);
       if (!size_error) bytes += size;
     }
   }
