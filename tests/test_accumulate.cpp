@@ -90,7 +90,7 @@ TEST(Accumulate, SmallSceneOnAColdGpuMakesNoContext) {
   const SnowResult r = accumulate(scene, maps, CoverageSettings{}, StabilizeSettings{}, settings);
   EXPECT_FALSE(gpu.made());
   EXPECT_GT(r.volume, 0.0);
-  peel.max_side = 1024;  // about 0.9M texel centres in the triangles' boxes
+  peel.max_side = 1024;  // the floor alone: about a million texel centres in its boxes
   EXPECT_THROW(peel_layers(scene, peel), std::logic_error);
 }
 
