@@ -82,4 +82,13 @@ struct Scene {
   int object_of_triangle(size_t t) const;
 };
 
+/// Per triangle, as the peels write them into the maps: the unit geometric
+/// normal as wound (worked out in double; 0 for a degenerate triangle) and
+/// the object index (-1 where no object's range holds it). On all cores.
+struct TriangleAttributes {
+  std::vector<glm::vec3> normal;
+  std::vector<int32_t> object;
+};
+TriangleAttributes triangle_attributes(const Scene& scene);
+
 }  // namespace snow

@@ -250,8 +250,7 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
 
   SnowMaps maps;
   std::vector<glm::uvec2> surface;  // readback: (height bits, triangle)
-  std::vector<glm::vec3> tri_normal;
-  std::vector<int32_t> tri_object;
+  TriangleAttributes triangles;     // normal and object, as written into the maps
   try {
     // Layers are added as passes find surfaces, in capacity reserved for
     // all L: the layers a scene does not fill are never touched (8 layers of
@@ -259,8 +258,7 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
     maps.allocate(grid, 0);
     maps.reserve_layers(settings.layers);
     surface.resize(grid.texels());
-    tri_normal.resize(scene.triangle_count());
-    tri_object.assign(scene.triangle_count(), -1);
+    triangles = triangle_attributes(scene);
   } catch (const std::bad_alloc&) {
     throw InputError("out of memory allocating maps of " + std::to_string(grid.width) + " x " +
                      std::to_string(grid.height) + " texels x " + std::to_string(settings.layers) +
@@ -270,26 +268,8 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
     maps.add_layer();
     return maps;
   }
-  // Per triangle: unit geometric normal as wound, and object index. The
-  // loops over triangles and texels below run on all cores (each writes its
-  // own elements).
+  // Each read-back layer's texels are written on all cores.
   constexpr size_t kChunk = 1 << 14;
-  parallel_for_ranges(tri_normal.size(), kChunk, [&](size_t begin, size_t end) {
-    for (size_t t = begin; t < end; ++t) {
-      const glm::dvec3 a(scene.positions[3 * t]);
-      const glm::dvec3 n = glm::cross(glm::dvec3(scene.positions[3 * t + 1]) - a,
-                                      glm::dvec3(scene.positions[3 * t + 2]) - a);
-      const double len = glm::length(n);
-      tri_normal[t] = len > 0 ? glm::vec3(n / len) : glm::vec3(0.0f);
-    }
-  });
-  for (size_t o = 0; o < scene.objects.size(); ++o) {
-    const SceneObject& obj = scene.objects[o];
-    for (uint32_t k = 0; k < obj.triangle_count && obj.first_triangle + k < tri_object.size();
-         ++k) {
-      tri_object[obj.first_triangle + k] = int32_t(o);
-    }
-  }
 
   GlStateGuard state;
   GpuScene gpu(scene);
@@ -377,10 +357,10 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
       for (size_t t = begin; t < end; ++t) {
         const glm::uvec2& s = surface[t];
         const uint32_t tri = s.y;
-        if (s.x == empty_bits || tri >= tri_normal.size()) continue;
+        if (s.x == empty_bits || tri >= triangles.normal.size()) continue;
         maps.ground[base + t] = height_of(s.x);
-        maps.normal[base + t] = tri_normal[tri];
-        maps.object[base + t] = tri_object[tri];
+        maps.normal[base + t] = triangles.normal[tri];
+        maps.object[base + t] = triangles.object[tri];
         if (l > 0) maps.ceiling[base + t] = maps.ground[base - texels + t];
       }
     });

@@ -40,23 +40,19 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
   const size_t triangle_count = scene.triangle_count();
   const size_t width = size_t(grid.width);
 
-  // Per triangle: the texel box its centres can fall in (i0 > i1 or j0 > j1:
-  // none, as for a triangle seen edge-on), its unit normal (as wound) and
-  // object, as the GPU pass uploads them. On all cores.
+  // Per triangle: its normal and object, as the GPU pass writes them, and
+  // the texel box its centres can fall in (i0 > i1 or j0 > j1: none, as for
+  // a triangle seen edge-on), on all cores.
+  const TriangleAttributes triangles = triangle_attributes(scene);
   struct Box {
     int i0, i1, j0, j1;
   };
   std::vector<Box> box(triangle_count);
-  std::vector<glm::vec3> tri_normal(triangle_count);
-  std::vector<int32_t> tri_object(triangle_count, -1);
   parallel_for_ranges(triangle_count, kTriangleChunk, [&](size_t begin, size_t end) {
     for (size_t tri = begin; tri < end; ++tri) {
       const glm::dvec3 a(scene.positions[3 * tri]);
       const glm::dvec3 b(scene.positions[3 * tri + 1]);
       const glm::dvec3 c(scene.positions[3 * tri + 2]);
-      const glm::dvec3 n = glm::cross(b - a, c - a);
-      const double len = glm::length(n);
-      tri_normal[tri] = len > 0 ? glm::vec3(n / len) : glm::vec3(0.0f);
       // Signed doubled area of the xz projection; 0: seen edge-on, no hit.
       const double area = (b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z);
       if (area == 0.0 || !std::isfinite(area)) {
@@ -72,12 +68,6 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
                   std::min(grid.height - 1, int(std::floor((max_z - oz) / t - 0.5)))};
     }
   });
-  for (size_t o = 0; o < scene.objects.size(); ++o) {
-    const SceneObject& obj = scene.objects[o];
-    for (uint32_t k = 0; k < obj.triangle_count && obj.first_triangle + k < triangle_count; ++k) {
-      tri_object[obj.first_triangle + k] = int32_t(o);
-    }
-  }
 
   // Each band of rows gathers the hits of the triangles whose boxes meet it
   // into one array, grouped by texel (counting sort: texel t's are
@@ -200,8 +190,8 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
         const size_t k = maps.index(layer, i, j);
         maps.ground[k] = hit.y;
         maps.ceiling[k] = above;
-        maps.normal[k] = tri_normal[hit.triangle];
-        maps.object[k] = tri_object[hit.triangle];
+        maps.normal[k] = triangles.normal[hit.triangle];
+        maps.object[k] = triangles.object[hit.triangle];
       });
     }
   });
