@@ -571,6 +571,56 @@ TEST(Coverage, AutomaticMethodCastsRaysWhereReceiversAreFew) {
 // house's roof ridges kept 12516. With the shadow maps' bias (a quarter
 // texel) the cull took 5 texels of the table's floor that the reference
 // finds shaded.
+// CPU shadow maps settle runs of neighbouring receivers at once where the
+// texels they read bound every receiver's plane (classify_run_on_cpu): the
+// counts are those of classifying each receiver alone, bit for bit, in calm
+// and wind, with the snow surface drawn too, and on the bundled courtyard.
+TEST(Coverage, ReceiverRunsCountAsEachReceiverAlone) {
+  REQUIRE_GL();  // for the peel
+  struct Run {
+    std::string name;
+    Scene scene;
+    int side;
+    glm::vec2 wind;
+    bool snow;
+  };
+  std::vector<Run> runs;
+  for (Case& c : canned_cases()) runs.push_back({c.name, std::move(c.scene), 96, c.wind, false});
+  runs.push_back(
+      {"table, snow on snow", make_table_scene(0.75f, 1.0f, 4.0f), 96, {0.3f, 0.0f}, true});
+  runs.push_back(
+      {"courtyard",
+       load_scene(std::filesystem::path(SNOW_SOURCE_DIR) / "assets/scenes/courtyard.glb"),
+       256,
+       {0.0f, 0.0f},
+       false});
+  for (const Run& run : runs) {
+    SCOPED_TRACE(run.name);
+    const SnowMaps maps = peel(run.scene, run.side);
+    std::vector<float> depth(maps.ground.size(), 0.0f);
+    for (size_t k = 0; k < depth.size(); ++k) {
+      if (!std::isnan(maps.ground[k])) depth[k] = 0.1f;
+    }
+    CoverageSettings s;
+    s.wind = run.wind;
+    s.method = "cpu-shadow-maps";
+    CoverageRenderer renderer(run.scene);
+    const std::vector<float> by_runs = renderer.compute(maps, s, run.snow ? &depth : nullptr);
+    const CoverageRenderer::Timings t = renderer.timings();
+    ASSERT_EQ(t.method, CoverageMethod::CpuShadowMaps);
+    renderer.set_run_bounds(false);
+    const std::vector<float> alone = renderer.compute(maps, s, run.snow ? &depth : nullptr);
+    EXPECT_EQ(renderer.timings().settled, 0u);
+    ASSERT_EQ(by_runs.size(), alone.size());
+    EXPECT_EQ(std::memcmp(by_runs.data(), alone.data(), alone.size() * sizeof(float)), 0);
+    std::printf("%-20s %llu of %llu pairs settled by runs\n", run.name.c_str(),
+                (unsigned long long)t.settled, (unsigned long long)t.pairs);
+    if (t.pairs > 0) {
+      EXPECT_GT(t.settled, t.pairs / 2);  // the runs do most of the work
+    }
+  }
+}
+
 TEST(Coverage, SkyCullSkipsOnlyOpenReceivers) {
   REQUIRE_GL();
   const Scene scenes[] = {make_table_scene(0.75f, 1.0f, 4.0f), make_house_scene(45.0f, 0.5f),

@@ -216,10 +216,15 @@ class CoverageRenderer {
     uint64_t queued = 0;   // receivers sent to the exact pass, summed over batches (profiling;
                            // CPU shadow maps: the uncertain pairs cast exactly)
     uint64_t pairs = 0;    // (receiver, direction) pairs classified
+    uint64_t settled = 0;  // CPU shadow maps: pairs settled by runs of receivers at once
     CoverageMethod method = CoverageMethod::ShadowMaps;
   };
   const Timings& timings() const;
   void set_profiling(bool on);
+  /// CPU shadow maps: settle runs of neighbouring receivers at once where
+  /// their texels bound them (the default), or classify every receiver
+  /// alone, for comparisons. The same coverage either way.
+  void set_run_bounds(bool on);
   /// Size (texels) of each shadow map in the last compute().
   glm::ivec2 shadow_map_size() const;
   /// How the scene's BVH was built (see the constructor).
