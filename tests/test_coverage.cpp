@@ -572,9 +572,11 @@ TEST(Coverage, AutomaticMethodCastsRaysWhereReceiversAreFew) {
 // texel) the cull took 5 texels of the table's floor that the reference
 // finds shaded.
 // CPU shadow maps settle runs of neighbouring receivers at once where the
-// texels they read bound every receiver's plane (classify_run_on_cpu): the
-// counts are those of classifying each receiver alone, bit for bit, in calm
-// and wind, with the snow surface drawn too, and on the bundled courtyard.
+// texels they read bound every receiver's plane (classify_run_on_cpu), and
+// where triangles outnumber the runs draw only those near texels the
+// receivers read: the counts are those of classifying each receiver alone
+// on whole maps, bit for bit, in calm and wind, with the snow surface drawn
+// too, on a terrain of many triangles and on the bundled courtyard.
 TEST(Coverage, ReceiverRunsCountAsEachReceiverAlone) {
   REQUIRE_GL();  // for the peel
   struct Run {
@@ -588,6 +590,9 @@ TEST(Coverage, ReceiverRunsCountAsEachReceiverAlone) {
   for (Case& c : canned_cases()) runs.push_back({c.name, std::move(c.scene), 96, c.wind, false});
   runs.push_back(
       {"table, snow on snow", make_table_scene(0.75f, 1.0f, 4.0f), 96, {0.3f, 0.0f}, true});
+  // Many small triangles, few receivers left: each map draws only the
+  // triangles near those.
+  runs.push_back({"terrain", make_terrain(20000).build(), 256, {0.2f, 0.1f}, false});
   runs.push_back(
       {"courtyard",
        load_scene(std::filesystem::path(SNOW_SOURCE_DIR) / "assets/scenes/courtyard.glb"),
@@ -611,11 +616,16 @@ TEST(Coverage, ReceiverRunsCountAsEachReceiverAlone) {
     renderer.set_run_bounds(false);
     const std::vector<float> alone = renderer.compute(maps, s, run.snow ? &depth : nullptr);
     EXPECT_EQ(renderer.timings().settled, 0u);
+    EXPECT_EQ(renderer.timings().left_out, 0u);
     ASSERT_EQ(by_runs.size(), alone.size());
     EXPECT_EQ(std::memcmp(by_runs.data(), alone.data(), alone.size() * sizeof(float)), 0);
-    std::printf("%-20s %llu of %llu pairs settled by runs\n", run.name.c_str(),
-                (unsigned long long)t.settled, (unsigned long long)t.pairs);
-    if (t.pairs > 0) {
+    std::printf("%-20s %llu of %llu pairs settled by runs, %llu triangles left out of maps\n",
+                run.name.c_str(), (unsigned long long)t.settled, (unsigned long long)t.pairs,
+                (unsigned long long)t.left_out);
+    if (run.name == "terrain") {
+      // Most of its triangles lie far from the receivers left.
+      EXPECT_GT(t.left_out, uint64_t(run.scene.triangle_count()) * 64 / 2);
+    } else if (t.pairs > 0) {
       EXPECT_GT(t.settled, t.pairs / 2);  // the runs do most of the work
     }
   }

@@ -589,6 +589,37 @@ constexpr uint32_t kNoTriangle = ~0u;
 // Texels a triangle's box spans along x from which its rows are drawn as runs.
 constexpr int kMinRun = 8;
 
+/// The tiles of kShift x kShift texels of a CPU shadow map that some
+/// receiver reads: a triangle whose box meets none of them is not drawn.
+struct TexelMask {
+  static constexpr int kShift = 4;
+  int tiles_x = 0, tiles_y = 0;
+  std::vector<uint8_t> on;
+
+  void reset(glm::ivec2 size) {
+    tiles_x = ((size.x - 1) >> kShift) + 1;
+    tiles_y = ((size.y - 1) >> kShift) + 1;
+    on.assign(size_t(tiles_x) * size_t(tiles_y), 0);
+  }
+  /// Marks texels [i0, i1] x [j0, j1].
+  void mark(int i0, int i1, int j0, int j1) {
+    for (int b = j0 >> kShift; b <= j1 >> kShift; ++b) {
+      std::fill_n(on.begin() + ptrdiff_t(size_t(b) * size_t(tiles_x) + size_t(i0 >> kShift)),
+                  (i1 >> kShift) - (i0 >> kShift) + 1, uint8_t(1));
+    }
+  }
+  /// Whether a tile of texels [i0, i1] x [j0, j1] is marked.
+  bool any(int i0, int i1, int j0, int j1) const {
+    for (int b = j0 >> kShift; b <= j1 >> kShift; ++b) {
+      const uint8_t* row = on.data() + size_t(b) * size_t(tiles_x);
+      for (int a = i0 >> kShift; a <= i1 >> kShift; ++a) {
+        if (row[a]) return true;
+      }
+    }
+    return false;
+  }
+};
+
 /// Draws a soup of triangles into a CPU shadow map: each texel keeps the
 /// highest surface at its centre along the direction's lines of fall (the
 /// depth test of the GL pass), and in `drawn` (unless empty) the index of
@@ -596,10 +627,17 @@ constexpr int kMinRun = 8;
 /// kNoTriangle), a likely occluder for the exact casts. A centre is drawn
 /// when it is inside or on
 /// the triangle's edges; the height is the triangle's plane in the sheared
-/// space, as GL interpolates depth. Triangles seen edge-on draw nothing.
-void draw_cpu_shadow_map(const std::vector<glm::vec3>& corners, const ShadowFrame& f,
-                         std::vector<float>& height, std::vector<uint32_t>& drawn, bool numbered) {
-  for (size_t t = 0; t + 2 < corners.size(); t += 3) {
+/// space, as GL interpolates depth. Triangles seen edge-on draw nothing, nor
+/// do those whose box meets no tile of `read` (given): no receiver reads
+/// their texels. Draws the soup's triangles [first, first + count). Returns
+/// how many `read` left out.
+size_t draw_cpu_shadow_map(const std::vector<glm::vec3>& corners, const ShadowFrame& f,
+                           std::vector<float>& height, std::vector<uint32_t>& drawn, bool numbered,
+                           const TexelMask* read = nullptr, size_t first = 0,
+                           size_t count = std::numeric_limits<size_t>::max()) {
+  size_t skipped = 0;
+  const size_t end = 3 * std::min(corners.size() / 3, first + std::min(count, corners.size()));
+  for (size_t t = 3 * first; t < end; t += 3) {
     glm::dvec2 q[3];
     double h[3];
     for (int e = 0; e < 3; ++e) {
@@ -617,6 +655,10 @@ void draw_cpu_shadow_map(const std::vector<glm::vec3>& corners, const ShadowFram
     const int i1 = floor_in(hi.x - 0.5, -1, f.size.x - 1);
     const int j1 = floor_in(hi.y - 0.5, -1, f.size.y - 1);
     if (i0 > i1 || j0 > j1) continue;
+    if (read && !read->any(i0, i1, j0, j1)) {
+      ++skipped;
+      continue;
+    }
     // Height h0 + gx (x - q0.x) + gy (y - q0.y); edge functions A x + B y +
     // C, >= 0 inside whichever way the triangle winds.
     const double gx = ((h[1] - h[0]) * e2.y - (h[2] - h[0]) * e1.y) / area;
@@ -690,6 +732,67 @@ void draw_cpu_shadow_map(const std::vector<glm::vec3>& corners, const ShadowFram
       for (int i = a; i <= b; ++i) draw(i, i + 0.5);
     }
   }
+  return skipped;
+}
+
+/// The share of the triangles a worker's first CPU shadow map must leave
+/// out for the worker to go on culling (TexelMask).
+constexpr double kCullShare = 0.25;
+
+/// The first triangle (leaf order) under node n of a BVH's nodes
+/// (`triangles`, the count, for n past the last node).
+size_t first_triangle(const std::vector<Bvh::Node>& nodes, size_t n, size_t triangles) {
+  if (n >= nodes.size()) return triangles;
+  while (nodes[n].count == 0) ++n;  // an inner node's left child follows it
+  return nodes[n].first;
+}
+
+/// draw_cpu_shadow_map of the BVH's triangles (numbered in leaf order), a
+/// subtree at a time: one whose box's texels (padded by one) lie off the
+/// map, or meet no tile of `read` (given), is left out whole, as each of
+/// its triangles would be. The others are drawn in leaf order, as the soup
+/// is, so ties keep the same triangle. Returns the triangles left out.
+size_t draw_cpu_shadow_map(const Bvh& bvh, const ShadowFrame& f, std::vector<float>& height,
+                           std::vector<uint32_t>& drawn, const TexelMask* read) {
+  const std::vector<Bvh::Node>& nodes = bvh.nodes();
+  const double a = f.params.x, b = f.params.y;
+  size_t skipped = 0;
+  for (size_t n = 0; n < nodes.size();) {
+    const Bvh::Node& node = nodes[n];
+    const double ay_lo = std::min(a * node.min.y, a * node.max.y);
+    const double ay_hi = std::max(a * node.min.y, a * node.max.y);
+    const double by_lo = std::min(b * node.min.y, b * node.max.y);
+    const double by_hi = std::max(b * node.min.y, b * node.max.y);
+    // Texel centres i + 0.5 inside the box's sheared shadow (texel_of).
+    const int i0 =
+        ceil_in((double(node.min.x) - f.params.z - ay_hi) * f.inv_st - 0.5, -2, f.size.x + 1) - 1;
+    const int i1 =
+        floor_in((double(node.max.x) - f.params.z - ay_lo) * f.inv_st - 0.5, -2, f.size.x + 1) + 1;
+    const int j0 =
+        ceil_in((double(node.min.z) - f.params.w - by_hi) * f.inv_st - 0.5, -2, f.size.y + 1) - 1;
+    const int j1 =
+        floor_in((double(node.max.z) - f.params.w - by_lo) * f.inv_st - 0.5, -2, f.size.y + 1) + 1;
+    const int ci0 = std::max(i0, 0), ci1 = std::min(i1, f.size.x - 1);
+    const int cj0 = std::max(j0, 0), cj1 = std::min(j1, f.size.y - 1);
+    const bool off = ci0 > ci1 || cj0 > cj1 || (read && !read->any(ci0, ci1, cj0, cj1));
+    if (node.count > 0) {  // leaf
+      if (off) {
+        skipped += node.count;
+      } else {
+        skipped += draw_cpu_shadow_map(bvh.corners(), f, height, drawn, true, read, node.first,
+                                       node.count);
+      }
+      ++n;
+    } else if (off) {
+      const size_t next = node.first;
+      skipped += first_triangle(nodes, next, bvh.triangle_count()) -
+                 first_triangle(nodes, n, bvh.triangle_count());
+      n = next;
+    } else {
+      ++n;
+    }
+  }
+  return skipped;
 }
 
 /// classify() of shaders/coverage_common.glsl on a CPU shadow map, for the
@@ -759,6 +862,37 @@ struct ReceiverRun {
 constexpr int kRunTexels = 4;
 constexpr size_t kRunsPerGroup = 4;
 
+/// Bounds [lo, hi] of classify_on_cpu's texel coordinates c (before their
+/// clamping) of the run's points on map f, padded for rounding; not finite
+/// for a run that is not bounded.
+inline void run_coordinates(const ShadowFrame& f, const ReceiverRun& run, glm::dvec2& lo,
+                            glm::dvec2& hi) {
+  constexpr double kPad = 1e-3;
+  const double a = f.params.x, b = f.params.y;
+  const double ay_lo = std::min(a * run.y_lo, a * run.y_hi),
+               ay_hi = std::max(a * run.y_lo, a * run.y_hi);
+  const double by_lo = std::min(b * run.y_lo, b * run.y_hi),
+               by_hi = std::max(b * run.y_lo, b * run.y_hi);
+  lo.x = (double(run.x_lo) - f.params.z - ay_hi) * f.inv_st - 0.5 - kPad;
+  hi.x = (double(run.x_hi) - f.params.z - ay_lo) * f.inv_st - 0.5 + kPad;
+  lo.y = (double(run.z_lo) - f.params.w - by_hi) * f.inv_st - 0.5 - kPad;
+  hi.y = (double(run.z_hi) - f.params.w - by_lo) * f.inv_st - 0.5 + kPad;
+}
+
+/// Marks in `read` the texels that classify_on_cpu reads for the run's
+/// receivers on map f (all of them for a run that is not bounded).
+inline void mark_run_texels(const ShadowFrame& f, const ReceiverRun& run, TexelMask& read) {
+  glm::dvec2 lo, hi;
+  run_coordinates(f, run, lo, hi);
+  if (!run.bounded || !std::isfinite(lo.x) || !std::isfinite(lo.y) || !std::isfinite(hi.x) ||
+      !std::isfinite(hi.y)) {
+    read.mark(0, f.size.x - 1, 0, f.size.y - 1);
+    return;
+  }
+  read.mark(floor_in(lo.x, 0, f.size.x - 2), floor_in(hi.x, 0, f.size.x - 2) + 1,
+            floor_in(lo.y, 0, f.size.y - 2), floor_in(hi.y, 0, f.size.y - 2) + 1);
+}
+
 /// What classify_on_cpu gives every receiver of a run on one map: all 0,
 /// all 15, or not known without classifying each.
 enum class RunVerdict { Lit, Blocked, Mixed };
@@ -783,16 +917,9 @@ inline RunVerdict classify_run_on_cpu(const std::vector<float>& height, const Sh
                                       const ReceiverRun& run, float bias) {
   if (!run.bounded) return RunVerdict::Mixed;
   const double a = f.params.x, b = f.params.y;
-  // Texel coordinates of the run's points (classify_on_cpu's c), padded.
-  constexpr double kPad = 1e-3;
-  const double ay_lo = std::min(a * run.y_lo, a * run.y_hi),
-               ay_hi = std::max(a * run.y_lo, a * run.y_hi);
-  const double by_lo = std::min(b * run.y_lo, b * run.y_hi),
-               by_hi = std::max(b * run.y_lo, b * run.y_hi);
-  const double cx_lo = (double(run.x_lo) - f.params.z - ay_hi) * f.inv_st - 0.5 - kPad;
-  const double cx_hi = (double(run.x_hi) - f.params.z - ay_lo) * f.inv_st - 0.5 + kPad;
-  const double cy_lo = (double(run.z_lo) - f.params.w - by_hi) * f.inv_st - 0.5 - kPad;
-  const double cy_hi = (double(run.z_hi) - f.params.w - by_lo) * f.inv_st - 0.5 + kPad;
+  glm::dvec2 lo, hi;
+  run_coordinates(f, run, lo, hi);
+  const double cx_lo = lo.x, cx_hi = hi.x, cy_lo = lo.y, cy_hi = hi.y;
   if (!(cx_lo >= 0.0 && cy_lo >= 0.0 && cx_hi <= f.size.x - 2 && cy_hi <= f.size.y - 2)) {
     return RunVerdict::Mixed;  // a texel clamped at the map's edge, or not finite
   }
@@ -1025,7 +1152,8 @@ struct CoverageRenderer::Impl {
   Timings timings;
   glm::ivec2 shadow_size{0};  // of the last compute's shadow maps (0 without)
   bool profiling = false;
-  bool run_bounds = true;  // CPU shadow maps: runs of receivers settled at once
+  bool run_bounds = true;  // CPU shadow maps: runs of receivers settled at once, and only
+                           // the triangles they read drawn
 
   // CoverageMethod::CpuRays: the reference's casts (reference::compute_coverage)
   // for the receivers left, on all cores; with a snow surface its triangles
@@ -1093,8 +1221,8 @@ struct CoverageRenderer::Impl {
       const glm::vec3 n(glm::unpackHalf2x16(recv[r].z), glm::unpackHalf2x16(recv[r].w).x);
       points[r] = {p, n, double(n.x) * p.x + double(n.y) * p.y + double(n.z) * p.z};
     }
-    // Runs of receivers for classify_run_on_cpu, and groups of them (none
-    // with run_bounds off).
+    // Runs of receivers for classify_run_on_cpu (with run_bounds on), and
+    // groups of them.
     std::vector<ReceiverRun> runs, groups;
     std::vector<uint32_t> group_runs;  // first run of each group, then runs.size()
     const size_t texels = maps.grid.texels();
@@ -1103,7 +1231,7 @@ struct CoverageRenderer::Impl {
       return recv_index[r] / texels == recv_index[first] / texels && t.y == t0.y &&
              t.x - t0.x < span;
     };
-    for (size_t r = 0; r < recv.size() && run_bounds; ++r) {
+    for (size_t r = 0; r < recv.size(); ++r) {
       const Point& q = points[r];
       ReceiverRun run;
       run.r0 = uint32_t(r);
@@ -1143,7 +1271,18 @@ struct CoverageRenderer::Impl {
     std::vector<std::vector<float>> height(workers);
     std::vector<std::vector<uint32_t>> drawn(workers);  // triangle per texel
     std::vector<std::vector<uint16_t>> lit(workers);
-    std::vector<uint64_t> uncertain(workers, 0), settled(workers, 0);
+    std::vector<uint64_t> uncertain(workers, 0), settled(workers, 0), left_out(workers, 0);
+    // Where the triangles outnumber the groups of receivers, each map draws
+    // only those whose box meets a tile that a group reads, found through
+    // the BVH (the 100k-triangle terrain at 2048: 126k receivers left, in 9k
+    // groups; 95 % of the triangles left out, coverage 0.81 -> 0.58 s). Where
+    // a worker's first map leaves out less than kCullShare, the marking and
+    // the walk cost more than they save (SheenChair at 0.3 m: 40k
+    // triangles, receivers all over the chair), and it draws every triangle.
+    const bool masks =
+        run_bounds && bvh.triangle_count() + snow_triangles.size() / 3 >= groups.size();
+    std::vector<TexelMask> mask(masks ? workers : 0);
+    std::vector<uint8_t> cull_on(workers, 1);
     try {
       for (size_t w = 0; w < workers; ++w) {
         height[w].resize(size_t(size.x) * size_t(size.y));
@@ -1162,8 +1301,24 @@ struct CoverageRenderer::Impl {
           [&](size_t w) {
             for (size_t k = k0 + w; k < k1; k += workers) {
               std::fill(height[w].begin(), height[w].end(), kNoShadow);
-              draw_cpu_shadow_map(bvh.corners(), frames[k], height[w], drawn[w], true);
-              draw_cpu_shadow_map(snow_triangles, frames[k], height[w], drawn[w], false);
+              // Each worker culls its first map; it goes on culling only
+              // where that left out a good share of the triangles.
+              const bool cull = masks && cull_on[w];
+              TexelMask* read = nullptr;
+              if (cull) {
+                read = &mask[w];
+                read->reset(size);
+                for (const ReceiverRun& group : groups) mark_run_texels(frames[k], group, *read);
+              }
+              const size_t out =
+                  (cull
+                       ? draw_cpu_shadow_map(bvh, frames[k], height[w], drawn[w], read)
+                       : draw_cpu_shadow_map(bvh.corners(), frames[k], height[w], drawn[w], true)) +
+                  draw_cpu_shadow_map(snow_triangles, frames[k], height[w], drawn[w], false, read);
+              left_out[w] += out;
+              if (cull && k < workers) {
+                cull_on[w] = double(out) >= kCullShare * double(bvh.triangle_count());
+              }
               const glm::vec3 up = -dirs[k];  // the casts' ray, as reference::sees_sky's
               const size_t sx = size_t(size.x);
               uint32_t last = Bvh::kNone;
@@ -1208,11 +1363,10 @@ struct CoverageRenderer::Impl {
                 settled[w] += run.r1 - run.r0;
                 return true;
               };
-              if (groups.empty()) classify_each(0, points.size());
               for (size_t g = 0; g < groups.size(); ++g) {
-                if (settle(groups[g])) continue;
+                if (run_bounds && settle(groups[g])) continue;
                 for (size_t u = group_runs[g]; u < group_runs[g + 1]; ++u) {
-                  if (!settle(runs[u])) classify_each(runs[u].r0, runs[u].r1);
+                  if (!run_bounds || !settle(runs[u])) classify_each(runs[u].r0, runs[u].r1);
                 }
               }
             }
@@ -1226,6 +1380,7 @@ struct CoverageRenderer::Impl {
       coverage[recv_index[r]] = float(sum) / float(dirs.size());
     }
     timings.settled = std::accumulate(settled.begin(), settled.end(), uint64_t(0));
+    timings.left_out = std::accumulate(left_out.begin(), left_out.end(), uint64_t(0));
     return std::accumulate(uncertain.begin(), uncertain.end(), uint64_t(0));
   }
 };
@@ -1612,6 +1767,15 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
                                               recv_index, coverage, progress);
     im.timings.shadow = now_seconds() - t_start;
     im.timings.pairs = uint64_t(recv.size()) * uint64_t(k_count);
+    char line[200];
+    std::snprintf(
+        line, sizeof line,
+        "coverage: %.0f %% of the pairs settled by runs of receivers, %.0f %% cast "
+        "exactly; %.0f %% of the triangles left out of the maps",
+        100.0 * double(im.timings.settled) / double(im.timings.pairs),
+        100.0 * double(im.timings.queued) / double(im.timings.pairs),
+        100.0 * double(im.timings.left_out) / std::max(1.0, work.triangles * double(k_count)));
+    log_debug(line);
     progress.finish();
     return coverage;
   }

@@ -208,22 +208,25 @@ class CoverageRenderer {
   /// default; glFinish at every stage boundary stalls the pipeline) shadow
   /// holds shadow and counting together and composite is 0.
   struct Timings {
-    double setup = 0;      // receivers, buffers, uploads
-    double shadow = 0;     // K shadow-map depth passes
-    double composite = 0;  // counting: classification and exact ray casts (compute passes)
-    double readback = 0;   // one readback of the counts
-    uint64_t culled = 0;   // receivers open to the sky along every direction (no GPU work)
-    uint64_t queued = 0;   // receivers sent to the exact pass, summed over batches (profiling;
-                           // CPU shadow maps: the uncertain pairs cast exactly)
-    uint64_t pairs = 0;    // (receiver, direction) pairs classified
-    uint64_t settled = 0;  // CPU shadow maps: pairs settled by runs of receivers at once
+    double setup = 0;       // receivers, buffers, uploads
+    double shadow = 0;      // K shadow-map depth passes
+    double composite = 0;   // counting: classification and exact ray casts (compute passes)
+    double readback = 0;    // one readback of the counts
+    uint64_t culled = 0;    // receivers open to the sky along every direction (no GPU work)
+    uint64_t queued = 0;    // receivers sent to the exact pass, summed over batches (profiling;
+                            // CPU shadow maps: the uncertain pairs cast exactly)
+    uint64_t pairs = 0;     // (receiver, direction) pairs classified
+    uint64_t settled = 0;   // CPU shadow maps: pairs settled by runs of receivers at once
+    uint64_t left_out = 0;  // CPU shadow maps: triangles not drawn, far from what receivers
+                            // read, summed over the maps
     CoverageMethod method = CoverageMethod::ShadowMaps;
   };
   const Timings& timings() const;
   void set_profiling(bool on);
   /// CPU shadow maps: settle runs of neighbouring receivers at once where
-  /// their texels bound them (the default), or classify every receiver
-  /// alone, for comparisons. The same coverage either way.
+  /// their texels bound them, and draw only the triangles near texels that
+  /// receivers read (the default); or classify every receiver alone on
+  /// whole maps, for comparisons. The same coverage either way.
   void set_run_bounds(bool on);
   /// Size (texels) of each shadow map in the last compute().
   glm::ivec2 shadow_map_size() const;
