@@ -69,7 +69,8 @@ enum class CoverageMethod {
   ShadowMaps,     // a depth map per direction; exact GPU ray casts only near silhouettes
   GpuRays,        // every (receiver, direction) pair cast exactly by the GPU's compute pass
   CpuRays,        // the same casts on all CPU cores (snow::Bvh::occluded)
-  CpuShadowMaps,  // the shadow maps drawn, classified and cast on the CPU cores
+  CpuShadowMaps,  // the shadow maps drawn, classified and cast on the CPU cores (runs of
+                  // receivers settled at once; only triangles near them drawn)
 };
 
 /// What a coverage pass costs each way, in triangles drawn into one shadow
