@@ -482,6 +482,17 @@ TEST(Coverage, AutomaticMethodCastsRaysWhereReceiversAreFew) {
     EXPECT_EQ(choose_coverage_method(s, courtyard), CoverageMethod::ShadowMaps);
     EXPECT_EQ(choose_coverage_method(s, chair), CoverageMethod::ShadowMaps);
   }
+  // A terrain of many small triangles with few receivers left (the 1M one
+  // at 2048): every map drawing every triangle costs more than the rays,
+  // but a CPU map draws only the few near the receivers.
+  CoverageWork terrain;
+  terrain.triangles = 999890;
+  terrain.shadow_texels = 1700 * 534;
+  terrain.receivers = 125797;
+  terrain.software = true;
+  EXPECT_EQ(choose_coverage_method(s, terrain), CoverageMethod::CpuRays);
+  terrain.drawn = 40000;
+  EXPECT_EQ(choose_coverage_method(s, terrain), CoverageMethod::CpuShadowMaps);
   car.gl_cold = building.gl_cold = false;  // its driver started: the GPU
   EXPECT_EQ(choose_coverage_method(s, car), CoverageMethod::GpuRays);
   EXPECT_EQ(choose_coverage_method(s, building), CoverageMethod::ShadowMaps);
@@ -629,6 +640,23 @@ TEST(Coverage, ReceiverRunsCountAsEachReceiverAlone) {
       EXPECT_GT(t.settled, t.pairs / 2);  // the runs do most of the work
     }
   }
+}
+
+// "auto" judges the CPU shadow maps by the triangles they draw near the
+// receivers left: on a terrain of 200k small triangles, whose receivers
+// left lie by its tables and walls, it takes them over the rays, and the
+// maps leave most triangles out.
+TEST(Coverage, AutomaticMethodCountsOnlyTrianglesNearTheReceivers) {
+  REQUIRE_GL();  // for the peel
+  const Scene scene = make_terrain(200000).build();
+  const SnowMaps maps = peel(scene, 512, 3);
+  CoverageRenderer renderer(scene);
+  renderer.compute(maps, CoverageSettings{});
+  const CoverageRenderer::Timings& t = renderer.timings();
+  ASSERT_EQ(t.method, CoverageMethod::CpuShadowMaps);
+  std::printf("%llu of %zu triangles x 64 maps left out\n", (unsigned long long)t.left_out,
+              scene.triangle_count());
+  EXPECT_GT(t.left_out, uint64_t(scene.triangle_count()) * 64 * 3 / 4);
 }
 
 TEST(Coverage, SkyCullSkipsOnlyOpenReceivers) {

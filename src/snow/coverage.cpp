@@ -461,8 +461,8 @@ CoverageMethod choose_coverage_method(const CoverageSettings& settings, const Co
     // CPU shadow maps take a map per core; beyond kCpuShadowBytes fewer cores.
     const unsigned threads = w.threads > 0 ? w.threads : default_threads();
     const bool maps_fit = 4.0 * w.shadow_texels * threads <= kCpuShadowBytes;
-    const double cpu_shadow =
-        w.triangles * kCpuTriangleCost + 2.0 * texels + receivers * kCpuCountCost;
+    const double cpu_shadow = (w.drawn >= 0.0 ? w.drawn : w.triangles) * kCpuTriangleCost +
+                              2.0 * texels + receivers * kCpuCountCost;
     const double cpu_rays = receivers * kCpuRayCost;
     const bool rays = cpu_rays <= cpu_shadow || !maps_fit;
     if (w.software) {
@@ -827,6 +827,54 @@ inline int classify_on_cpu(const std::vector<float>& height, const ShadowFrame& 
   }
   const double y = double(p.y) + bias;
   return int(h00 > y) | int(h10 > y) << 1 | int(h01 > y) << 2 | int(h11 > y) << 3;
+}
+
+/// About how many triangles a CPU shadow map draws once those far from what
+/// the receivers read are left out (TexelMask, draw_cpu_shadow_map of a
+/// BVH), for choose_coverage_method: seen from straight above, those in
+/// leaves whose box comes within `reach` metres (the lines of fall's
+/// sideways travel over the scene's heights) of a column holding a receiver
+/// that is not `open`, on a grid of 16-texel tiles.
+size_t triangles_near_receivers(const Bvh& bvh, const MapGrid& grid,
+                                const std::vector<glm::uvec4>& recv,
+                                const std::vector<uint8_t>& open, double reach) {
+  constexpr int kTile = 16;
+  const int tw = (grid.width + kTile - 1) / kTile, th = (grid.height + kTile - 1) / kTile;
+  // Receivers per tile, summed (sum[(b + 1) (tw + 1) + a + 1]: tiles below b, left of a).
+  std::vector<uint32_t> sum(size_t(tw + 1) * size_t(th + 1), 0);
+  for (size_t r = 0; r < recv.size(); ++r) {
+    if (open[r]) continue;
+    const glm::ivec2 t = receiver_texel(recv[r]) / kTile;
+    sum[size_t(t.y + 1) * size_t(tw + 1) + size_t(t.x + 1)] = 1;
+  }
+  for (int b = 1; b <= th; ++b) {
+    for (int a = 1; a <= tw; ++a) {
+      const size_t at = size_t(b) * size_t(tw + 1) + size_t(a);
+      sum[at] += sum[at - 1] + sum[at - size_t(tw + 1)] - sum[at - size_t(tw + 1) - 1];
+    }
+  }
+  const double tile = double(grid.texel) * kTile;
+  const auto tile_of = [&](double x, double origin, int tiles) {
+    return int(std::clamp(std::floor((x - origin) / tile), -1.0, double(tiles)));
+  };
+  size_t drawn = 0;
+  const std::vector<Bvh::Node>& nodes = bvh.nodes();
+  for (size_t n = 0; n < nodes.size();) {
+    const Bvh::Node& node = nodes[n];
+    const int a0 = std::max(0, tile_of(double(node.min.x) - reach, grid.origin.x, tw));
+    const int a1 = std::min(tw - 1, tile_of(double(node.max.x) + reach, grid.origin.x, tw));
+    const int b0 = std::max(0, tile_of(double(node.min.z) - reach, grid.origin.y, th));
+    const int b1 = std::min(th - 1, tile_of(double(node.max.z) + reach, grid.origin.y, th));
+    const bool near = a0 <= a1 && b0 <= b1 &&
+                      sum[size_t(b1 + 1) * size_t(tw + 1) + size_t(a1 + 1)] -
+                              sum[size_t(b0) * size_t(tw + 1) + size_t(a1 + 1)] -
+                              sum[size_t(b1 + 1) * size_t(tw + 1) + size_t(a0)] +
+                              sum[size_t(b0) * size_t(tw + 1) + size_t(a0)] >
+                          0;
+    if (node.count > 0 && near) drawn += node.count;
+    n = node.count > 0 || near ? n + 1 : size_t(node.first);
+  }
+  return drawn;
 }
 
 /// A run of receivers (indices [r0, r1) of the list) on one row of one layer,
@@ -1587,8 +1635,8 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
 
   // Receivers open to the sky along every direction are lit without GPU work.
   glm::ivec4 texel_box(0, 0, grid.width - 1, grid.height - 1);  // the others' (i, j) bounds
+  double tan_max = 0;                                           // of the fall directions
   {
-    double tan_max = 0;
     for (const glm::vec3& d : dirs) {
       tan_max = std::max(tan_max, double(std::hypot(d.x, d.z)) / double(-d.y));
     }
@@ -1693,6 +1741,10 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     }
     work.shadow_texels = double(std::max(texel_box.z - texel_box.x + 1, 0)) *
                          double(std::max(texel_box.w - texel_box.y + 1, 0));
+    if ((work.software || work.gl_cold) && !work.snow && work.receivers > 0) {
+      const double reach = tan_max * std::max(0.0, double(scene_hi) - double(y_lo));
+      work.drawn = double(triangles_near_receivers(im.bvh, grid, recv, open, reach));
+    }
     method = choose_coverage_method(settings, work);
     size_t kept = 0;
     for (size_t r = 0; r < recv.size(); ++r) {
@@ -1758,7 +1810,11 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
   if (method != CoverageMethod::GpuRays) im.shadow_size = size;
   const bool rays = method == CoverageMethod::GpuRays;
   log_debug("coverage: " + std::to_string(recv.size()) + " receivers not open to the sky, " +
-            std::to_string(size_t(work.triangles)) + " triangles per shadow map: " +
+            std::to_string(size_t(work.triangles)) + " triangles per shadow map" +
+            (on_cpu && work.drawn >= 0.0
+                 ? " (about " + std::to_string(size_t(work.drawn)) + " near the receivers)"
+                 : std::string()) +
+            ": " +
             (rays ? "every line cast by the GPU"
                   : "shadow maps of " + std::to_string(size.x) + " x " + std::to_string(size.y) +
                         " texels" + (on_cpu ? " drawn on the CPU" : "")));

@@ -88,6 +88,8 @@ struct CoverageWork {
   bool software = false;
   bool gl_cold = false;
   unsigned threads = 0;  // CPU cores the CPU methods run on (0: default_threads())
+  double drawn = -1.0;   // triangles a CPU shadow map draws, those far from the receivers
+                         // left out (< 0: every triangle)
 };
 
 /// On a GPU whose driver has not started (CoverageWork::gl_cold), "auto"
@@ -109,7 +111,11 @@ constexpr double kCpuSecondsBeforeGl = 0.05;
 /// about 1 ms per direction however small the maps), or on a GPU whose
 /// driver has not started, when they take at most kCpuSecondsBeforeGl;
 /// never with a snow surface (its triangles would need a BVH of their
-/// own), nor where a shadow map per core would take more than 256 MiB.
+/// own), nor where a shadow map per core would take more than 256 MiB. A
+/// CPU shadow map draws only the triangles near the receivers left
+/// (CoverageWork::drawn), so terrains whose receivers left lie by a few
+/// objects draw CPU shadow maps too (the 1M-triangle terrain at 2048: about
+/// 95k near its 126k receivers, coverage 1.51 -> 1.10 s on 2 cores).
 CoverageMethod choose_coverage_method(const CoverageSettings& settings, const CoverageWork& work);
 
 /// Shadow maps per batch for maps of `shadow_texels` texels: settings.batch,
