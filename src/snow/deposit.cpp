@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/parallel.h"
 #include "core/zeroed.h"
 #include "snow/column.h"
 #include "snow/stabilize.h"
@@ -319,16 +320,39 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
   return terminals.size();
 }
 
-size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
-                         float min_over) {
+std::vector<uint32_t> texels_under_ceilings(const glm::vec4* cells, const DepositGrid& grid) {
   const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
+  constexpr size_t kChunk = size_t(1) << 16;
+  std::vector<std::vector<uint32_t>> found((count + kChunk - 1) / kChunk);
+  parallel_for(found.size(), [&](size_t chunk) {
+    for (size_t k = chunk * kChunk; k < std::min(count, (chunk + 1) * kChunk); ++k) {
+      const glm::vec4& c = cells[k];
+      if ((int(c.w) & kCellSurface) != 0 && c.y < kCellOpenSky) found[chunk].push_back(uint32_t(k));
+    }
+  });
+  std::vector<uint32_t> under;
+  for (const std::vector<uint32_t>& f : found) under.insert(under.end(), f.begin(), f.end());
+  return under;
+}
+
+size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
+                         float min_over, const std::vector<uint32_t>& under) {
+  // The texels pressed above their ceilings, in texel order, found in
+  // chunks on all cores: most calls find none.
+  constexpr size_t kChunk = size_t(1) << 14;
+  std::vector<std::vector<uint32_t>> found((under.size() + kChunk - 1) / kChunk);
+  parallel_for(found.size(), [&](size_t chunk) {
+    for (size_t u = chunk * kChunk; u < std::min(under.size(), (chunk + 1) * kChunk); ++u) {
+      const uint32_t k = under[u];
+      const glm::vec4& c = cells[k];
+      if ((c.x + depth[k]) - (c.y - kCeilingClearance) >= min_over) found[chunk].push_back(k);
+    }
+  });
   std::vector<uint32_t> terminals;
-  for (size_t k = 0; k < count; ++k) {
-    const glm::vec4& c = cells[k];
-    if ((int(c.w) & kCellSurface) == 0 || !(c.y < kCellOpenSky)) continue;
-    if ((c.x + depth[k]) - (c.y - kCeilingClearance) >= min_over) terminals.push_back(uint32_t(k));
-  }
+  for (const std::vector<uint32_t>& f : found)
+    terminals.insert(terminals.end(), f.begin(), f.end());
   if (terminals.empty()) return 0;
+  const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
   ZeroedArray<float> arrive(count);
   for (uint32_t k : terminals) {
     const float kept = std::max(0.0f, (cells[k].y - kCeilingClearance) - cells[k].x);
@@ -336,6 +360,11 @@ size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid
     depth[k] = kept;
   }
   return deposit_piles(cells, depth, arrive.data(), std::move(terminals), grid);
+}
+
+size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
+                         float min_over) {
+  return pour_pressed_snow(cells, depth, grid, min_over, texels_under_ceilings(cells, grid));
 }
 
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,

@@ -832,9 +832,13 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
         ++result.drains;
       } else if (pressed_snow_due(settings_, schedule_, result.residual)) {
         schedule_.pressed_looked_for();
-        if (pour_pressed_snow(cells_.data(), depth_.data(),
-                              DepositGrid{width_, height_, layers_, texel_},
-                              settings_.tolerance) > 0) {
+        const DepositGrid grid{width_, height_, layers_, texel_};
+        if (!under_ceilings_) {
+          under_ceilings_ =
+              std::make_unique<std::vector<uint32_t>>(texels_under_ceilings(cells_.data(), grid));
+        }
+        if (pour_pressed_snow(cells_.data(), depth_.data(), grid, settings_.tolerance,
+                              *under_ceilings_) > 0) {
           ++result.pours;
           touch_all();
         }
