@@ -146,11 +146,9 @@ class CpuStabilizer {
   unsigned threads_ = 0;
   int width_ = 0, height_ = 0, layers_ = 0;
   float texel_ = 0.0f;
-  float distance_[8] = {};        // metres, per direction
-  float rise_ = 0.0f;             // metres, kSurfaceContinuityTexels * texel
-  ZeroedArray<glm::vec4> cells_;  // stabilize_surface_cells
-  // texels_under_ceilings of cells_, listed at the first pour of pressed snow
-  std::unique_ptr<std::vector<uint32_t>> under_ceilings_;
+  float distance_[8] = {};              // metres, per direction
+  float rise_ = 0.0f;                   // metres, kSurfaceContinuityTexels * texel
+  ZeroedArray<glm::vec4> cells_;        // stabilize_surface_cells
   std::vector<uint8_t> column_layers_;  // surfaces per column (layers are packed from the top)
   std::vector<uint8_t> column_sent_;    // per column: its last outflow moved snow
   // Per layer texel arrays that start at zero hold zero pages where the
@@ -166,6 +164,8 @@ class CpuStabilizer {
   float residual_ = 0.0f;       // largest move of the last outflow pass
   float residual_void_ = 0.0f;  // and the largest into the void
   bool route_pending_ = false;
+  // texels_under_ceilings of cells_, listed at the first check for pressed snow
+  std::unique_ptr<std::vector<uint32_t>> under_ceilings_;
 
   // Tiles of kTile x kTile columns, all layers.
   static constexpr int kTile = 4;
