@@ -593,13 +593,12 @@ constexpr int kMinRun = 8;
 /// receiver reads: a triangle whose box meets none of them is not drawn.
 struct TexelMask {
   static constexpr int kShift = 4;
-  int tiles_x = 0, tiles_y = 0;
+  int tiles_x = 0;
   std::vector<uint8_t> on;
 
   void reset(glm::ivec2 size) {
     tiles_x = ((size.x - 1) >> kShift) + 1;
-    tiles_y = ((size.y - 1) >> kShift) + 1;
-    on.assign(size_t(tiles_x) * size_t(tiles_y), 0);
+    on.assign(size_t(tiles_x) * size_t(((size.y - 1) >> kShift) + 1), 0);
   }
   /// Marks texels [i0, i1] x [j0, j1].
   void mark(int i0, int i1, int j0, int j1) {
@@ -735,6 +734,23 @@ size_t draw_cpu_shadow_map(const std::vector<glm::vec3>& corners, const ShadowFr
   return skipped;
 }
 
+/// Bounds [lo, hi] of texel_of(q) - 0.5 (classify_on_cpu's c, before its
+/// clamping) over the points q of the box [box_lo, box_hi] in map f: each
+/// bound is texel_of's sum with the box's extreme terms, and rounding keeps
+/// the order of such sums, so no point of the box falls outside.
+inline void box_coordinates(const ShadowFrame& f, const glm::vec3& box_lo, const glm::vec3& box_hi,
+                            glm::dvec2& lo, glm::dvec2& hi) {
+  const double a = f.params.x, b = f.params.y;
+  const double ay_lo = std::min(a * box_lo.y, a * box_hi.y);
+  const double ay_hi = std::max(a * box_lo.y, a * box_hi.y);
+  const double by_lo = std::min(b * box_lo.y, b * box_hi.y);
+  const double by_hi = std::max(b * box_lo.y, b * box_hi.y);
+  lo = glm::dvec2((double(box_lo.x) - f.params.z - ay_hi) * f.inv_st - 0.5,
+                  (double(box_lo.z) - f.params.w - by_hi) * f.inv_st - 0.5);
+  hi = glm::dvec2((double(box_hi.x) - f.params.z - ay_lo) * f.inv_st - 0.5,
+                  (double(box_hi.z) - f.params.w - by_lo) * f.inv_st - 0.5);
+}
+
 /// The share of the triangles a worker's first CPU shadow map must leave
 /// out for the worker to go on culling (TexelMask).
 constexpr double kCullShare = 0.25;
@@ -755,23 +771,16 @@ size_t first_triangle(const std::vector<Bvh::Node>& nodes, size_t n, size_t tria
 size_t draw_cpu_shadow_map(const Bvh& bvh, const ShadowFrame& f, std::vector<float>& height,
                            std::vector<uint32_t>& drawn, const TexelMask* read) {
   const std::vector<Bvh::Node>& nodes = bvh.nodes();
-  const double a = f.params.x, b = f.params.y;
   size_t skipped = 0;
   for (size_t n = 0; n < nodes.size();) {
     const Bvh::Node& node = nodes[n];
-    const double ay_lo = std::min(a * node.min.y, a * node.max.y);
-    const double ay_hi = std::max(a * node.min.y, a * node.max.y);
-    const double by_lo = std::min(b * node.min.y, b * node.max.y);
-    const double by_hi = std::max(b * node.min.y, b * node.max.y);
     // Texel centres i + 0.5 inside the box's sheared shadow (texel_of).
-    const int i0 =
-        ceil_in((double(node.min.x) - f.params.z - ay_hi) * f.inv_st - 0.5, -2, f.size.x + 1) - 1;
-    const int i1 =
-        floor_in((double(node.max.x) - f.params.z - ay_lo) * f.inv_st - 0.5, -2, f.size.x + 1) + 1;
-    const int j0 =
-        ceil_in((double(node.min.z) - f.params.w - by_hi) * f.inv_st - 0.5, -2, f.size.y + 1) - 1;
-    const int j1 =
-        floor_in((double(node.max.z) - f.params.w - by_lo) * f.inv_st - 0.5, -2, f.size.y + 1) + 1;
+    glm::dvec2 lo, hi;
+    box_coordinates(f, node.min, node.max, lo, hi);
+    const int i0 = ceil_in(lo.x, -2, f.size.x + 1) - 1;
+    const int i1 = floor_in(hi.x, -2, f.size.x + 1) + 1;
+    const int j0 = ceil_in(lo.y, -2, f.size.y + 1) - 1;
+    const int j1 = floor_in(hi.y, -2, f.size.y + 1) + 1;
     const int ci0 = std::max(i0, 0), ci1 = std::min(i1, f.size.x - 1);
     const int cj0 = std::max(j0, 0), cj1 = std::min(j1, f.size.y - 1);
     const bool off = ci0 > ci1 || cj0 > cj1 || (read && !read->any(ci0, ci1, cj0, cj1));
@@ -916,15 +925,10 @@ constexpr size_t kRunsPerGroup = 4;
 inline void run_coordinates(const ShadowFrame& f, const ReceiverRun& run, glm::dvec2& lo,
                             glm::dvec2& hi) {
   constexpr double kPad = 1e-3;
-  const double a = f.params.x, b = f.params.y;
-  const double ay_lo = std::min(a * run.y_lo, a * run.y_hi),
-               ay_hi = std::max(a * run.y_lo, a * run.y_hi);
-  const double by_lo = std::min(b * run.y_lo, b * run.y_hi),
-               by_hi = std::max(b * run.y_lo, b * run.y_hi);
-  lo.x = (double(run.x_lo) - f.params.z - ay_hi) * f.inv_st - 0.5 - kPad;
-  hi.x = (double(run.x_hi) - f.params.z - ay_lo) * f.inv_st - 0.5 + kPad;
-  lo.y = (double(run.z_lo) - f.params.w - by_hi) * f.inv_st - 0.5 - kPad;
-  hi.y = (double(run.z_hi) - f.params.w - by_lo) * f.inv_st - 0.5 + kPad;
+  box_coordinates(f, glm::vec3(run.x_lo, run.y_lo, run.z_lo),
+                  glm::vec3(run.x_hi, run.y_hi, run.z_hi), lo, hi);
+  lo -= kPad;
+  hi += kPad;
 }
 
 /// Marks in `read` the texels that classify_on_cpu reads for the run's
@@ -967,12 +971,11 @@ inline RunVerdict classify_run_on_cpu(const std::vector<float>& height, const Sh
   const double a = f.params.x, b = f.params.y;
   glm::dvec2 lo, hi;
   run_coordinates(f, run, lo, hi);
-  const double cx_lo = lo.x, cx_hi = hi.x, cy_lo = lo.y, cy_hi = hi.y;
-  if (!(cx_lo >= 0.0 && cy_lo >= 0.0 && cx_hi <= f.size.x - 2 && cy_hi <= f.size.y - 2)) {
+  if (!(lo.x >= 0.0 && lo.y >= 0.0 && hi.x <= f.size.x - 2 && hi.y <= f.size.y - 2)) {
     return RunVerdict::Mixed;  // a texel clamped at the map's edge, or not finite
   }
-  const int i_lo = int(cx_lo), i_hi = int(cx_hi) + 1;
-  const int j_lo = int(cy_lo), j_hi = int(cy_hi) + 1;
+  const int i_lo = int(lo.x), i_hi = int(hi.x) + 1;
+  const int j_lo = int(lo.y), j_hi = int(hi.y) + 1;
   if ((i_hi - i_lo + 1) * (j_hi - j_lo + 1) > 64) return RunVerdict::Mixed;
   // |D| >= |n.y| - (|n.x| + |n.z|) max(|a|, |b|), the same sign for all.
   const double tilt = double(run.nxz) * std::max(std::abs(a), std::abs(b));

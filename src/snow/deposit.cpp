@@ -301,6 +301,22 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
   return cone;
 }
 
+/// value(i) for each i in [0, count) where keep(i) holds, in order: chunks
+/// of indices on all cores.
+template <class Keep, class Value>
+std::vector<uint32_t> select_in_order(size_t count, Keep keep, Value value) {
+  constexpr size_t kChunk = size_t(1) << 14;
+  std::vector<std::vector<uint32_t>> found((count + kChunk - 1) / kChunk);
+  parallel_for_ranges(count, kChunk, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      if (keep(i)) found[begin / kChunk].push_back(value(i));
+    }
+  });
+  std::vector<uint32_t> out;
+  for (const std::vector<uint32_t>& f : found) out.insert(out.end(), f.begin(), f.end());
+  return out;
+}
+
 }  // namespace
 
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
@@ -322,35 +338,22 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
 
 std::vector<uint32_t> texels_under_ceilings(const glm::vec4* cells, const DepositGrid& grid) {
   const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
-  constexpr size_t kChunk = size_t(1) << 16;
-  std::vector<std::vector<uint32_t>> found((count + kChunk - 1) / kChunk);
-  parallel_for(found.size(), [&](size_t chunk) {
-    for (size_t k = chunk * kChunk; k < std::min(count, (chunk + 1) * kChunk); ++k) {
-      const glm::vec4& c = cells[k];
-      if ((int(c.w) & kCellSurface) != 0 && c.y < kCellOpenSky) found[chunk].push_back(uint32_t(k));
-    }
-  });
-  std::vector<uint32_t> under;
-  for (const std::vector<uint32_t>& f : found) under.insert(under.end(), f.begin(), f.end());
-  return under;
+  return select_in_order(
+      count,
+      [&](size_t k) { return (int(cells[k].w) & kCellSurface) != 0 && cells[k].y < kCellOpenSky; },
+      [](size_t k) { return uint32_t(k); });
 }
 
 size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
                          float min_over, const std::vector<uint32_t>& under) {
-  // The texels pressed above their ceilings, in texel order, found in
-  // chunks on all cores: most calls find none.
-  constexpr size_t kChunk = size_t(1) << 14;
-  std::vector<std::vector<uint32_t>> found((under.size() + kChunk - 1) / kChunk);
-  parallel_for(found.size(), [&](size_t chunk) {
-    for (size_t u = chunk * kChunk; u < std::min(under.size(), (chunk + 1) * kChunk); ++u) {
-      const uint32_t k = under[u];
-      const glm::vec4& c = cells[k];
-      if ((c.x + depth[k]) - (c.y - kCeilingClearance) >= min_over) found[chunk].push_back(k);
-    }
-  });
-  std::vector<uint32_t> terminals;
-  for (const std::vector<uint32_t>& f : found)
-    terminals.insert(terminals.end(), f.begin(), f.end());
+  // The texels pressed above their ceilings, in texel order (most calls find none).
+  std::vector<uint32_t> terminals = select_in_order(
+      under.size(),
+      [&](size_t u) {
+        const glm::vec4& c = cells[under[u]];
+        return (c.x + depth[under[u]]) - (c.y - kCeilingClearance) >= min_over;
+      },
+      [&](size_t u) { return under[u]; });
   if (terminals.empty()) return 0;
   const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
   ZeroedArray<float> arrive(count);

@@ -833,10 +833,7 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
       } else if (pressed_snow_due(settings_, schedule_, result.residual)) {
         schedule_.pressed_looked_for();
         const DepositGrid grid{width_, height_, layers_, texel_};
-        if (!under_ceilings_) {
-          under_ceilings_ =
-              std::make_unique<std::vector<uint32_t>>(texels_under_ceilings(cells_.data(), grid));
-        }
+        if (!under_ceilings_) under_ceilings_ = texels_under_ceilings(cells_.data(), grid);
         if (pour_pressed_snow(cells_.data(), depth_.data(), grid, settings_.tolerance,
                               *under_ceilings_) > 0) {
           ++result.pours;

@@ -22,6 +22,7 @@
 //    bit for bit.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -165,7 +166,7 @@ class CpuStabilizer {
   float residual_void_ = 0.0f;  // and the largest into the void
   bool route_pending_ = false;
   // texels_under_ceilings of cells_, listed at the first check for pressed snow
-  std::unique_ptr<std::vector<uint32_t>> under_ceilings_;
+  std::optional<std::vector<uint32_t>> under_ceilings_;
 
   // Tiles of kTile x kTile columns, all layers.
   static constexpr int kTile = 4;
