@@ -41,6 +41,23 @@ TEST(AtomicWrite, WritesAndLeavesNoTemporary) {
   EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
 }
 
+// An existing file is swapped out and removed (replace_file), not renamed
+// over: the target then holds the new text, nothing else is left in the
+// folder, and a reader that had the old file open still reads it whole.
+TEST(AtomicWrite, ReplacesAnExistingFileAndLeavesNoTemporary) {
+  const fs::path dir = temp_dir("replace");
+  snow::write_text_atomically(dir / "out.txt", "old");
+  std::ifstream reader(dir / "out.txt");
+  snow::write_text_atomically(dir / "out.txt", "new");
+  std::ifstream in(dir / "out.txt");
+  std::string text, old_text;
+  in >> text;
+  reader >> old_text;
+  EXPECT_EQ(text, "new");
+  EXPECT_EQ(old_text, "old");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
+}
+
 TEST(AtomicWrite, FailureKeepsOldFileAndRemovesTemporary) {
   const fs::path dir = temp_dir("fail");
   snow::write_text_atomically(dir / "out.txt", "old");
