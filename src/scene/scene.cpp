@@ -15,6 +15,14 @@ int Scene::object_of_triangle(size_t t) const {
   return t < size_t(it->first_triangle) + it->triangle_count ? int(it - objects.begin()) : -1;
 }
 
+glm::vec3 triangle_normal(const Scene& scene, size_t t) {
+  const glm::dvec3 a(scene.positions[3 * t]);
+  const glm::dvec3 n = glm::cross(glm::dvec3(scene.positions[3 * t + 1]) - a,
+                                  glm::dvec3(scene.positions[3 * t + 2]) - a);
+  const double len = glm::length(n);
+  return len > 0 ? glm::vec3(n / len) : glm::vec3(0.0f);
+}
+
 TriangleAttributes triangle_attributes(const Scene& scene) {
   const size_t count = scene.triangle_count();
   TriangleAttributes out;
@@ -22,13 +30,7 @@ TriangleAttributes triangle_attributes(const Scene& scene) {
   out.object.assign(count, -1);
   constexpr size_t kChunk = size_t(1) << 14;
   parallel_for_ranges(count, kChunk, [&](size_t begin, size_t end) {
-    for (size_t t = begin; t < end; ++t) {
-      const glm::dvec3 a(scene.positions[3 * t]);
-      const glm::dvec3 n = glm::cross(glm::dvec3(scene.positions[3 * t + 1]) - a,
-                                      glm::dvec3(scene.positions[3 * t + 2]) - a);
-      const double len = glm::length(n);
-      out.normal[t] = len > 0 ? glm::vec3(n / len) : glm::vec3(0.0f);
-    }
+    for (size_t t = begin; t < end; ++t) out.normal[t] = triangle_normal(scene, t);
   });
   for (size_t o = 0; o < scene.objects.size(); ++o) {
     const SceneObject& obj = scene.objects[o];

@@ -82,8 +82,11 @@ struct Scene {
   int object_of_triangle(size_t t) const;
 };
 
-/// Per triangle, as the peels write them into the maps: the unit geometric
-/// normal as wound (worked out in double; 0 for a degenerate triangle) and
+/// Triangle t's unit geometric normal as wound, as the peels write it into
+/// the maps (worked out in double; 0 for a degenerate triangle).
+glm::vec3 triangle_normal(const Scene& scene, size_t t);
+
+/// Per triangle, as the peels write them into the maps: triangle_normal and
 /// the object index (-1 where no object's range holds it). On all cores.
 struct TriangleAttributes {
   std::vector<glm::vec3> normal;

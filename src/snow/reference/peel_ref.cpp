@@ -40,34 +40,52 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
   const size_t triangle_count = scene.triangle_count();
   const size_t width = size_t(grid.width);
 
-  // Per triangle: its normal and object, as the GPU pass writes them, and
-  // the texel box its centres can fall in (i0 > i1 or j0 > j1: none, as for
-  // a triangle seen edge-on), on all cores.
-  const TriangleAttributes triangles = triangle_attributes(scene);
+  // The triangles whose boxes of texel centres are not empty (a triangle
+  // seen edge-on, or between two centres, has none: most of a detailed
+  // model's on a coarse map, ToyCar's 109k on 16 x 16 texels), with their
+  // boxes, in index order, on all cores. Only those are stored: two arrays
+  // over every triangle (these boxes, and each triangle's normal and object,
+  // now worked out for the hits kept alone) were half of ToyCar's peel, in
+  // fresh pages.
   struct Box {
     int i0, i1, j0, j1;
   };
-  std::vector<Box> box(triangle_count);
-  parallel_for_ranges(triangle_count, kTriangleChunk, [&](size_t begin, size_t end) {
+  struct Boxed {
+    uint32_t triangle;
+    Box box;
+  };
+  const size_t chunks = (triangle_count + kTriangleChunk - 1) / kTriangleChunk;
+  std::vector<std::vector<Boxed>> chunk_boxes(chunks);
+  parallel_for(chunks, [&](size_t chunk) {
+    const size_t begin = chunk * kTriangleChunk;
+    const size_t end = std::min(triangle_count, begin + kTriangleChunk);
     for (size_t tri = begin; tri < end; ++tri) {
       const glm::dvec3 a(scene.positions[3 * tri]);
       const glm::dvec3 b(scene.positions[3 * tri + 1]);
       const glm::dvec3 c(scene.positions[3 * tri + 2]);
       // Signed doubled area of the xz projection; 0: seen edge-on, no hit.
       const double area = (b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z);
-      if (area == 0.0 || !std::isfinite(area)) {
-        box[tri] = {0, -1, 0, -1};
-        continue;
-      }
+      if (area == 0.0 || !std::isfinite(area)) continue;
       const double min_x = std::min({a.x, b.x, c.x}), max_x = std::max({a.x, b.x, c.x});
       const double min_z = std::min({a.z, b.z, c.z}), max_z = std::max({a.z, b.z, c.z});
       // Texel centres x = ox + (i + 0.5) t inside [min_x, max_x].
-      box[tri] = {std::max(0, int(std::ceil((min_x - ox) / t - 0.5))),
+      const Box r{std::max(0, int(std::ceil((min_x - ox) / t - 0.5))),
                   std::min(grid.width - 1, int(std::floor((max_x - ox) / t - 0.5))),
                   std::max(0, int(std::ceil((min_z - oz) / t - 0.5))),
                   std::min(grid.height - 1, int(std::floor((max_z - oz) / t - 0.5)))};
+      if (r.i0 <= r.i1 && r.j0 <= r.j1) chunk_boxes[chunk].push_back({uint32_t(tri), r});
     }
   });
+  std::vector<Boxed> boxed;
+  {
+    size_t total = 0;
+    for (const auto& part : chunk_boxes) total += part.size();
+    boxed.reserve(total);
+    for (auto& part : chunk_boxes) {
+      boxed.insert(boxed.end(), part.begin(), part.end());
+      part = {};
+    }
+  }
 
   // Each band of rows gathers the hits of the triangles whose boxes meet it
   // into one array, grouped by texel (counting sort: texel t's are
@@ -89,23 +107,21 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
     bands[b].j1 = int((b + 1) * size_t(grid.height) / band_count);
     for (int j = bands[b].j0; j < bands[b].j1; ++j) band_of_row[size_t(j)] = uint32_t(b);
   }
-  // The triangles whose boxes meet each band (in index order): band b's are
-  // listed[listed_start[b], listed_start[b + 1]).
+  // The boxed triangles that meet each band (in index order): band b's are
+  // boxed[listed[listed_start[b]]], ... up to listed_start[b + 1].
   std::vector<size_t> listed_start(band_count + 1, 0);
-  const auto each_band_of = [&](size_t tri, auto&& fn) {
-    const Box& r = box[tri];
-    if (r.i0 > r.i1 || r.j0 > r.j1) return;
+  const auto each_band_of = [&](const Box& r, auto&& fn) {
     for (uint32_t b = band_of_row[size_t(r.j0)]; b <= band_of_row[size_t(r.j1)]; ++b) fn(b);
   };
-  for (size_t tri = 0; tri < triangle_count; ++tri) {
-    each_band_of(tri, [&](uint32_t b) { ++listed_start[b + 1]; });
+  for (const Boxed& e : boxed) {
+    each_band_of(e.box, [&](uint32_t b) { ++listed_start[b + 1]; });
   }
   for (size_t b = 0; b < band_count; ++b) listed_start[b + 1] += listed_start[b];
   std::vector<uint32_t> listed(listed_start.back());
   {
     std::vector<size_t> next(listed_start.begin(), listed_start.end() - 1);
-    for (size_t tri = 0; tri < triangle_count; ++tri) {
-      each_band_of(tri, [&](uint32_t b) { listed[next[b]++] = uint32_t(tri); });
+    for (size_t e = 0; e < boxed.size(); ++e) {
+      each_band_of(boxed[e].box, [&](uint32_t b) { listed[next[b]++] = uint32_t(e); });
     }
   }
   // Each column's hits top down; the surfaces kept (at least merge_distance
@@ -131,8 +147,8 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
     const size_t band_texels = size_t(band.j1 - band.j0) * width;
     std::vector<TexelHit> found;
     for (size_t at = listed_start[b]; at < listed_start[b + 1]; ++at) {
-      const size_t tri = listed[at];
-      const Box& r = box[tri];
+      const size_t tri = boxed[listed[at]].triangle;
+      const Box& r = boxed[listed[at]].box;
       const int j0 = std::max(r.j0, band.j0), j1 = std::min(r.j1, band.j1 - 1);
       const glm::dvec3 a(scene.positions[3 * tri]);
       const glm::dvec3 b(scene.positions[3 * tri + 1]);
@@ -190,8 +206,8 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
         const size_t k = maps.index(layer, i, j);
         maps.ground[k] = hit.y;
         maps.ceiling[k] = above;
-        maps.normal[k] = triangles.normal[hit.triangle];
-        maps.object[k] = triangles.object[hit.triangle];
+        maps.normal[k] = triangle_normal(scene, hit.triangle);
+        maps.object[k] = int32_t(scene.object_of_triangle(hit.triangle));
       });
     }
   });
