@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
 #include <unistd.h>
+#include <nlohmann/json.hpp>
 
 #include <cstdio>
 #include <cstring>
@@ -356,8 +357,8 @@ TEST(Export, UnwritablePathIsAnIOErrorAndLeavesNothing) {
   std::ofstream(dir / "garbage.gltf") << "{ not json";
   EXPECT_THROW(write_combined_gltf(dir / "garbage.gltf", patches, dir / "out.glb"), InputError);
   // Read ahead, the input fails the same way.
-  EXPECT_THROW(read_combined_input(dir / "absent.gltf"), IOError);
-  EXPECT_THROW(read_combined_input(dir / "garbage.gltf"), InputError);
+  EXPECT_THROW(read_combined_input(dir / "absent.gltf", dir / "out.glb"), IOError);
+  EXPECT_THROW(read_combined_input(dir / "garbage.gltf", dir / "out.glb"), InputError);
   EXPECT_FALSE(fs::exists(dir / "out.glb"));
 }
 
@@ -599,14 +600,115 @@ TEST(Export, CombinedKeepsTheInputAndEmbedsItsImages) {
   // The input read ahead (as the batch job does) gives the same file, and an
   // output that is not glTF is refused at the write.
   fs::create_directories(dir / "ahead");
-  write_combined_gltf(read_combined_input(input), patches, dir / "ahead" / "combined.glb");
+  write_combined_gltf(read_combined_input(input, dir / "ahead" / "combined.glb"), patches,
+                      dir / "ahead" / "combined.glb");
   const auto bytes = [](const fs::path& path) {
     std::ifstream in(path, std::ios::binary);
     return std::string(std::istreambuf_iterator<char>(in), {});
   };
   EXPECT_EQ(bytes(dir / "ahead" / "combined.glb"), bytes(dir / "out" / "combined.glb"));
-  EXPECT_THROW(write_combined_gltf(read_combined_input(input), patches, dir / "ahead" / "x.obj"),
+  EXPECT_THROW(write_combined_gltf(read_combined_input(input, dir / "ahead" / "x.obj"), patches,
+                                   dir / "ahead" / "x.obj"),
                InputError);
+}
+
+/// The bytes of accessor `a` of `m` (its buffer view's range).
+std::vector<unsigned char> accessor_bytes(const tinygltf::Model& m, const tinygltf::Accessor& a) {
+  if (a.bufferView < 0) return {};
+  const tinygltf::BufferView& v = m.bufferViews[size_t(a.bufferView)];
+  const auto& data = m.buffers[size_t(v.buffer)].data;
+  return {data.begin() + long(v.byteOffset), data.begin() + long(v.byteOffset + v.byteLength)};
+}
+
+/// The JSON chunk of a GLB.
+nlohmann::json glb_json_of(const fs::path& path) {
+  const std::string bytes = read_text(path);
+  uint32_t length = 0;
+  std::memcpy(&length, bytes.data() + 12, 4);
+  return nlohmann::json::parse(bytes.substr(20, length));
+}
+
+// A .glb output is streamed from the input's files where the input keeps
+// its data in one buffer (a .bin or the GLB's own) and image files; other
+// inputs (a data URI, two buffers) go through tinygltf. Either way the
+// output holds the same thing as the .gltf that tinygltf's path writes:
+// every accessor's bytes, the images' bytes, the nodes and scenes. The
+// streamed GLB keeps the input's JSON as written: a top-level property that
+// tinygltf would drop is still there.
+TEST(Export, CombinedGlbIsTheSameStreamedOrReadByTinygltf) {
+  const auto patches = table_patches();
+  const TestDir test_dir;
+  const fs::path& dir = test_dir.path;
+  std::vector<unsigned char> png;
+  const fs::path gltf = write_input_scene(dir, &png);
+  nlohmann::json json = nlohmann::json::parse(read_text(gltf));
+  json["x-kept"] = 1;
+  const std::string bin = read_text(dir / "input.bin");
+  // The inputs: a .gltf with a .bin, a .glb, a data URI, two buffers.
+  std::ofstream(dir / "a.gltf") << json.dump();
+  {
+    nlohmann::json j = json;
+    j["buffers"][0].erase("uri");
+    std::string text = j.dump();
+    text.resize((text.size() + 3) & ~size_t(3), ' ');
+    std::string padded = bin;
+    padded.resize((padded.size() + 3) & ~size_t(3), '\0');
+    const auto u32 = [](uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+    std::ofstream(dir / "b.glb", std::ios::binary)
+        << "glTF" << u32(2) << u32(uint32_t(28 + text.size() + padded.size()))
+        << u32(uint32_t(text.size())) << "JSON" << text << u32(uint32_t(padded.size()))
+        << std::string("BIN\0", 4) << padded;
+  }
+  {
+    tinygltf::Model model = load_gltf(gltf);
+    tinygltf::TinyGLTF writer;
+    writer.SetImageWriter(nullptr, nullptr);
+    ASSERT_TRUE(
+        writer.WriteGltfSceneToFile(&model, (dir / "c.gltf").string(), false, true, true, false));
+  }
+  {
+    nlohmann::json j = json;
+    j["buffers"].push_back({{"uri", "input.bin"}, {"byteLength", bin.size()}});
+    std::ofstream(dir / "d.gltf") << j.dump();
+  }
+  fs::create_directories(dir / "out");
+  write_combined_gltf(gltf, patches, dir / "out" / "reference.gltf");
+  const tinygltf::Model reference = load_gltf(dir / "out" / "reference.gltf");
+  for (const auto& [input, streamed] : std::vector<std::pair<std::string, bool>>{
+           {"a.gltf", true}, {"b.glb", true}, {"c.gltf", false}, {"d.gltf", false}}) {
+    SCOPED_TRACE(input);
+    const fs::path out = dir / "out" / (fs::path(input).stem().string() + ".glb");
+    write_combined_gltf(read_combined_input(dir / input, out), patches, out);
+    EXPECT_EQ(glb_json_of(out).contains("x-kept"), streamed);
+    const tinygltf::Model m = load_gltf(out);
+    ASSERT_EQ(m.accessors.size(), reference.accessors.size());
+    for (size_t i = 0; i < m.accessors.size(); ++i) {
+      EXPECT_EQ(m.accessors[i].count, reference.accessors[i].count) << "accessor " << i;
+      EXPECT_EQ(accessor_bytes(m, m.accessors[i]),
+                accessor_bytes(reference, reference.accessors[i]))
+          << "accessor " << i;
+    }
+    ASSERT_EQ(m.images.size(), 1u);
+    ASSERT_GE(m.images[0].bufferView, 0);
+    const tinygltf::BufferView& view = m.bufferViews[size_t(m.images[0].bufferView)];
+    EXPECT_EQ(std::vector<unsigned char>(
+                  m.buffers[0].data.begin() + long(view.byteOffset),
+                  m.buffers[0].data.begin() + long(view.byteOffset + view.byteLength)),
+              png);
+    EXPECT_EQ(m.images[0].mimeType, "image/png");
+    ASSERT_EQ(m.nodes.size(), reference.nodes.size());
+    for (size_t i = 0; i < m.nodes.size(); ++i) {
+      EXPECT_EQ(m.nodes[i].name, reference.nodes[i].name);
+      EXPECT_EQ(m.nodes[i].mesh, reference.nodes[i].mesh);
+      EXPECT_EQ(m.nodes[i].children, reference.nodes[i].children);
+    }
+    ASSERT_EQ(m.scenes.size(), 1u);
+    EXPECT_EQ(m.scenes[0].nodes, reference.scenes[0].nodes);
+    EXPECT_EQ(m.materials.size(), reference.materials.size());
+    EXPECT_EQ(m.meshes.size(), reference.meshes.size());
+  }
+  expect_valid_gltf(
+      {dir / "out" / "a.glb", dir / "out" / "b.glb", dir / "out" / "c.glb", dir / "out" / "d.glb"});
 }
 
 TEST(Export, CombinedToyCarKeepsItsCounts) {

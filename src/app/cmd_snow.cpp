@@ -379,7 +379,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
                         (format == MeshFormat::Glb || format == MeshFormat::Gltf);
   std::future<CombinedInputPtr> combined_input;
   if (combined) {
-    combined_input = std::async(std::launch::async, [&o] { return read_combined_input(o.input); });
+    combined_input =
+        std::async(std::launch::async, [&o] { return read_combined_input(o.input, o.output); });
   }
   warn_unmatched(scene, s.ignore, "--ignore");
   warn_unmatched(scene, s.no_snow_on, "--no-snow-on");

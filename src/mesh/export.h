@@ -47,14 +47,15 @@ void write_snow_meshes(const std::vector<SnowPatch>& patches, const std::filesys
                        MeshFormat format);
 
 /// Writes the glTF scene `input_scene` (.gltf or .glb) plus the snow to `out`
-/// (.glb or .gltf by its extension; anything else: InputError). The input is
-/// loaded with tinygltf and the snow appended, so its nodes, meshes,
-/// materials, textures, samplers, animations, skins, cameras and extensions
-/// are kept as they were; the snow sits under one "Snow" node added to the
-/// root of the default scene (world frame, identity transform) with
-/// snow_material(). Images that the input keeps in files or data URIs are
-/// embedded, byte for byte, into buffer 0 as buffer views, so the output opens
-/// wherever it is written; buffers are written as save_gltf does. Throws
+/// (.glb or .gltf by its extension; anything else: InputError). The snow is
+/// appended to the input (its JSON as written, streamed into a .glb where
+/// read_combined_input can plan that; else as tinygltf loads it), so its
+/// nodes, meshes, materials, textures, samplers, animations, skins, cameras
+/// and extensions are kept as they were; the snow sits under one "Snow" node
+/// added to the root of the default scene (world frame, identity transform)
+/// with snow_material(). Images that the input keeps in files or data URIs
+/// are embedded, byte for byte, into buffer 0 as buffer views, so the output
+/// opens wherever it is written; buffers are written as save_gltf does. Throws
 /// IOError when the input cannot be read or `out` cannot be written, and
 /// InputError when the input is not valid glTF (first line of tinygltf's
 /// error). Input warnings are logged naming the input.
@@ -70,9 +71,15 @@ struct CombinedInputDeleter {
 };
 using CombinedInputPtr = std::unique_ptr<CombinedInput, CombinedInputDeleter>;
 
-/// Reads `input_scene` for write_combined_gltf; throws what it throws for
-/// the input (IOError, InputError).
-CombinedInputPtr read_combined_input(const std::filesystem::path& input_scene);
+/// Reads `input_scene` for write_combined_gltf to `out`; throws what it
+/// throws for the input (IOError, InputError). For a .glb `out`, an input
+/// whose data lie in at most one buffer (a .bin file or the GLB's own) and
+/// in image files is only planned here: its JSON is read, and the write
+/// copies the buffer's and the images' bytes from their files into the GLB
+/// (copy_file_range) without reading them into memory. Any other input is
+/// read by tinygltf here.
+CombinedInputPtr read_combined_input(const std::filesystem::path& input_scene,
+                                     const std::filesystem::path& out);
 
 /// write_combined_gltf from an input read ahead, which it consumes.
 void write_combined_gltf(CombinedInputPtr input, const std::vector<SnowPatch>& patches,

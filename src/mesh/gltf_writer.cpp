@@ -200,15 +200,8 @@ void put_u32(std::ostream& out, uint32_t v) {
 void write_glb(tinygltf::Model& model, const std::filesystem::path& path, std::ostream& out) {
   std::vector<unsigned char> bin;
   if (!model.buffers.empty()) bin.swap(model.buffers[0].data);
-  std::ostringstream glb;
-  serialize(model, true, path, glb);
-  std::string json = glb.str();
-  size_t zero = std::string::npos;
-  if (json.size() >= 20) {
-    json = json.substr(20);  // the header and the JSON chunk's header
-    while (!json.empty() && json.back() == ' ') json.pop_back();  // its padding
-    zero = detail::empty_buffer0_length_at(json);
-  }
+  std::string json = glb_json(model, path);
+  const size_t zero = detail::empty_buffer0_length_at(json);
   if (uint64_t(bin.size()) + json.size() + 64 > UINT32_MAX) {
     throw IOError("cannot write " + path.string() +
                   ": a GLB holds at most 4 GiB; write .gltf (its buffers go to .bin files)");
@@ -237,6 +230,16 @@ void write_glb(tinygltf::Model& model, const std::filesystem::path& path, std::o
 }
 
 }  // namespace
+
+std::string glb_json(const tinygltf::Model& model, const std::filesystem::path& path) {
+  std::ostringstream glb;
+  serialize(model, true, path, glb);
+  std::string json = glb.str();
+  if (json.size() < 20) return {};
+  json = json.substr(20);  // the header and the JSON chunk's header
+  while (!json.empty() && json.back() == ' ') json.pop_back();  // its padding
+  return json;
+}
 
 void append_meshes(tinygltf::Model& model, const std::vector<TriMesh>& meshes,
                    const std::vector<MeshMaterial>& materials, const std::string& root_name) {

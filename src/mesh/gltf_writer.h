@@ -43,6 +43,12 @@ size_t mesh_buffer_bytes(const std::vector<TriMesh>& meshes);
 /// std::move: its buffers are then written without a copy.
 void save_gltf(tinygltf::Model model, const std::filesystem::path& path);
 
+/// The JSON text of `model` as the GLB that save_gltf writes would hold it
+/// (compact, without the chunk's padding): buffer 0 without a uri, its bytes
+/// in the BIN chunk (empty them first to leave them out). `path` names the
+/// output in errors.
+std::string glb_json(const tinygltf::Model& model, const std::filesystem::path& path);
+
 namespace detail {
 /// Where the 0 of `"buffers":[{"byteLength":0` is in compact glTF JSON, at
 /// the top level (not in a string, not in a nested object); npos if not

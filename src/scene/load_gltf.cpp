@@ -266,6 +266,34 @@ bool percent_decode(std::string_view in, std::string& out) {
   return true;
 }
 
+}  // namespace
+
+std::optional<fs::path> resolve_relative_uri(const fs::path& folder, const std::string& uri,
+                                             std::string* why) {
+  std::string decoded;
+  const auto refuse = [&](const char* reason) -> std::optional<fs::path> {
+    if (why) *why = reason;
+    return std::nullopt;
+  };
+  if (!percent_decode(uri, decoded)) return refuse("is malformed");
+  std::replace(decoded.begin(), decoded.end(), '\\', '/');
+  // A scheme ("http:", "file:", "data:", "C:") is not a relative path.
+  const size_t colon = decoded.find(':');
+  const size_t slash = decoded.find('/');
+  if (colon != std::string::npos && (slash == std::string::npos || colon < slash))
+    return refuse("is not a relative file path (refused)");
+  if (decoded.empty()) return refuse("is empty");
+  const fs::path relative(decoded);
+  if (relative.is_absolute() || relative.has_root_path())
+    return refuse("is an absolute path (refused)");
+  for (const auto& part : relative) {
+    if (part == "..") return refuse("leaves the scene's folder (refused)");
+  }
+  return folder / relative;
+}
+
+namespace {
+
 bool starts_with_ci(std::string_view s, std::string_view prefix) {
   if (s.size() < prefix.size()) return false;
   for (size_t i = 0; i < prefix.size(); ++i) {
@@ -536,23 +564,10 @@ class GltfLoader {
 
   /// Resolves a relative URI inside the scene's folder; refuses anything else.
   fs::path resolve_uri(const std::string& uri, const std::string& what) const {
-    std::string decoded;
-    if (!percent_decode(uri, decoded)) fail(what + ": malformed uri '" + one_line(uri) + "'");
-    std::replace(decoded.begin(), decoded.end(), '\\', '/');
-    // A scheme ("http:", "file:", "C:") is not a relative path.
-    const size_t colon = decoded.find(':');
-    const size_t slash = decoded.find('/');
-    if (colon != std::string::npos && (slash == std::string::npos || colon < slash))
-      fail(what + ": uri '" + one_line(uri) + "' is not a relative file path (refused)");
-    if (decoded.empty()) fail(what + ": empty uri");
-    const fs::path relative(decoded);
-    if (relative.is_absolute() || relative.has_root_path())
-      fail(what + ": uri '" + one_line(uri) + "' is an absolute path (refused)");
-    for (const auto& part : relative) {
-      if (part == "..")
-        fail(what + ": uri '" + one_line(uri) + "' leaves the scene's folder (refused)");
-    }
-    return folder_ / relative;
+    std::string why;
+    std::optional<fs::path> file = resolve_relative_uri(folder_, uri, &why);
+    if (!file) fail(what + ": uri '" + one_line(uri) + "' " + why);
+    return *file;
   }
 
   /// Bytes of a data: URI.

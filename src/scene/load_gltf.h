@@ -5,6 +5,7 @@
 // validated before use; hostile or broken files give one InputError.
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "scene/scene.h"
@@ -33,6 +34,15 @@ struct LoadSettings {
                             // Scene::normals and Scene::uvs stay empty
   LoadLimits limits;        // resource limits (see LoadLimits)
 };
+
+/// The file that a glTF uri names, as the loader reads it: `uri`
+/// percent-decoded, '\\' read as '/', relative to `folder`. nullopt, with
+/// the reason in *why (e.g. "is an absolute path (refused)"), for a
+/// malformed or empty uri, one with a scheme (data:, http:, a drive), an
+/// absolute path, or one that leaves the folder.
+std::optional<std::filesystem::path> resolve_relative_uri(const std::filesystem::path& folder,
+                                                          const std::string& uri,
+                                                          std::string* why = nullptr);
 
 /// Loads the glTF 2.0 file at `path` (.gltf or .glb, detected by content)
 /// and returns its default scene (`scene`, else scene 0, else every root
