@@ -74,6 +74,7 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
     lost_ = ZeroedArray<float>(n);
     amount_ = ZeroedArray<float>(8 * n);
     code_ = ZeroedArray<uint8_t>(8 * n);
+    gate_ = ZeroedArray<uint32_t>(n);
   } catch (const std::bad_alloc&) {
     throw InputError("stabilize: out of memory for maps of " + std::to_string(width_) + " x " +
                      std::to_string(height_) + " texels x " + std::to_string(layers_) +
@@ -83,6 +84,7 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
   const size_t columns = size_t(width_) * size_t(height_);
   column_layers_.assign(columns, 0);
   column_sent_.assign(columns, 0);
+  column_changed_.assign(columns, 0);
   parallel_for_ranges(columns, kSumChunk, [&](size_t begin, size_t end) {
     for (size_t c = begin; c < end; ++c) {
       int l = 0;
@@ -143,6 +145,7 @@ void CpuStabilizer::add_near(TileSet& set, int t, int reach, Keep keep) const {
 }
 
 void CpuStabilizer::touch_all() {
+  gates_from_ = pass_id_ + 1;
   for (int level = 0; level < levels_; ++level) {
     dirty_[level].clear();
     for (int t : surface_tiles_) dirty_[level].add(t);
@@ -277,6 +280,15 @@ int CpuStabilizer::gap_at(int i, int j, float h) const {
   return past_column(i, j, count);
 }
 
+bool CpuStabilizer::quiet_since(int i, int j, uint32_t pass) const {
+  for (int b = std::max(0, j - 1); b <= std::min(height_ - 1, j + 1); ++b) {
+    for (int a = std::max(0, i - 1); a <= std::min(width_ - 1, i + 1); ++a) {
+      if (column_changed_[size_t(b) * width_ + a] >= pass) return false;
+    }
+  }
+  return true;
+}
+
 // The stride-1 rule of a strided pass (see outflow_texel): would a single
 // step move snow from this texel? Most texels of a late strided pass stay,
 // and this answers for them without walking the paths.
@@ -311,8 +323,22 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   const float he = free_top(cell, s);  // snow above the ceiling is pressed out
   const float over = h - he;
   // A strided pass moves only snow that a single step moves: snow at rest
-  // for single steps stays, which the GPU passes' active tiles rely on.
-  if (kStrided && !single_step_moves(i, j, cell, s, he, over)) return 0.0f;
+  // for single steps stays, which the GPU passes' active tiles rely on. The
+  // rule's answer is kept (gate_) while nothing around the texel changes; a
+  // single step that it says moves nothing moves nothing, unless the snow
+  // is pressed out from under its ceiling.
+  const uint32_t gate = gate_[k], at = gate >> 1;
+  const bool known = at >= gates_from_ && quiet_since(i, j, at);
+  if (kStrided) {
+    bool moves = (gate & 1) != 0;
+    if (!known) {
+      moves = single_step_moves(i, j, cell, s, he, over);
+      gate_[k] = pass_id_ << 1 | uint32_t(moves);
+    }
+    if (!moves) return 0.0f;
+  } else if (known && (gate & 1) == 0 && !(over > 0.0f)) {
+    return 0.0f;
+  }
   float w[8];
   float wsum = 0.0f, wmax = 0.0f;
   int voids = 0;
@@ -358,6 +384,9 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
       wmax = std::max(wmax, w[n]);
     }
   }
+  // Single steps: whether this texel moves snow by single_step_moves' rule
+  // (set below where it does).
+  if (!kStrided) gate_[k] = pass_id_ << 1 | uint32_t(voids > 0);
   if (voids > 0) {
     // An edge of the world: everything falls off, shared by the void directions.
     const float share = s / float(voids);
@@ -375,6 +404,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
     // never overshoots and piles end at the repose slope.
     // Moves under min_move are not made (rounding noise).
     float total = std::min(s, std::max(0.5f * wmax, over));
+    if (!kStrided) gate_[k] = pass_id_ << 1 | uint32_t(total >= min_move_);
     if (total < min_move_) total = 0.0f;
     for (int n = 0; n < 8; ++n) out[n] = total * (w[n] / wsum);
   } else if (over > 0.0f && !kStrided) {
@@ -422,6 +452,12 @@ void CpuStabilizer::outflow_pass(int stride) {
   // of this stride moved nothing there, or it moved something).
   TileSet& dirty = dirty_[log2_of(stride)];
   const bool active = settings_.active_tiles;
+  if (++pass_id_ == (1u << 31)) {  // the gates' pass numbers would overflow: start over
+    gate_ = ZeroedArray<uint32_t>(cells_.size());
+    std::fill(column_changed_.begin(), column_changed_.end(), 0u);
+    pass_id_ = 1;
+    gates_from_ = 1;
+  }
   work_ = active ? dirty.list : surface_tiles_;
   const std::vector<int>& tiles = work_;
   tile_work_ += double(tiles.size());
@@ -516,6 +552,7 @@ bool CpuStabilizer::gather_column(int i, int j, int stride) {
     changed |= s[l] != d;
     d = s[l];
   }
+  if (changed) column_changed_[c] = pass_id_;
   return changed;
 }
 
@@ -754,13 +791,15 @@ int CpuStabilizer::route(double* routed_volume, bool drain) {
   }
   if (drain) {
     // Only the excess on its way into the void leaves (stabilize_apply.frag
-    // with u_drain); the tiles it left are computed again.
+    // with u_drain); the tiles it left are computed again, and the gates
+    // around it read again.
     for (uint32_t k : routed) {
       if (pointer[k] != kPointerVoid) continue;
       const float e = (cells_[k].x + depth_[k]) - stable_[k];
       lost_[k] = lost_[k] + e;
       depth_[k] = depth_[k] - e;
       const size_t column = k % (size_t(width_) * size_t(height_));
+      column_changed_[column] = pass_id_;
       const int i = int(column % size_t(width_)), j = int(column / size_t(width_));
       touch((j / kTile) * tiles_x_ + i / kTile);
     }

@@ -129,8 +129,11 @@ class CpuStabilizer {
   template <class Fn>
   void for_tiles(const std::vector<int>& tiles, Fn fn);
   Tile tile(int t) const;
-  /// Every tile dirty for every stride (snow set, added or routed).
+  /// Every tile dirty for every stride (snow set, added or routed), and
+  /// every gate stale.
   void touch_all();
+  /// Whether no column within one of (i, j) changed at pass `pass` or later.
+  bool quiet_since(int i, int j, uint32_t pass) const;
   /// Tile t changed: the tiles within each stride's reach are dirty for it.
   void touch(int t);
   /// The columns of `box` (inclusive bounds) in tile t changed: the tiles
@@ -159,9 +162,18 @@ class CpuStabilizer {
   // Outflow of the layer texels with a surface (written by a pass before
   // any read; only the columns that send snow are written, so most pages
   // are never touched).
-  ZeroedArray<float> amount_;   // 8 per layer texel, metres
-  ZeroedArray<uint8_t> code_;   // 8 per layer texel
-  ZeroedArray<float> stable_;   // metres, highest snow surface each texel can keep (routing)
+  ZeroedArray<float> amount_;  // 8 per layer texel, metres
+  ZeroedArray<uint8_t> code_;  // 8 per layer texel
+  ZeroedArray<float> stable_;  // metres, highest snow surface each texel can keep (routing)
+  // The single-step rule of each layer texel (single_step_moves) as the last
+  // stride-1 outflow that computed it found it: pass << 1 | moves. A strided
+  // pass reads it instead of walking the eight landings again while no
+  // column around the texel changed since that pass (column_changed_): most
+  // texels of a late strided pass rest.
+  ZeroedArray<uint32_t> gate_;
+  std::vector<uint32_t> column_changed_;  // per column: the pass whose gather last changed it
+  uint32_t pass_id_ = 0;                  // relaxation passes so far, counted from 1
+  uint32_t gates_from_ = 1;     // gates of earlier passes are stale (depth set, routed or poured)
   float residual_ = 0.0f;       // largest move of the last outflow pass
   float residual_void_ = 0.0f;  // and the largest into the void
   bool route_pending_ = false;
