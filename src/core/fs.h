@@ -9,7 +9,9 @@
 namespace snow {
 
 /// Calls write(tmp_path) to produce the file at a temporary name in the
-/// target's folder, then renames it onto `path` (atomic on POSIX). If write
+/// target's folder, then puts it at `path` in one step: swapped with the
+/// file already there (renameat2 RENAME_EXCHANGE), which is then removed,
+/// else renamed onto `path` (both atomic on POSIX). If write
 /// throws, or the rename fails, the temporary file is removed and the target
 /// is left untouched. Throws IOError naming `path` when the folder is not
 /// writable. While write runs, SIGINT, SIGTERM and SIGHUP (when still at
