@@ -1608,11 +1608,14 @@ class GltfLoader {
     // Triangle t's corners as wound in world space, or false where it is
     // degenerate: a repeated index, or zero area (the height is below 1e-7
     // of the longest edge).
-    const auto corners = [&](uint64_t t, uint32_t(&v)[3]) {
+    const auto indices = [&](uint64_t t, uint32_t(&v)[3]) {
       v[0] = g.triangles[3 * t];
       v[1] = g.triangles[3 * t + 1];
       v[2] = g.triangles[3 * t + 2];
       if (flip) std::swap(v[1], v[2]);
+    };
+    const auto corners = [&](uint64_t t, uint32_t(&v)[3]) {
+      indices(t, v);
       if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) return false;
       const glm::vec3 pa = wp[v[0]], pb = wp[v[1]], pc = wp[v[2]];
       const glm::dvec3 e0 = glm::dvec3(pb - pa), e1 = glm::dvec3(pc - pa), e2 = glm::dvec3(pc - pb);
@@ -1623,11 +1626,13 @@ class GltfLoader {
     };
     const size_t chunks = size_t((triangle_count + kLoadChunk - 1) / kLoadChunk);
     std::vector<size_t> chunk_kept(chunks + 1, 0);  // then each chunk's first output triangle
+    std::vector<uint8_t> keep(triangle_count);      // corners() of each, worked out once
     parallel_for(chunks, [&](size_t c) {
       uint32_t v[3];
       for (uint64_t t = c * kLoadChunk;
            t < std::min<uint64_t>(triangle_count, (c + 1) * kLoadChunk); ++t) {
-        chunk_kept[c + 1] += corners(t, v);
+        keep[t] = corners(t, v);
+        chunk_kept[c + 1] += keep[t];
       }
     });
     for (size_t c = 0; c < chunks; ++c) chunk_kept[c + 1] += chunk_kept[c];
@@ -1645,7 +1650,8 @@ class GltfLoader {
       uint32_t v[3];
       for (uint64_t t = c * kLoadChunk;
            t < std::min<uint64_t>(triangle_count, (c + 1) * kLoadChunk); ++t) {
-        if (!corners(t, v)) continue;
+        if (!keep[t]) continue;
+        indices(t, v);
         glm::vec3 face(0.0f);
         if (settings_.shading) {
           const glm::dvec3 cross =
