@@ -332,6 +332,14 @@ TEST(Cli, ExitCodesAndNoPartialOutputs) {
             std::string::npos)
       << bad_method.output;
   EXPECT_EQ(bad_method.output.find("peel"), std::string::npos) << bad_method.output;
+  // glTF goes by the output's extension: --format must agree with it, and
+  // says so before the work.
+  const RunResult bad_format =
+      run("snow " + q(kCourtyard) + " --format glb -o " + q(out / "x.bin"));
+  EXPECT_EQ(bad_format.code, 2);
+  EXPECT_NE(bad_format.output.find("x.bin: a glb file needs the extension .glb"), std::string::npos)
+      << bad_format.output;
+  EXPECT_EQ(bad_format.output.find("peel"), std::string::npos) << bad_format.output;
   write_all(dir / "bad_settings.json", R"({"maps": {"texle": 0.1}})");
   const RunResult bad_config = run("snow " + q(kCourtyard) + " --config " +
                                    q(dir / "bad_settings.json") + " -o " + q(out / "x.glb"));

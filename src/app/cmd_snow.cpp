@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -334,6 +335,16 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   MeshFormat format = MeshFormat::Glb;
   if (!o.output.empty()) {
     format = o.format.empty() ? format_from_path(o.output) : format_from_path("x." + o.format);
+    // glTF is written as binary or JSON by the file's extension (a .gltf
+    // with its .bin beside it), so --format glb or gltf must agree with it.
+    std::string extension = fs::path(o.output).extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    const std::string wanted = std::string(".") + format_name(format);
+    if ((format == MeshFormat::Glb || format == MeshFormat::Gltf) && extension != wanted) {
+      throw InputError(o.output + ": a " + format_name(format) + " file needs the extension " +
+                       wanted);
+    }
   }
   for (const std::string& path : {o.output, o.snow_output, o.preview}) {
     if (path.empty()) continue;
@@ -536,7 +547,9 @@ void register_snow(CLI::App& app, const GlobalOptions& global) {
                   "Output: the input scene plus snow (.glb, .gltf), or snow only (.obj, .ply)");
   cmd->add_option("--snow-output", o->snow_output,
                   "Also write the snow only (.glb, .gltf, .obj, .ply)");
-  cmd->add_option("--format", o->format, "Format of --output, overriding its extension")
+  cmd->add_option(
+         "--format", o->format,
+         "Format of --output: obj or ply override its extension; glb and gltf must match it")
       ->check(CLI::IsMember({"glb", "gltf", "obj", "ply"}));
   cmd->add_flag("--snow-only", o->snow_only, "Write only the snow to --output");
   cmd->add_option("--maps", o->maps_dir,
