@@ -4,9 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <functional>
 #include <limits>
-#include <queue>
 #include <utility>
 #include <vector>
 
@@ -27,6 +25,52 @@ constexpr size_t kMaxPileTexels = size_t(1) << 20;
 /// as before, so that no scene makes the pouring outweigh the passes it
 /// saves.
 constexpr size_t kPouredPerLayerTexel = 8;
+
+/// A min-heap of T in a 4-ary tree (half a binary heap's depth; a pop
+/// compares four children a level, in one cache line), its storage kept
+/// between piles. Its top is always the least element, so the piles take
+/// texels in the same order as with std::priority_queue.
+template <class T>
+class MinHeap {
+ public:
+  bool empty() const { return a_.empty(); }
+  const T& top() const { return a_.front(); }
+  void clear() { a_.clear(); }
+  void push(T v) {
+    size_t i = a_.size();
+    a_.push_back(v);
+    while (i > 0) {
+      const size_t parent = (i - 1) / 4;
+      if (!(v < a_[parent])) break;
+      a_[i] = a_[parent];
+      i = parent;
+    }
+    a_[i] = v;
+  }
+  void pop() {
+    const T v = a_.back();
+    a_.pop_back();
+    const size_t n = a_.size();
+    if (n == 0) return;
+    size_t i = 0;
+    for (;;) {
+      const size_t first = 4 * i + 1;
+      if (first >= n) break;
+      const size_t end = std::min(first + 4, n);
+      size_t least = first;
+      for (size_t c = first + 1; c < end; ++c) {
+        if (a_[c] < a_[least]) least = c;
+      }
+      if (!(a_[least] < v)) break;
+      a_[i] = a_[least];
+      i = least;
+    }
+    a_[i] = v;
+  }
+
+ private:
+  std::vector<T> a_;
+};
 
 class Pourer {
  public:
@@ -151,6 +195,10 @@ class Pourer {
   ZeroedArray<float> void_under_;    // per column: void_under() in that pour
   size_t covered_total_ = 0;
   std::vector<std::pair<uint32_t, float>> covered_;  // texel, path cost
+  // grow()'s frontier (entries: key bits << 32 | texel) and saturations
+  // (apex height, texel), kept between piles.
+  MinHeap<uint64_t> frontier_;
+  MinHeap<std::pair<double, uint32_t>> saturations_;
 };
 
 void Pourer::pour(uint32_t p, float volume) {
@@ -218,7 +266,8 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
   // orders both. The path cost is dist_ when the texel is taken: later entries
   // of a texel come with a lower cost, so a lower height, and are taken
   // first (the others are then stale).
-  std::priority_queue<uint64_t, std::vector<uint64_t>, std::greater<uint64_t>> frontier;
+  MinHeap<uint64_t>& frontier = frontier_;
+  frontier.clear();
   auto entry = [](float key, uint32_t k) {
     uint32_t bits;
     const float positive_zero = key + 0.0f;  // -0 as +0: equal keys, equal bits
@@ -243,7 +292,8 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
   // active * A - keys + full, over the texels still filling (active, the
   // sum of their keys) and the full ones (full: what they hold).
   using Saturation = std::pair<double, uint32_t>;  // apex height, texel
-  std::priority_queue<Saturation, std::vector<Saturation>, std::greater<Saturation>> saturations;
+  MinHeap<Saturation>& saturations = saturations_;
+  saturations.clear();
   size_t active = 0;
   double keys = 0.0, full = 0.0;
   const double inf = std::numeric_limits<double>::infinity();
