@@ -781,6 +781,30 @@ TEST(Export, CombinedGlbOfOddInputsIsWrittenOrRefused) {
   }
 }
 
+// The input is read at the start of a run and its files copied at the end:
+// a .bin that changed in between no longer matches the JSON read first, and
+// the write says so instead of mixing the two.
+TEST(Export, CombinedGlbRefusesAnInputThatChangedMeanwhile) {
+  const auto patches = table_patches();
+  const TestDir test_dir;
+  const fs::path& dir = test_dir.path;
+  std::vector<unsigned char> png;
+  const fs::path input = write_input_scene(dir, &png);
+  fs::create_directories(dir / "out");
+  const fs::path out = dir / "out" / "x.glb";
+  CombinedInputPtr ahead = read_combined_input(input, out);
+  std::ofstream(dir / "input.bin", std::ios::binary | std::ios::app) << "more";
+  try {
+    write_combined_gltf(std::move(ahead), patches, out);
+    ADD_FAILURE() << "a changed input was written";
+  } catch (const IOError& e) {
+    EXPECT_NE(std::string(e.what()).find("input.bin changed while snowmodel ran"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_TRUE(fs::is_empty(dir / "out"));
+}
+
 TEST(Export, CombinedToyCarKeepsItsCounts) {
   const fs::path input = fs::path(SNOW_SHARED_SCENES) / "khronos" / "ToyCar" / "ToyCar.gltf";
   if (!fs::exists(input)) GTEST_SKIP() << input << " is absent";

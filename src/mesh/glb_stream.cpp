@@ -53,6 +53,17 @@ bool is_array_or_absent(const json& j, const char* key) {
   return !j.contains(key) || j[key].is_array();
 }
 
+/// `bytes` of `file`, with the file's size and modification time now;
+/// nullopt when they cannot be read.
+std::optional<FileBytes> file_bytes(const fs::path& file, uint64_t offset, uint64_t length) {
+  std::error_code ec;
+  FileBytes bytes{file, offset, length, fs::file_size(file, ec), {}};
+  if (ec) return std::nullopt;
+  bytes.modified = fs::last_write_time(file, ec);
+  if (ec) return std::nullopt;
+  return bytes;
+}
+
 }  // namespace
 
 std::optional<StreamPlan> plan_streamed_glb(const fs::path& input) {
@@ -79,7 +90,8 @@ std::optional<StreamPlan> plan_streamed_glb(const fs::path& input) {
         in.read(reinterpret_cast<char*>(chunk), 8) && u32_at(chunk + 4) == kChunkBin) {
       const uint64_t bin_length = u32_at(chunk);
       if (next + 8 + bin_length > length) return std::nullopt;
-      bin = FileBytes{input, next + 8, bin_length};
+      bin = file_bytes(input, next + 8, bin_length);
+      if (!bin) return std::nullopt;
     }
   } else {
     text.resize(file_size);
@@ -121,10 +133,11 @@ std::optional<StreamPlan> plan_streamed_glb(const fs::path& input) {
         const std::optional<fs::path> file =
             resolve_relative_uri(folder, b["uri"].get<std::string>());
         if (!file || fs::file_size(*file, ec) < length || ec) return std::nullopt;
-        plan.buffer = FileBytes{*file, 0, length};
+        plan.buffer = file_bytes(*file, 0, length);
+        if (!plan.buffer) return std::nullopt;
       } else if (length > 0) {
         if (!bin || bin->length < length) return std::nullopt;
-        plan.buffer = FileBytes{input, bin->offset, length};
+        plan.buffer = file_bytes(input, bin->offset, length);
       }
     }
   }
@@ -163,7 +176,13 @@ std::optional<StreamPlan> plan_streamed_glb(const fs::path& input) {
             what + " has an unknown format; the output refers to it by its URI as it is");
         continue;
       }
-      plan.images.push_back({i, FileBytes{*file, 0, size}, mime});
+      std::optional<FileBytes> bytes = file_bytes(*file, 0, size);
+      if (!bytes) {
+        plan.kept_by_uri.push_back(
+            what + " could not be read; the output refers to it by its URI as it is");
+        continue;
+      }
+      plan.images.push_back({i, *bytes, mime});
     }
   }
   return plan;
@@ -276,6 +295,17 @@ void merge_snow(json& g, const json& snow, uint64_t offset) {
 }  // namespace
 
 void write_streamed_glb(StreamPlan& plan, const std::vector<TriMesh>& snow, const fs::path& out) {
+  // The input is read at the start of a run and copied at its end: a file
+  // changed in between would no longer match the JSON read then.
+  const auto check_unchanged = [&](const FileBytes& source) {
+    const std::optional<FileBytes> now = file_bytes(source.file, source.offset, source.length);
+    if (!now || now->file_size != source.file_size || now->modified != source.modified) {
+      throw IOError("cannot write " + out.string() + ": " + source.file.string() +
+                    " changed while snowmodel ran; run it again");
+    }
+  };
+  if (plan.buffer) check_unchanged(*plan.buffer);
+  for (const StreamPlan::EmbeddedImage& e : plan.images) check_unchanged(e.bytes);
   for (const std::string& warning : plan.kept_by_uri) log_warn(warning);
   json& g = plan.gltf;
   // The BIN chunk: the buffer's bytes, the images', then the snow's, each

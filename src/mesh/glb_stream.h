@@ -22,10 +22,13 @@ namespace snow {
 /// MIME type of encoded image bytes, from their signature; empty if unknown.
 std::string sniff_mime_type(const std::vector<unsigned char>& bytes);
 
-/// Bytes of a file that the streamed GLB copies.
+/// Bytes of a file that the streamed GLB copies, and the file's size and
+/// modification time when the plan was made.
 struct FileBytes {
   std::filesystem::path file;
   uint64_t offset = 0, length = 0;
+  uint64_t file_size = 0;
+  std::filesystem::file_time_type modified{};
 };
 
 struct StreamPlan {
@@ -48,7 +51,9 @@ std::optional<StreamPlan> plan_streamed_glb(const std::filesystem::path& input);
 /// Writes the plan's input plus `snow` (append_meshes' nodes, meshes and
 /// material under a "Snow" root in the default scene) to the .glb `out`,
 /// atomically. The plan's JSON is changed. Throws IOError when a file
-/// cannot be read or `out` written.
+/// cannot be read or `out` written, or when a file the plan copies from
+/// changed (size or modification time) since the plan was made: its bytes
+/// would no longer match the JSON read then.
 void write_streamed_glb(StreamPlan& plan, const std::vector<TriMesh>& snow,
                         const std::filesystem::path& out);
 
