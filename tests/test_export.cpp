@@ -621,6 +621,19 @@ std::vector<unsigned char> accessor_bytes(const tinygltf::Model& m, const tinygl
   return {data.begin() + long(v.byteOffset), data.begin() + long(v.byteOffset + v.byteLength)};
 }
 
+/// Writes a GLB of `json` (its chunk padded with spaces; its declared length
+/// `extra` bytes longer than it is) and, when not empty, a BIN chunk of `bin`.
+void write_glb_file(const fs::path& path, std::string json, std::string bin, uint32_t extra = 0) {
+  json.resize((json.size() + 3) & ~size_t(3), ' ');
+  bin.resize((bin.size() + 3) & ~size_t(3), '\0');
+  const auto u32 = [](uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+  const size_t total = 20 + json.size() + (bin.empty() ? 0 : 8 + bin.size());
+  std::ofstream out(path, std::ios::binary);
+  out << "glTF" << u32(2) << u32(uint32_t(total)) << u32(uint32_t(json.size() + extra)) << "JSON"
+      << json;
+  if (!bin.empty()) out << u32(uint32_t(bin.size())) << std::string("BIN\0", 4) << bin;
+}
+
 /// The JSON chunk of a GLB.
 nlohmann::json glb_json_of(const fs::path& path) {
   const std::string bytes = read_text(path);
@@ -650,15 +663,7 @@ TEST(Export, CombinedGlbIsTheSameStreamedOrReadByTinygltf) {
   {
     nlohmann::json j = json;
     j["buffers"][0].erase("uri");
-    std::string text = j.dump();
-    text.resize((text.size() + 3) & ~size_t(3), ' ');
-    std::string padded = bin;
-    padded.resize((padded.size() + 3) & ~size_t(3), '\0');
-    const auto u32 = [](uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
-    std::ofstream(dir / "b.glb", std::ios::binary)
-        << "glTF" << u32(2) << u32(uint32_t(28 + text.size() + padded.size()))
-        << u32(uint32_t(text.size())) << "JSON" << text << u32(uint32_t(padded.size()))
-        << std::string("BIN\0", 4) << padded;
+    write_glb_file(dir / "b.glb", j.dump(), bin);
   }
   {
     tinygltf::Model model = load_gltf(gltf);
@@ -748,15 +753,8 @@ TEST(Export, CombinedGlbOfOddInputsIsWrittenOrRefused) {
               }),
   };
   // A GLB whose JSON chunk claims more bytes than the file holds.
-  {
-    std::string text = good.dump();
-    text.resize((text.size() + 3) & ~size_t(3), ' ');
-    const auto u32 = [](uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
-    std::ofstream(dir / "short.glb", std::ios::binary)
-        << "glTF" << u32(2) << u32(uint32_t(20 + text.size())) << u32(uint32_t(text.size() + 64))
-        << "JSON" << text;
-    inputs.push_back(dir / "short.glb");
-  }
+  write_glb_file(dir / "short.glb", good.dump(), "", 64);
+  inputs.push_back(dir / "short.glb");
   fs::create_directories(dir / "out");
   for (const fs::path& input : inputs) {
     SCOPED_TRACE(input.filename().string());

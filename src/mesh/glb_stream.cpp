@@ -151,35 +151,29 @@ std::optional<StreamPlan> plan_streamed_glb(const fs::path& input) {
       const std::string uri = image["uri"].get<std::string>();
       const std::string what = input.string() + ": image " + std::to_string(i) + " ('" + uri + "')";
       const std::optional<fs::path> file = resolve_relative_uri(folder, uri);
-      if (!file) {
-        if (uri.compare(0, 5, "data:") == 0) return std::nullopt;  // tinygltf's path decodes it
-        plan.kept_by_uri.push_back(
-            what + " could not be read; the output refers to it by its URI as it is");
+      if (!file && uri.compare(0, 5, "data:") == 0) return std::nullopt;  // tinygltf decodes it
+      const auto keep_uri = [&](const char* why) {
+        plan.kept_by_uri.push_back(what + why + "; the output refers to it by its URI as it is");
+      };
+      // The whole file, and its first bytes for its format.
+      std::optional<FileBytes> bytes = file ? file_bytes(*file, 0, 0) : std::nullopt;
+      std::vector<unsigned char> start;
+      if (bytes && bytes->file_size > 0) {
+        bytes->length = bytes->file_size;
+        start.resize(size_t(std::min<uint64_t>(12, bytes->length)));
+        std::ifstream head(*file, std::ios::binary);
+        if (!head.read(reinterpret_cast<char*>(start.data()), std::streamsize(start.size())))
+          start.clear();
+      }
+      if (start.empty()) {
+        keep_uri(" could not be read");
         continue;
       }
-      const uint64_t size = fs::file_size(*file, ec);
-      std::ifstream head(*file, std::ios::binary);
-      std::vector<unsigned char> start(12, 0);
-      if (ec || size == 0 || !head ||
-          !head.read(reinterpret_cast<char*>(start.data()),
-                     std::streamsize(std::min<uint64_t>(12, size)))) {
-        plan.kept_by_uri.push_back(
-            what + " could not be read; the output refers to it by its URI as it is");
-        continue;
-      }
-      start.resize(std::min<uint64_t>(12, size));
       std::string mime = sniff_mime_type(start);
       if (mime.empty() && image.contains("mimeType") && image["mimeType"].is_string())
         mime = image["mimeType"].get<std::string>();
       if (mime.empty()) {
-        plan.kept_by_uri.push_back(
-            what + " has an unknown format; the output refers to it by its URI as it is");
-        continue;
-      }
-      std::optional<FileBytes> bytes = file_bytes(*file, 0, size);
-      if (!bytes) {
-        plan.kept_by_uri.push_back(
-            what + " could not be read; the output refers to it by its URI as it is");
+        keep_uri(" has an unknown format");
         continue;
       }
       plan.images.push_back({i, *bytes, mime});
