@@ -6,7 +6,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -337,11 +336,9 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
     format = o.format.empty() ? format_from_path(o.output) : format_from_path("x." + o.format);
     // glTF is written as binary or JSON by the file's extension (a .gltf
     // with its .bin beside it), so --format glb or gltf must agree with it.
-    std::string extension = fs::path(o.output).extension().string();
-    std::transform(extension.begin(), extension.end(), extension.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
     const std::string wanted = std::string(".") + format_name(format);
-    if ((format == MeshFormat::Glb || format == MeshFormat::Gltf) && extension != wanted) {
+    if ((format == MeshFormat::Glb || format == MeshFormat::Gltf) &&
+        lower_extension(o.output) != wanted) {
       throw InputError(o.output + ": a " + format_name(format) + " file needs the extension " +
                        wanted);
     }

@@ -3,7 +3,9 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
@@ -104,6 +106,13 @@ fs::path temporary_name(const fs::path& path) {
                                "_" + std::to_string(counter++));
 }
 }  // namespace
+
+std::string lower_extension(const fs::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  return ext;
+}
 
 void write_file_atomically(const fs::path& path,
                            const std::function<void(const fs::path&)>& write) {

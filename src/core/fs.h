@@ -8,6 +8,9 @@
 
 namespace snow {
 
+/// The extension of `path`, with its dot, in lower case ("model.GLB": ".glb").
+std::string lower_extension(const std::filesystem::path& path);
+
 /// Calls write(tmp_path) to produce the file at a temporary name in the
 /// target's folder, then puts it at `path` in one step: swapped with the
 /// file already there (renameat2 RENAME_EXCHANGE), which is then removed,

@@ -6,12 +6,12 @@
 #include <tiny_gltf.h>
 
 #include <algorithm>
-#include <cctype>
 #include <optional>
 #include <sstream>
 #include <system_error>
 
 #include "core/error.h"
+#include "core/fs.h"
 #include "core/log.h"
 #include "mesh/glb_stream.h"
 #include "mesh/gltf_writer.h"
@@ -22,13 +22,6 @@ namespace snow {
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string lower_extension(const fs::path& path) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
-  return ext;
-}
 
 std::vector<TriMesh> patch_meshes(const std::vector<SnowPatch>& patches) {
   std::vector<TriMesh> meshes;

@@ -8,7 +8,6 @@
 #include <tiny_gltf.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -143,13 +142,6 @@ void add_primitive(tinygltf::Model& model, const TriMesh& mesh, int material_off
   gm.name = mesh.name;
   gm.primitives.push_back(std::move(prim));
   model.meshes.push_back(std::move(gm));
-}
-
-std::string lower_extension(const std::filesystem::path& path) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
-  return ext;
 }
 
 void serialize(const tinygltf::Model& model, bool binary, const std::filesystem::path& path,

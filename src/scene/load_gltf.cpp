@@ -34,6 +34,7 @@
 #endif
 
 #include "core/error.h"
+#include "core/fs.h"
 #include "core/log.h"
 #include "core/parallel.h"
 
@@ -603,9 +604,7 @@ class GltfLoader {
       if (!probe) throw IOError(label_ + ": cannot open file");
     }
     file_ = read_file(path_, "scene file", false, nullptr);
-    std::string extension = path_.extension().string();
-    std::transform(extension.begin(), extension.end(), extension.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    const std::string extension = lower_extension(path_);
     const bool glb_magic = file_.size() >= 4 && read_u32_le(file_.data()) == kGlbMagic;
     const uint8_t* json_begin = file_.data();
     uint64_t json_size = file_.size();
@@ -1800,9 +1799,7 @@ class GltfLoader {
 
 uint64_t gltf_input_bytes(const std::filesystem::path& path) {
   const auto extension_is = [](const std::filesystem::path& p, const char* ext) {
-    std::string e = p.extension().string();
-    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return std::tolower(c); });
-    return e == ext;
+    return lower_extension(p) == ext;
   };
   std::error_code error;
   uintmax_t bytes = std::filesystem::file_size(path, error);
