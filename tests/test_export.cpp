@@ -613,6 +613,16 @@ TEST(Export, CombinedKeepsTheInputAndEmbedsItsImages) {
                InputError);
 }
 
+/// What the streamed-GLB tests start from: the table's patches, a test
+/// folder, and the input scene written into it (write_input_scene).
+struct CombinedSetup {
+  std::vector<SnowPatch> patches = table_patches();
+  TestDir test_dir;
+  const fs::path& dir = test_dir.path;
+  std::vector<unsigned char> png;
+  fs::path input = write_input_scene(dir, &png);
+};
+
 /// The bytes of accessor `a` of `m` (its buffer view's range).
 std::vector<unsigned char> accessor_bytes(const tinygltf::Model& m, const tinygltf::Accessor& a) {
   if (a.bufferView < 0) return {};
@@ -650,11 +660,8 @@ nlohmann::json glb_json_of(const fs::path& path) {
 // streamed GLB keeps the input's JSON as written: a top-level property that
 // tinygltf would drop is still there.
 TEST(Export, CombinedGlbIsTheSameStreamedOrReadByTinygltf) {
-  const auto patches = table_patches();
-  const TestDir test_dir;
-  const fs::path& dir = test_dir.path;
-  std::vector<unsigned char> png;
-  const fs::path gltf = write_input_scene(dir, &png);
+  const CombinedSetup setup;
+  const auto& [patches, test_dir, dir, png, gltf] = setup;
   nlohmann::json json = nlohmann::json::parse(read_text(gltf));
   json["x-kept"] = 1;
   const std::string bin = read_text(dir / "input.bin");
@@ -721,11 +728,8 @@ TEST(Export, CombinedGlbIsTheSameStreamedOrReadByTinygltf) {
 // which refuses most of them; written directly, each is streamed, handed to
 // tinygltf, or refused with InputError, and no output is left half-written.
 TEST(Export, CombinedGlbOfOddInputsIsWrittenOrRefused) {
-  const auto patches = table_patches();
-  const TestDir test_dir;
-  const fs::path& dir = test_dir.path;
-  std::vector<unsigned char> png;
-  const fs::path gltf = write_input_scene(dir, &png);
+  const CombinedSetup setup;
+  const auto& [patches, test_dir, dir, png, gltf] = setup;
   const nlohmann::json good = nlohmann::json::parse(read_text(gltf));
   const auto variant = [&](const char* name, auto&& change) {
     nlohmann::json j = good;
@@ -783,11 +787,8 @@ TEST(Export, CombinedGlbOfOddInputsIsWrittenOrRefused) {
 // a .bin that changed in between no longer matches the JSON read first, and
 // the write says so instead of mixing the two.
 TEST(Export, CombinedGlbRefusesAnInputThatChangedMeanwhile) {
-  const auto patches = table_patches();
-  const TestDir test_dir;
-  const fs::path& dir = test_dir.path;
-  std::vector<unsigned char> png;
-  const fs::path input = write_input_scene(dir, &png);
+  const CombinedSetup setup;
+  const auto& [patches, test_dir, dir, png, input] = setup;
   fs::create_directories(dir / "out");
   const fs::path out = dir / "out" / "x.glb";
   CombinedInputPtr ahead = read_combined_input(input, out);
