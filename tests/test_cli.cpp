@@ -14,6 +14,7 @@
 
 #include <tiny_gltf.h>
 
+#include "core/heap.h"
 #include "gl/context.h"
 #include "mesh/gltf_writer.h"
 #include "scene/builder.h"
@@ -179,6 +180,36 @@ TEST(Cli, LauncherStartsTheCoreBesideIt) {
       << alone.output;
   EXPECT_NE(alone.output.find("snowmodel is not installed whole"), std::string::npos)
       << alone.output;
+  fs::remove_all(dir);
+}
+
+// A large job (maps of 512 x 512 texels or more) turns the heap's huge
+// pages off where the machine hands free memory back to its host
+// (core/heap.h fit_huge_pages); a small job, or huge pages the user asked
+// for, keep them.
+TEST(Cli, LargeJobsFitTheHeapsHugePagesToTheMachine) {
+  const RunResult info = snow::test::run_command("env -u GLIBC_TUNABLES " +
+                                                 std::string(SNOWMODEL_EXE) + " info --no-gl");
+  ASSERT_EQ(info.code, 0) << info.output;
+  if (info.output.find("Huge pages for the heap: on") == std::string::npos)
+    GTEST_SKIP() << info.output;
+  const bool reported = snow::free_pages_reported();
+  EXPECT_EQ(info.output.find("jobs of 512 x 512 texels or more turn them off") != std::string::npos,
+            reported)
+      << info.output;
+  const fs::path dir = temp_dir("huge_pages");
+  const std::string line = "heap: transparent huge pages off from here on";
+  const auto job = [&](const std::string& env, int side) {
+    const RunResult r = snow::test::run_command(
+        env + " " + std::string(SNOWMODEL_EXE) + " -v snow " + q(kCourtyard) +
+        " --depth 0.05 --directions 16 --layers 4 --max-side " + std::to_string(side) + " -o " +
+        q(dir / "out.glb"));
+    EXPECT_EQ(r.code, 0) << r.output;
+    return r.output.find(line) != std::string::npos;
+  };
+  EXPECT_EQ(job("env -u GLIBC_TUNABLES", 512), reported);
+  EXPECT_FALSE(job("env -u GLIBC_TUNABLES", 256));
+  EXPECT_FALSE(job("GLIBC_TUNABLES=glibc.malloc.hugetlb=1", 512));  // the user's choice
   fs::remove_all(dir);
 }
 

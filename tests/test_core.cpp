@@ -162,6 +162,35 @@ TEST(Heap, LargeBlocksComeFromTheHeap) {
   EXPECT_EQ(mallinfo2().hblks, mapped + 1);
 }
 
+// free_pages_reported reads the virtio devices the kernel lists: only
+// a memory balloon (device 5), bound to its driver, with free page
+// reporting (feature bit 5) counts.
+TEST(Heap, FreePageReportingIsFoundInTheVirtioDevices) {
+  const fs::path dir = temp_dir("virtio");
+  const auto device = [&](const std::string& name, const std::string& id,
+                          const std::string& features, bool bound) {
+    const fs::path d = dir / name;
+    fs::create_directories(d);
+    std::ofstream(d / "device") << id << "\n";
+    std::ofstream(d / "features") << features << "\n";
+    if (bound) fs::create_directories(d / "driver");
+  };
+  const std::string reporting = "0110010" + std::string(57, '0');  // bits 1, 2 and 5
+  const std::string no_reporting = "0110000" + std::string(57, '0');
+  const auto reported = [&] { return snow::free_pages_reported(dir.string().c_str()); };
+  EXPECT_FALSE(snow::free_pages_reported((dir / "absent").string().c_str()));
+  EXPECT_FALSE(reported());                      // no devices
+  device("virtio0", "0x0002", reporting, true);  // a block device: bit 5 means something else
+  EXPECT_FALSE(reported());
+  device("virtio1", "0x0005", no_reporting, true);  // a balloon without reporting
+  EXPECT_FALSE(reported());
+  device("virtio2", "0x0005", reporting, false);  // no driver: nothing reported
+  EXPECT_FALSE(reported());
+  device("virtio3", "0x0005", reporting, true);
+  EXPECT_TRUE(reported());
+  fs::remove_all(dir);
+}
+
 // A large ZeroedArray reads as zeros and costs only the pages written: one
 // write makes one small page resident, not the 2 MiB huge page (512 small
 // ones) that the heap's huge pages (or the kernel's THP mode "always")

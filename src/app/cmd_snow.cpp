@@ -22,6 +22,7 @@
 #include "app/settings.h"
 #include "core/error.h"
 #include "core/fs.h"
+#include "core/heap.h"
 #include "core/log.h"
 #include "mesh/export.h"
 #include "mesh/write_maps.h"
@@ -397,6 +398,11 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   const std::vector<uint8_t> receives = receiving_objects(snow_scene, s.no_snow_on);
   warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
   choose_automatic_side(s.peel, snow_scene.bounds, s.accumulate.fall_depth);
+  if (fit_huge_pages(make_grid(snow_scene.bounds, s.peel).texels())) {
+    log_debug(
+        "heap: transparent huge pages off from here on: a large job on a machine that hands "
+        "free memory back to its host (core/heap.h)");
+  }
 
   // Each GL stage runs in a context of its own, dropped when it is done:
   // Mesa keeps much of what a stage deleted allocated in the context (llvmpipe:

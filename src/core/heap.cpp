@@ -1,6 +1,8 @@
 #include "core/heap.h"
 
+#include <dirent.h>
 #include <malloc.h>
+#include <sys/prctl.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -16,6 +18,11 @@ constexpr const char* kThresholdTunable = "glibc.malloc.mmap_threshold";
 constexpr int kMmapThreshold = 32 << 20;
 // Whether tune_heap set the threshold, for mmap_threshold_status().
 bool threshold_set = false;
+// Whether the huge-page tunable in GLIBC_TUNABLES is ours (added by
+// tune_heap or the launcher, which set the marker), not the user's.
+bool huge_pages_ours = false;
+// Whether fit_huge_pages turned them off.
+bool huge_pages_fitted = false;
 
 constexpr bool kGlibcHasTunable = SNOW_GLIBC_HAS_HUGE_PAGE_TUNABLE;
 
@@ -51,6 +58,7 @@ void tune_heap(char** argv) {
   // The marker is set only across the re-execution (or by the launcher).
   if (std::getenv(SNOW_HUGE_PAGE_MARKER) != nullptr) {
     unsetenv(SNOW_HUGE_PAGE_MARKER);
+    huge_pages_ours = tunable_value() == "1";
     return;
   }
   if (argv == nullptr || argv[0] == nullptr) return;
@@ -98,7 +106,44 @@ std::string huge_pages_status() {
     if (open != std::string::npos && close > open) mode = mode.substr(open + 1, close - open - 1);
   }
   if (mode == "never") return "off (the kernel's transparent huge pages are disabled)";
-  return "on (GLIBC_TUNABLES " + std::string(kTunable) + "=" + value + ")";
+  std::string status = "on (GLIBC_TUNABLES " + std::string(kTunable) + "=" + value + ")";
+  if (huge_pages_ours && free_pages_reported()) {
+    status +=
+        "; jobs of 512 x 512 texels or more turn them off, as this machine hands free memory "
+        "back to its host (virtio-balloon free page reporting)";
+  }
+  return status;
+}
+
+bool free_pages_reported(const char* devices) {
+  DIR* dir = opendir(devices);
+  if (dir == nullptr) return false;
+  bool reported = false;
+  while (const dirent* entry = readdir(dir)) {
+    const std::string device = std::string(devices) + "/" + entry->d_name;
+    std::string id, features;
+    if (entry->d_name[0] == '.' || !std::getline(std::ifstream(device + "/device"), id) ||
+        std::strtol(id.c_str(), nullptr, 0) != 5 ||
+        access((device + "/driver").c_str(), F_OK) != 0 ||
+        !std::getline(std::ifstream(device + "/features"), features)) {
+      continue;
+    }
+    if (features.size() > 5 && features[5] == '1') {
+      reported = true;
+      break;
+    }
+  }
+  closedir(dir);
+  return reported;
+}
+
+bool fit_huge_pages(size_t columns) {
+  if (huge_pages_fitted || !huge_pages_ours || columns < kLargeJobColumns ||
+      !free_pages_reported()) {
+    return false;
+  }
+  huge_pages_fitted = prctl(PR_SET_THP_DISABLE, 1, 0, 0, 0) == 0;
+  return huge_pages_fitted;
 }
 
 }  // namespace snow
