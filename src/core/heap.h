@@ -50,6 +50,9 @@ void tune_heap(char** argv);
 /// pages, whether the kernel's transparent huge pages allow them, and
 /// whether large jobs turn them off (fit_huge_pages).
 std::string huge_pages_status();
+/// One line for `snowmodel info`: the mmap threshold this process set, or
+/// why it set none.
+std::string mmap_threshold_status();
 
 /// Where the kernel lists its virtio devices.
 inline constexpr const char* kVirtioDevices = "/sys/bus/virtio/devices";
@@ -83,8 +86,5 @@ inline constexpr size_t kLargeJobColumns = size_t(512) * 512;
 /// (medians of 20); the courtyard 2.6-3.1 / 2.2-2.7 s, the 1M terrain at
 /// 2048 texels 4.2-5.1 / 3.3-3.6 s (tools/RESULTS.md, session 31).
 bool fit_huge_pages(size_t columns);
-/// One line for `snowmodel info`: the mmap threshold this process set, or
-/// why it set none.
-std::string mmap_threshold_status();
 
 }  // namespace snow
