@@ -183,10 +183,10 @@ TEST(Cli, LauncherStartsTheCoreBesideIt) {
   fs::remove_all(dir);
 }
 
-// A large job (maps of 512 x 512 texels or more) turns the heap's huge
-// pages off where the machine hands free memory back to its host
-// (core/heap.h fit_huge_pages); a small job, or huge pages the user asked
-// for, keep them.
+// A large job (maps of 512 x 512 texels or more, or 32 MiB of input or
+// more) turns the heap's huge pages off where the machine hands free memory
+// back to its host (core/heap.h fit_huge_pages); a small job, or huge
+// pages the user asked for, keep them.
 TEST(Cli, LargeJobsFitTheHeapsHugePagesToTheMachine) {
   const RunResult info = snow::test::run_command("env -u GLIBC_TUNABLES " +
                                                  std::string(SNOWMODEL_EXE) + " info --no-gl");
@@ -194,22 +194,31 @@ TEST(Cli, LargeJobsFitTheHeapsHugePagesToTheMachine) {
   if (info.output.find("Huge pages for the heap: on") == std::string::npos)
     GTEST_SKIP() << info.output;
   const bool reported = snow::free_pages_reported();
-  EXPECT_EQ(info.output.find("jobs of 512 x 512 texels or more turn them off") != std::string::npos,
+  EXPECT_EQ(info.output.find("jobs of 512 x 512 texels or 32 MiB of input or more turn them off") !=
+                std::string::npos,
             reported)
       << info.output;
   const fs::path dir = temp_dir("huge_pages");
   const std::string line = "heap: transparent huge pages off from here on";
-  const auto job = [&](const std::string& env, int side) {
-    const RunResult r = snow::test::run_command(
-        env + " " + std::string(SNOWMODEL_EXE) + " -v snow " + q(kCourtyard) +
-        " --depth 0.05 --directions 16 --layers 4 --max-side " + std::to_string(side) + " -o " +
-        q(dir / "out.glb"));
+  const auto job = [&](const std::string& env, int side, const fs::path& scene = kCourtyard) {
+    const RunResult r =
+        snow::test::run_command(env + " " + std::string(SNOWMODEL_EXE) + " -v snow " + q(scene) +
+                                " --depth 0.05 --directions 16 --layers 4 --max-side " +
+                                std::to_string(side) + " -o " + q(dir / "out.glb"));
     EXPECT_EQ(r.code, 0) << r.output;
     return r.output.find(line) != std::string::npos;
   };
   EXPECT_EQ(job("env -u GLIBC_TUNABLES", 512), reported);
   EXPECT_FALSE(job("env -u GLIBC_TUNABLES", 256));
   EXPECT_FALSE(job("GLIBC_TUNABLES=glibc.malloc.hugetlb=1", 512));  // the user's choice
+  // A triangle whose .bin holds 32 MiB (a hole but for its 36 bytes): a
+  // large input, on small maps.
+  const float xyz[9] = {0, 0, 0, 0, 0, 1, 1, 0, 0};
+  const fs::path big = write_triangle_gltf(dir, "big", xyz);
+  fs::resize_file(dir / "big.bin", uintmax_t(32) << 20);
+  EXPECT_EQ(job("env -u GLIBC_TUNABLES", 64, big), reported);
+  fs::resize_file(dir / "big.bin", (uintmax_t(32) << 20) - 4096);
+  EXPECT_FALSE(job("env -u GLIBC_TUNABLES", 64, big));
   fs::remove_all(dir);
 }
 

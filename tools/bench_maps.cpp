@@ -88,7 +88,7 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
   ps.max_side = side;
   ps.layers = o.layers;
   // As snowmodel does, so that the timings compare.
-  snow::fit_huge_pages(snow::make_grid(scene.bounds, ps).texels());
+  snow::fit_huge_pages(0, snow::make_grid(scene.bounds, ps).texels());
   snow::SnowMaps maps;
   r.peel = 1e30;
   for (int k = 0; k < o.repeat; ++k) {

@@ -127,7 +127,7 @@ int main(int argc, char** argv) {
     PeelSettings peel;
     peel.max_side = side;
     peel.layers = layers;
-    fit_huge_pages(make_grid(scene.bounds, peel).texels());  // as snowmodel does
+    fit_huge_pages(0, make_grid(scene.bounds, peel).texels());  // as snowmodel does
     auto t0 = std::chrono::steady_clock::now();
     const SnowMaps maps = peel_layers(scene, peel);
     const double peel_s = seconds_since(t0);

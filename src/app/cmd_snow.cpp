@@ -113,6 +113,15 @@ void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth) {
   log_warn(line);
 }
 
+/// fit_huge_pages (core/heap.h), saying so when it turns them off.
+void fit_heap(uint64_t input_bytes, size_t columns) {
+  if (fit_huge_pages(input_bytes, columns)) {
+    log_debug(
+        "heap: transparent huge pages off from here on: a large job on a machine that hands "
+        "free memory back to its host (core/heap.h)");
+  }
+}
+
 /// Inputs this large (bytes) load for long enough to hide a GPU driver's
 /// start (0.09-0.17 s on an H100; its loads ran at about 0.5 GB/s).
 constexpr uint64_t kWarmUpInputBytes = uint64_t(16) << 20;
@@ -379,6 +388,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   // Textures, normals and UVs only show in the preview (ToyCar's textures:
   // 0.03 s to decode).
   s.load.load_images = s.load.shading = !o.preview.empty();
+  const uint64_t input_bytes = gltf_input_bytes(o.input);
+  fit_heap(input_bytes, 0);
   Scene scene;
   stage("load", [&] { scene = load_scene(o.input, s.load); });
   const std::optional<bool> software = probed.get();
@@ -398,11 +409,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   const std::vector<uint8_t> receives = receiving_objects(snow_scene, s.no_snow_on);
   warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
   choose_automatic_side(s.peel, snow_scene.bounds, s.accumulate.fall_depth);
-  if (fit_huge_pages(make_grid(snow_scene.bounds, s.peel).texels())) {
-    log_debug(
-        "heap: transparent huge pages off from here on: a large job on a machine that hands "
-        "free memory back to its host (core/heap.h)");
-  }
+  fit_heap(input_bytes, make_grid(snow_scene.bounds, s.peel).texels());
 
   // Each GL stage runs in a context of its own, dropped when it is done:
   // Mesa keeps much of what a stage deleted allocated in the context (llvmpipe:

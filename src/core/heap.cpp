@@ -109,8 +109,8 @@ std::string huge_pages_status() {
   std::string status = "on (GLIBC_TUNABLES " + std::string(kTunable) + "=" + value + ")";
   if (huge_pages_ours && free_pages_reported()) {
     status +=
-        "; jobs of 512 x 512 texels or more turn them off, as this machine hands free memory "
-        "back to its host (virtio-balloon free page reporting)";
+        "; jobs of 512 x 512 texels or 32 MiB of input or more turn them off, as this machine "
+        "hands free memory back to its host (virtio-balloon free page reporting)";
   }
   return status;
 }
@@ -137,9 +137,9 @@ bool free_pages_reported(const char* devices) {
   return reported;
 }
 
-bool fit_huge_pages(size_t columns) {
-  if (huge_pages_fitted || !huge_pages_ours || columns < kLargeJobColumns ||
-      !free_pages_reported()) {
+bool fit_huge_pages(uint64_t input_bytes, size_t columns) {
+  const bool large = columns >= kLargeJobColumns || input_bytes >= kLargeJobInputBytes;
+  if (huge_pages_fitted || !huge_pages_ours || !large || !free_pages_reported()) {
     return false;
   }
   huge_pages_fitted = prctl(PR_SET_THP_DISABLE, 1, 0, 0, 0) == 0;

@@ -29,6 +29,7 @@
 // 0.091-0.11 -> 0.057-0.077 s; Kenney tiles and SheenChair 10-30 ms less;
 // peak memory the same to 5 % more (the 10k terrain 311 -> 325-330 MiB).
 #include <cstddef>
+#include <cstdint>
 #include <string>
 
 namespace snow {
@@ -70,21 +71,27 @@ inline constexpr const char* kVirtioDevices = "/sys/bus/virtio/devices";
 /// same memory had just been freed).
 bool free_pages_reported(const char* devices = kVirtioDevices);
 
-/// Maps of this many texel columns (512 x 512) or more make a large job.
+/// A large job: maps of this many texel columns (512 x 512) or more (about
+/// 75 MiB and up), or an input of this many bytes or more (its load alone
+/// takes about 2.5 times that: the 1M-triangle terrain's 84 MB, 204 MiB).
 inline constexpr size_t kLargeJobColumns = size_t(512) * 512;
+inline constexpr uint64_t kLargeJobInputBytes = uint64_t(32) << 20;
 
-/// Call once a job's size is known (`columns`: texel columns of its maps).
-/// Where the heap has huge pages because tune_heap (or snowmodel's
-/// launcher) asked for them, not the user's GLIBC_TUNABLES, the machine
-/// hands free memory back to its host (free_pages_reported) and the job is
-/// large (kLargeJobColumns), turns transparent huge pages off for the rest
-/// of the process (prctl PR_SET_THP_DISABLE; the pages it has keep their
-/// size) and returns true. A small job mostly takes memory another process
+/// Call as soon as a job's size is known, with what is known of it
+/// (`input_bytes`: the input's bytes, gltf_input_bytes; `columns`: texel
+/// columns of its maps; 0 where not known yet). Where the heap has huge
+/// pages because tune_heap (or snowmodel's launcher) asked for them, not
+/// the user's GLIBC_TUNABLES, the machine hands free memory back to its
+/// host (free_pages_reported) and the job is large (kLargeJobColumns,
+/// kLargeJobInputBytes), turns transparent huge pages off for the rest of
+/// the process (prctl PR_SET_THP_DISABLE; the pages it has keep their size)
+/// and returns true, once. A small job mostly takes memory another process
 /// freed just before, whose huge pages come cheap; a large one needs more
 /// than that, fresh from the host. On the Xeon VM above, with huge pages
 /// against without: ToyCar 41 / 46 ms, Kenney tiles 146-221 / 152-230 ms
 /// (medians of 20); the courtyard 2.6-3.1 / 2.2-2.7 s, the 1M terrain at
-/// 2048 texels 4.2-5.1 / 3.3-3.6 s (tools/RESULTS.md, session 31).
-bool fit_huge_pages(size_t columns);
+/// 2048 texels 4.2-5.1 / 3.3-3.6 s, and at 256 texels 0.71-0.95 / 0.60-0.63
+/// s (tools/RESULTS.md, session 31).
+bool fit_huge_pages(uint64_t input_bytes, size_t columns);
 
 }  // namespace snow
