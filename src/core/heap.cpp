@@ -18,8 +18,9 @@ constexpr const char* kThresholdTunable = "glibc.malloc.mmap_threshold";
 constexpr int kMmapThreshold = 32 << 20;
 // Whether tune_heap set the threshold, for mmap_threshold_status().
 bool threshold_set = false;
-// Whether the huge-page tunable in GLIBC_TUNABLES is ours (added by
-// tune_heap or the launcher, which set the marker), not the user's.
+// Whether the heap has huge pages because of a tunable that is ours (added
+// by tune_heap or the launcher, which set the marker), not the user's
+// (AddressSanitizer's allocator ignores it: no huge pages then).
 bool huge_pages_ours = false;
 // Whether fit_huge_pages turned them off.
 bool huge_pages_fitted = false;
@@ -58,7 +59,7 @@ void tune_heap(char** argv) {
   // The marker is set only across the re-execution (or by the launcher).
   if (std::getenv(SNOW_HUGE_PAGE_MARKER) != nullptr) {
     unsetenv(SNOW_HUGE_PAGE_MARKER);
-    huge_pages_ours = tunable_value() == "1";
+    huge_pages_ours = tunable_value() == "1" && !kSanitizerHeap;
     return;
   }
   if (argv == nullptr || argv[0] == nullptr) return;
