@@ -136,13 +136,13 @@ constexpr uint64_t kWarmUpInputBytes = uint64_t(16) << 20;
 /// thread, nor where GL is known to render in software (`software`): there
 /// small scenes need no GL at all, and the other thread would take a core
 /// from their CPU passes. Nor on a GPU for inputs under kWarmUpInputBytes
-/// (gltf_input_bytes): their load hides little of the driver's start, their
+/// (`input_bytes`, gltf_input_bytes): their load hides little of the driver's start, their
 /// passes may all run on the CPU before it (peels_on_cpu,
 /// choose_coverage_method), and the process would wait for the warm-up.
 std::future<void> warm_up_gl(const GlobalOptions& global, gl::Backend backend,
-                             std::optional<bool> software, const std::string& input) {
+                             std::optional<bool> software, uint64_t input_bytes) {
   if (backend == gl::Backend::Glfw || software == true) return {};
-  if (software == false && gltf_input_bytes(input) < kWarmUpInputBytes) return {};
+  if (software == false && input_bytes < kWarmUpInputBytes) return {};
   return std::async(std::launch::async, [&global] {
     const QuietThread quiet;
     try {
@@ -378,17 +378,17 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   // beside the load, and starts the warm-up it allows. (Declared after
   // warm_gl: its destructor waits for the task, which sets warm_gl, before
   // warm_gl goes.)
+  const uint64_t input_bytes = gltf_input_bytes(o.input);
   std::future<void> warm_gl;
   std::future<std::optional<bool>> probed = std::async(std::launch::async, [&] {
     const std::optional<bool> software =
         backend == gl::Backend::Auto ? gl::probe_software(context_options) : std::nullopt;
-    warm_gl = warm_up_gl(global, backend, software, o.input);
+    warm_gl = warm_up_gl(global, backend, software, input_bytes);
     return software;
   });
   // Textures, normals and UVs only show in the preview (ToyCar's textures:
   // 0.03 s to decode).
   s.load.load_images = s.load.shading = !o.preview.empty();
-  const uint64_t input_bytes = gltf_input_bytes(o.input);
   fit_heap(input_bytes, 0);
   Scene scene;
   stage("load", [&] { scene = load_scene(o.input, s.load); });
