@@ -290,10 +290,11 @@ TEST(Peel, GpuMatchesReferenceOnCannedScenes) {
       {"house", make_house_scene(45.0f, 0.5f)},
       {"bowl", make_bowl_scene()},
       {"stairs", make_stairs_scene()},
+      {"terrain", make_terrain(20000).build()},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
-    const PeelSettings s = settings_with_side(96, 6);
+    const PeelSettings s = settings_with_side(c.scene.triangle_count() > 1000 ? 256 : 96, 6);
     const SnowMaps gpu = peel_layers(c.scene, s);
     const SnowMaps cpu = reference::peel_layers(c.scene, gpu.grid, s.layers, s.merge_distance);
     const Agreement a = compare_maps(gpu, cpu);
@@ -302,14 +303,11 @@ TEST(Peel, GpuMatchesReferenceOnCannedScenes) {
     EXPECT_GT(a.compared, 1000u);
     // Ties on triangle edges may differ (fill rule); nothing else may.
     EXPECT_LE(double(a.mismatched), 0.005 * double(a.compared)) << a.mismatched;
-    // llvmpipe interpolates the height at the texel centre from the exact
-    // vertices. A GPU snaps the vertices to its sub-pixel grid first, which
-    // tilts a 45-degree roof by up to a sub-pixel in height (NVIDIA H200:
-    // 2.0e-4 m on the house at 96 texels).
-    GLint subpixel_bits = 4;
-    glGetIntegerv(GL_SUBPIXEL_BITS, &subpixel_bits);
-    const float snapping = gpu.grid.texel / float(1 << std::clamp(subpixel_bits, 4, 16));
-    EXPECT_LT(a.max_height_error, gl::renderer_is_software() ? 1e-4f : 1e-4f + 2.0f * snapping);
+    // The heights are the CPU's, worked out on the triangle the GPU found,
+    // not the ones it interpolated from corners snapped to its sub-pixel
+    // grid (NVIDIA H200: up to 2.0e-4 m off on the house at 96 texels). Ties
+    // on edges between two triangles of one object leave a rounding.
+    EXPECT_LT(a.max_height_error, 1e-5f);
     EXPECT_EQ(gpu.overflow_columns, cpu.overflow_columns);
   }
 }
@@ -453,26 +451,29 @@ TEST(Peel, CpuPeelKeepsItsHitsWithinTheMaps) {
 TEST(Peel, ManyStackedTrianglesKeepTheGpu) {
   REQUIRE_GL();
   // 1100 tilted plates (2200 triangles) over all 64 x 64 texels: 9M box
-  // texels. Tilted, so that the devices' heights differ in their last bits.
-  SceneBuilder b;
-  for (int k = 0; k < 1100; ++k) {
-    const auto at = [k](float x, float z) {
-      return glm::vec3(x, 0.002f * float(k) + 0.05f * x + 0.03f * z, z);
-    };
-    b.add_mesh("Plate" + std::to_string(k), {at(-1, -1), at(1, -1), at(1, 1), at(-1, 1)},
-               {0, 3, 2, 0, 2, 1});
-  }
-  const Scene scene = b.build();
-  const SnowMaps automatic = peel_layers(scene, settings_with_side(64, 4, "auto"));
+  // texels.
+  const auto plates = [](int count) {
+    SceneBuilder b;
+    for (int k = 0; k < count; ++k) {
+      const auto at = [k](float x, float z) {
+        return glm::vec3(x, 0.002f * float(k) + 0.05f * x + 0.03f * z, z);
+      };
+      b.add_mesh("Plate" + std::to_string(k), {at(-1, -1), at(1, -1), at(1, 1), at(-1, 1)},
+                 {0, 3, 2, 0, 2, 1});
+    }
+    return b.build();
+  };
+  const Scene scene = plates(1100);
+  const PeelSettings automatic = settings_with_side(64, 4, "auto");
+  EXPECT_FALSE(peels_on_cpu(scene, make_grid(scene.bounds, automatic), automatic));
+  // A few of them are left to the CPU in software.
+  const Scene few = plates(10);
+  EXPECT_EQ(peels_on_cpu(few, make_grid(few.bounds, automatic), automatic),
+            gl::renderer_is_software());
+  const SnowMaps peeled = peel_layers(scene, automatic);
   const SnowMaps gpu = peel_layers(scene, settings_with_side(64, 4, "gpu"));
-  const SnowMaps cpu = peel_layers(scene, settings_with_side(64, 4, "cpu"));
-  ASSERT_EQ(automatic.ground.size(), gpu.ground.size());
-  EXPECT_EQ(
-      std::memcmp(automatic.ground.data(), gpu.ground.data(), gpu.ground.size() * sizeof(float)),
-      0);
-  // The two devices differ in the last bits of the heights, so the check above tells them apart.
-  ASSERT_EQ(cpu.ground.size(), gpu.ground.size());
-  EXPECT_NE(std::memcmp(cpu.ground.data(), gpu.ground.data(), gpu.ground.size() * sizeof(float)),
+  ASSERT_EQ(peeled.ground.size(), gpu.ground.size());
+  EXPECT_EQ(std::memcmp(peeled.ground.data(), gpu.ground.data(), gpu.ground.size() * sizeof(float)),
             0);
 }
 

@@ -221,6 +221,28 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings
 
 namespace {
 
+// The height of triangle `tri` at texel t's centre, worked out as the CPU
+// peel's ray does (snow::reference::ColumnWeights), in place of `drawn`, the
+// height the GPU interpolated there. A GPU snaps the corners to its
+// sub-pixel grid before it interpolates: on an NVIDIA H100 the interpolated
+// heights left 3 times the receivers of a 20k-triangle terrain at 256 texels
+// shaded by their own surface (more than 0.1 mm above them), which the sky
+// cull then could not settle (tools/RESULTS.md). llvmpipe's heights were
+// the CPU's already. Clamped to the triangle's heights, for a centre the
+// fill rule gave the triangle though the ray misses it by a rounding.
+float exact_height(const Scene& scene, const MapGrid& grid, size_t t, uint32_t tri, float drawn) {
+  const glm::dvec3 a(scene.positions[3 * size_t(tri)]);
+  const glm::dvec3 b(scene.positions[3 * size_t(tri) + 1]);
+  const glm::dvec3 c(scene.positions[3 * size_t(tri) + 2]);
+  const double area = (b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z);
+  if (area == 0.0) return drawn;
+  const size_t width = size_t(grid.width);
+  const double px = double(grid.origin.x) + (double(t % width) + 0.5) * double(grid.texel);
+  const double pz = double(grid.origin.y) + (double(t / width) + 0.5) * double(grid.texel);
+  const double y = reference::ColumnWeights(a, b, c, px, pz).height(a, b, c, area);
+  return float(std::clamp(y, std::min({a.y, b.y, c.y}), std::max({a.y, b.y, c.y})));
+}
+
 SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSettings& settings) {
   validate_peel_settings(settings);
   if (grid.width < 1 || grid.height < 1 || !(grid.texel > 0.0f)) {
@@ -358,7 +380,7 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
         const glm::uvec2& s = surface[t];
         const uint32_t tri = s.y;
         if (s.x == empty_bits || tri >= triangles.normal.size()) continue;
-        maps.ground[base + t] = height_of(s.x);
+        maps.ground[base + t] = exact_height(scene, grid, t, tri, height_of(s.x));
         maps.normal[base + t] = triangles.normal[tri];
         maps.object[base + t] = triangles.object[tri];
         if (l > 0) maps.ceiling[base + t] = maps.ground[base - texels + t];

@@ -158,16 +158,10 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
         const double pz = oz + (j + 0.5) * t;
         for (int i = r.i0; i <= r.i1; ++i) {
           const double px = ox + (i + 0.5) * t;
-          // Barycentric weights from edge functions (same sign as area inside).
-          const double wa = (b.x - px) * (c.z - pz) - (c.x - px) * (b.z - pz);
-          const double wb = (c.x - px) * (a.z - pz) - (a.x - px) * (c.z - pz);
-          const double wc = (a.x - px) * (b.z - pz) - (b.x - px) * (a.z - pz);
-          const bool inside =
-              area > 0 ? (wa >= 0 && wb >= 0 && wc >= 0) : (wa <= 0 && wb <= 0 && wc <= 0);
-          if (!inside) continue;
-          const double y = (wa * a.y + wb * b.y + wc * c.y) / area;
-          found.push_back(
-              {uint32_t(size_t(j) * width + size_t(i) - first), {float(y), uint32_t(tri)}});
+          const ColumnWeights w(a, b, c, px, pz);
+          if (!w.inside(area)) continue;
+          found.push_back({uint32_t(size_t(j) * width + size_t(i) - first),
+                           {float(w.height(a, b, c, area)), uint32_t(tri)}});
         }
       }
     }

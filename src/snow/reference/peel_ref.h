@@ -7,6 +7,26 @@
 
 namespace snow::reference {
 
+/// A vertical ray at (px, pz) against triangle (a, b, c), whose xz
+/// projection has the doubled signed area `area` (non-zero): the edge
+/// functions, which are barycentric weights times area.
+struct ColumnWeights {
+  double wa, wb, wc;
+
+  ColumnWeights(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, double px, double pz)
+      : wa((b.x - px) * (c.z - pz) - (c.x - px) * (b.z - pz)),
+        wb((c.x - px) * (a.z - pz) - (a.x - px) * (c.z - pz)),
+        wc((a.x - px) * (b.z - pz) - (b.x - px) * (a.z - pz)) {}
+  /// Whether the ray crosses the triangle (its edges count).
+  bool inside(double area) const {
+    return area > 0 ? (wa >= 0 && wb >= 0 && wc >= 0) : (wa <= 0 && wb <= 0 && wc <= 0);
+  }
+  /// The height of the triangle's plane on the ray.
+  double height(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, double area) const {
+    return (wa * a.y + wb * b.y + wc * c.y) / area;
+  }
+};
+
 /// Shoots a vertical ray through every texel centre of `grid` and collects
 /// every triangle it crosses (either winding; triangles seen edge-on are
 /// missed, as by a rasterizer). Hits are ordered from the top down (ties by
