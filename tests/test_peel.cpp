@@ -106,6 +106,42 @@ TEST(WeldVertices, EqualCornersBecomeOneVertex) {
   EXPECT_NE(indices[6], indices[7]);
 }
 
+// allocate and add_layer fill the new layer texels on all cores, in ranges:
+// every one of them, past several ranges, is empty, whatever the arrays held
+// before, and add_layer keeps the layers there were.
+TEST(SnowMaps, AllocateAndAddLayerLeaveEveryNewTexelEmpty) {
+  MapGrid grid;
+  grid.width = 300;
+  grid.height = 500;
+  SnowMaps maps;
+  maps.allocate(grid, 2);
+  const auto scribble = [&maps] {
+    std::fill(maps.ground.begin(), maps.ground.end(), 1.0f);
+    std::fill(maps.ceiling.begin(), maps.ceiling.end(), 2.0f);
+    std::fill(maps.normal.begin(), maps.normal.end(), glm::vec3(0, 1, 0));
+    std::fill(maps.object.begin(), maps.object.end(), 7);
+  };
+  const auto empty_from = [&maps](size_t first) {
+    size_t bad = 0;
+    for (size_t k = first; k < maps.ground.size(); ++k) {
+      bad += !std::isnan(maps.ground[k]) || maps.ceiling[k] != kOpenSky ||
+             maps.normal[k] != glm::vec3(0.0f) || maps.object[k] != -1;
+    }
+    return bad;
+  };
+  scribble();
+  maps.allocate(grid, 3);
+  ASSERT_EQ(maps.ground.size(), 3 * grid.texels());
+  ASSERT_EQ(maps.object.size(), 3 * grid.texels());
+  EXPECT_EQ(empty_from(0), 0u);
+  scribble();
+  maps.add_layer();
+  ASSERT_EQ(maps.layers, 4);
+  ASSERT_EQ(maps.normal.size(), 4 * grid.texels());
+  EXPECT_EQ(empty_from(3 * grid.texels()), 0u);
+  EXPECT_EQ(std::count(maps.object.begin(), maps.object.end(), 7), ptrdiff_t(3 * grid.texels()));
+}
+
 TEST(MakeGrid, AutomaticTexelFromMaxSide) {
   Bounds b;
   b.extend({-5, 0, -2});

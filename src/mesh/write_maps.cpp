@@ -68,9 +68,11 @@ bool layer_has_surface(const SnowMaps& maps, int l) {
 }
 
 // Range of the values of `v` at texels with a surface (finite ones only).
-std::pair<float, float> value_range(const SnowMaps& maps, const std::vector<float>& v) {
+// The range of v (one value per layer texel of the maps) over the texels
+// that hold a surface.
+std::pair<float, float> value_range(const SnowMaps& maps, const float* v) {
   float lo = std::numeric_limits<float>::max(), hi = -std::numeric_limits<float>::max();
-  for (size_t k = 0; k < v.size(); ++k) {
+  for (size_t k = 0; k < maps.ground.size(); ++k) {
     if (std::isnan(maps.ground[k]) || !std::isfinite(v[k])) continue;
     lo = std::min(lo, v[k]);
     hi = std::max(hi, v[k]);
@@ -196,7 +198,7 @@ void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
   std::vector<uint16_t> preview(texels);
   int written_layers = 0;
   for (const Kind& kind : kinds) {
-    const std::vector<float>& all = kind.values ? *kind.values : maps.ground;
+    const float* all = kind.values ? kind.values->data() : maps.ground.data();
     auto [lo, hi] = std::string(kind.name) == "coverage" ? std::pair<float, float>(0.0f, 1.0f)
                                                          : value_range(maps, all);
     ranges[kind.name] = {{"png_black", lo}, {"png_white", hi}, {"unit", kind.unit}};

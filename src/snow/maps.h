@@ -15,7 +15,14 @@
 
 #include <glm/glm.hpp>
 
+#include "core/default_init.h"
+
 namespace snow {
+
+/// A per layer texel array of SnowMaps: its resize leaves the new elements
+/// unwritten, for SnowMaps to fill on all cores.
+template <class T>
+using LayerArray = std::vector<T, DefaultInitAllocator<T>>;
 
 struct MapGrid {
   glm::vec2 origin{0.0f};  // world (x, z) of texel (0,0)'s corner, metres
@@ -37,10 +44,10 @@ struct SnowMaps {
   int layers = 0;  // L
 
   // Per layer texel (size layers * grid.texels()):
-  std::vector<float> ground;      // surface height (world y, m); NaN where no surface
-  std::vector<float> ceiling;     // height of the surface above; +inf for layer 0
-  std::vector<glm::vec3> normal;  // geometric normal as wound (may face down); 0 if none
-  std::vector<int32_t> object;    // scene object index; -1 where no surface
+  LayerArray<float> ground;      // surface height (world y, m); NaN where no surface
+  LayerArray<float> ceiling;     // height of the surface above; +inf for layer 0
+  LayerArray<glm::vec3> normal;  // geometric normal as wound (may face down); 0 if none
+  LayerArray<int32_t> object;    // scene object index; -1 where no surface
 
   uint64_t overflow_columns = 0;  // columns holding more than `layers` surfaces
 
@@ -61,26 +68,6 @@ struct SnowMaps {
   /// frees the memory. Returns the number of layers dropped.
   int drop_empty_layers();
 };
-
-inline void SnowMaps::allocate(const MapGrid& g, int layer_count) {
-  grid = g;
-  layers = layer_count;
-  const size_t n = size_t(layers) * grid.texels();
-  ground.assign(n, kNoSurface);
-  ceiling.assign(n, kOpenSky);
-  normal.assign(n, glm::vec3(0.0f));
-  object.assign(n, -1);
-  overflow_columns = 0;
-}
-
-inline void SnowMaps::add_layer() {
-  const size_t n = size_t(layers + 1) * grid.texels();
-  ground.resize(n, kNoSurface);
-  ceiling.resize(n, kOpenSky);
-  normal.resize(n, glm::vec3(0.0f));
-  object.resize(n, -1);
-  ++layers;
-}
 
 inline void SnowMaps::reserve_layers(int count) {
   const size_t n = size_t(std::max(count, 0)) * grid.texels();
