@@ -805,7 +805,8 @@ INSTANTIATE_TEST_SUITE_P(Bvh, BvhBuilds, ::testing::Values(Bvh::Build::Sah, Bvh:
 
 // A BVH large enough to be built on several threads (the SAH build's top
 // splits build their halves beside each other, spliced into one pre-order
-// array; the Morton build is serial): the spliced skip links and boxes hold
+// array, and its nodes of 128k triangles or more bin and partition them on
+// all cores; the Morton build is serial): the spliced skip links and boxes hold
 // for every node, the leaves cover every triangle once in order, and rays
 // find what a walk over all triangles finds.
 TEST_P(BvhBuilds, ParallelBuildIsOneValidTree) {

@@ -4,15 +4,27 @@
 #include "snow/bvh.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
+#include "core/default_init.h"
 #include "core/parallel.h"
 
 namespace snow {
 namespace {
 
 constexpr uint32_t kLeafSize = 4;
+
+// A node of at least this many triangles (the top few levels of a large
+// scene's tree) runs its loops over them on all cores, in ranges of
+// kLoopChunk, and splits them by a stable partition: the tree depends on the
+// triangles alone, not on the number of cores. Below, a single thread's
+// loops serve (each level's halves are built side by side) and the split is
+// std::partition. The 1M-triangle terrain at 2048: the tree's top levels
+// were most of the build on an H100 machine's 16 cores.
+constexpr uint32_t kLargeNode = 1u << 17;
+constexpr size_t kLoopChunk = size_t(1) << 14;
 
 // Inlined into both walks (occluded and reaches): with two callers GCC no
 // longer inlines them, and a call per node slows the walk.
@@ -119,7 +131,7 @@ Bvh::Bvh(const std::vector<glm::vec3>& corners, Build how) {
   // The loops over all triangles before and after the build run on all
   // cores, each writing its own elements.
   constexpr size_t kChunk = size_t(1) << 14;
-  std::vector<Prim> prims(n);
+  std::vector<Prim, DefaultInitAllocator<Prim>> prims(n), scratch(n >= kLargeNode ? n : 0);
   parallel_for_ranges(n, kChunk, [&](size_t begin, size_t end) {
     for (size_t t = begin; t < end; ++t) {
       const glm::vec3 &a = corners[3 * t], &b = corners[3 * t + 1], &c3 = corners[3 * t + 2];
@@ -136,7 +148,7 @@ Bvh::Bvh(const std::vector<glm::vec3>& corners, Build how) {
   while ((1u << (max_levels - 1)) < default_threads()) ++max_levels;
   int parallel_levels = 0;
   while (parallel_levels < max_levels && (n >> parallel_levels) >= (1u << 14)) ++parallel_levels;
-  build(0, n, prims, nodes_, parallel_levels);
+  build(0, n, prims.data(), scratch.data(), nodes_, parallel_levels);
   // Store the triangles in leaf order.
   parallel_for_ranges(n, kChunk, [&](size_t begin, size_t end) {
     for (size_t k = begin; k < end; ++k) {
@@ -177,19 +189,46 @@ void Bvh::build_morton(uint32_t first, uint32_t count, const std::vector<uint32_
   node.count = 0;
 }
 
-void Bvh::build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::vector<Node>& out,
+void Bvh::build(uint32_t first, uint32_t count, Prim* prims, Prim* scratch, std::vector<Node>& out,
                 int parallel_levels) {
   // Depth-first layout: an inner node's left child follows it directly.
   const size_t index = out.size();
   out.emplace_back();
-  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-  glm::vec3 clo = lo, chi = hi;
-  for (uint32_t k = first; k < first + count; ++k) {
-    const Prim& p = prims[k];
-    lo = glm::min(lo, p.lo);
-    hi = glm::max(hi, p.hi);
-    clo = glm::min(clo, p.c);
-    chi = glm::max(chi, p.c);
+  const bool large = count >= kLargeNode;
+  // fn(begin, end) over the node's triangles: for a large node on all cores,
+  // once per range of kLoopChunk (its results merged in range order).
+  const size_t ranges = large ? (size_t(count) + kLoopChunk - 1) / kLoopChunk : 1;
+  const auto each_range = [&](auto&& fn) {
+    if (!large) return fn(size_t(0), size_t(first), size_t(first) + count);
+    parallel_for(ranges, [&](size_t r) {
+      fn(r, first + r * kLoopChunk, std::min(first + (r + 1) * kLoopChunk, size_t(first) + count));
+    });
+  };
+  struct Box {
+    glm::vec3 lo{std::numeric_limits<float>::max()}, hi{-std::numeric_limits<float>::max()};
+    glm::vec3 clo{std::numeric_limits<float>::max()}, chi{-std::numeric_limits<float>::max()};
+  };
+  Box one_box;  // a small node's (most nodes: no allocation)
+  std::vector<Box> range_boxes(large ? ranges : 0);
+  Box* boxes = large ? range_boxes.data() : &one_box;
+  each_range([&](size_t r, size_t begin, size_t end) {
+    Box b;
+    for (size_t k = begin; k < end; ++k) {
+      const Prim& p = prims[k];
+      b.lo = glm::min(b.lo, p.lo);
+      b.hi = glm::max(b.hi, p.hi);
+      b.clo = glm::min(b.clo, p.c);
+      b.chi = glm::max(b.chi, p.c);
+    }
+    boxes[r] = b;
+  });
+  glm::vec3 lo = boxes[0].lo, hi = boxes[0].hi, clo = boxes[0].clo, chi = boxes[0].chi;
+  for (size_t r = 1; r < ranges; ++r) {
+    const Box& b = boxes[r];
+    lo = glm::min(lo, b.lo);
+    hi = glm::max(hi, b.hi);
+    clo = glm::min(clo, b.clo);
+    chi = glm::max(chi, b.chi);
   }
   out[index].min = lo;
   out[index].max = hi;
@@ -209,20 +248,36 @@ void Bvh::build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::v
     glm::vec3 lo{std::numeric_limits<float>::max()}, hi{-std::numeric_limits<float>::max()};
     uint32_t n = 0;
   };
-  Bin bins[3][kBins];
+  using Bins = std::array<std::array<Bin, kBins>, 3>;
   glm::vec3 scale;
   for (int ax = 0; ax < 3; ++ax) scale[ax] = extent[ax] > 0.0f ? float(kBins) / extent[ax] : 0.0f;
   const auto bin_of = [&](const Prim& p, int ax) {
     const float f = (p.c[ax] - clo[ax]) * scale[ax];
     return f > 0.0f ? int(std::min(f, float(kBins - 1))) : 0;  // (NaN: 0)
   };
-  for (uint32_t k = first; k < first + count; ++k) {
-    const Prim& p = prims[k];
-    for (int ax = 0; ax < 3; ++ax) {
-      Bin& bin = bins[ax][bin_of(p, ax)];
-      bin.lo = glm::min(bin.lo, p.lo);
-      bin.hi = glm::max(bin.hi, p.hi);
-      ++bin.n;
+  Bins bins;
+  std::vector<Bins> range_bins(large ? ranges : 0);
+  each_range([&](size_t r, size_t begin, size_t end) {
+    Bins& into = large ? range_bins[r] : bins;
+    for (size_t k = begin; k < end; ++k) {
+      const Prim& p = prims[k];
+      for (int ax = 0; ax < 3; ++ax) {
+        Bin& bin = into[size_t(ax)][size_t(bin_of(p, ax))];
+        bin.lo = glm::min(bin.lo, p.lo);
+        bin.hi = glm::max(bin.hi, p.hi);
+        ++bin.n;
+      }
+    }
+  });
+  if (large) bins = range_bins[0];
+  for (size_t r = 1; r < ranges; ++r) {
+    for (size_t ax = 0; ax < 3; ++ax) {
+      for (size_t b = 0; b < size_t(kBins); ++b) {
+        const Bin& add = range_bins[r][ax][b];
+        bins[ax][b].lo = glm::min(bins[ax][b].lo, add.lo);
+        bins[ax][b].hi = glm::max(bins[ax][b].hi, add.hi);
+        bins[ax][b].n += add.n;
+      }
     }
   }
   const auto area = [](const glm::vec3& a, const glm::vec3& b) {
@@ -236,7 +291,7 @@ void Bvh::build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::v
     float right_cost[kBins] = {};  // area x count of bins b.. (b >= 1)
     Bin right;
     for (int b = kBins - 1; b > 0; --b) {
-      const Bin& bin = bins[ax][b];
+      const Bin& bin = bins[size_t(ax)][size_t(b)];
       right.lo = glm::min(right.lo, bin.lo);
       right.hi = glm::max(right.hi, bin.hi);
       right.n += bin.n;
@@ -244,7 +299,7 @@ void Bvh::build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::v
     }
     Bin left;
     for (int b = 0; b + 1 < kBins; ++b) {
-      const Bin& bin = bins[ax][b];
+      const Bin& bin = bins[size_t(ax)][size_t(b)];
       left.lo = glm::min(left.lo, bin.lo);
       left.hi = glm::max(left.hi, bin.hi);
       left.n += bin.n;
@@ -259,10 +314,27 @@ void Bvh::build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::v
   }
   uint32_t half = 0;
   if (best_axis >= 0) {
-    const auto mid =
-        std::partition(prims.begin() + first, prims.begin() + first + count,
-                       [&](const Prim& p) { return bin_of(p, best_axis) <= best_bin; });
-    half = uint32_t(mid - (prims.begin() + first));
+    const auto left = [&](const Prim& p) { return bin_of(p, best_axis) <= best_bin; };
+    if (large) {
+      // Stable: each range's lefts and rights go to their places in
+      // scratch, then back.
+      std::vector<uint32_t> lefts(ranges + 1, 0);
+      each_range([&](size_t r, size_t begin, size_t end) {
+        lefts[r + 1] = uint32_t(std::count_if(prims + begin, prims + end, left));
+      });
+      for (size_t r = 0; r < ranges; ++r) lefts[r + 1] += lefts[r];
+      half = lefts[ranges];
+      each_range([&](size_t r, size_t begin, size_t end) {
+        Prim* to_left = scratch + first + lefts[r];
+        Prim* to_right = scratch + first + half + (begin - first - lefts[r]);
+        for (size_t k = begin; k < end; ++k) *(left(prims[k]) ? to_left++ : to_right++) = prims[k];
+      });
+      each_range([&](size_t, size_t begin, size_t end) {
+        std::copy(scratch + begin, scratch + end, prims + begin);
+      });
+    } else {
+      half = uint32_t(std::partition(prims + first, prims + first + count, left) - (prims + first));
+    }
   }
   if (half == 0 || half == count) {
     // Every centroid in one bin (they nearly coincide): the median of the
@@ -270,8 +342,7 @@ void Bvh::build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::v
     const int axis =
         extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
     half = count / 2;
-    std::nth_element(prims.begin() + first, prims.begin() + first + half,
-                     prims.begin() + first + count,
+    std::nth_element(prims + first, prims + first + half, prims + first + count,
                      [&](const Prim& a, const Prim& b) { return a.c[axis] < b.c[axis]; });
   }
   if (parallel_levels > 0) {
@@ -281,9 +352,9 @@ void Bvh::build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::v
     right.reserve(2 * size_t(count - half));
     parallel_for(2, [&](size_t task) {
       if (task == 0) {
-        build(first, half, prims, out, parallel_levels - 1);
+        build(first, half, prims, scratch, out, parallel_levels - 1);
       } else {
-        build(first + half, count - half, prims, right, parallel_levels - 1);
+        build(first + half, count - half, prims, scratch, right, parallel_levels - 1);
       }
     });
     const uint32_t offset = static_cast<uint32_t>(out.size());
@@ -292,8 +363,8 @@ void Bvh::build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::v
     }
     out.insert(out.end(), right.begin(), right.end());
   } else {
-    build(first, half, prims, out, 0);
-    build(first + half, count - half, prims, out, 0);
+    build(first, half, prims, scratch, out, 0);
+    build(first + half, count - half, prims, scratch, out, 0);
   }
   out[index].first = static_cast<uint32_t>(out.size());  // skip: past the subtree
   out[index].count = 0;

@@ -77,8 +77,10 @@ class Bvh {
   // Builds the subtree over prims[first, first + count) into `out`, pre-order
   // from out.size(); its skip links index `out`. The two halves of the top
   // `parallel_levels` splits are built on two threads each, into vectors of
-  // their own, and spliced in: the same nodes as a serial build.
-  void build(uint32_t first, uint32_t count, std::vector<Prim>& prims, std::vector<Node>& out,
+  // their own, and spliced in: the same nodes as a serial build. A node of
+  // kLargeNode triangles or more runs its loops on all cores, its partition
+  // through scratch[first, first + count) (null where no node is that large).
+  void build(uint32_t first, uint32_t count, Prim* prims, Prim* scratch, std::vector<Node>& out,
              int parallel_levels);
   // The same over corners_ in Morton order (codes[k] of triangle k): each
   // node splits where the highest bit in which its codes differ turns on;
