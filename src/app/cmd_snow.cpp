@@ -12,7 +12,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <future>
-#include <map>
 #include <optional>
 
 #include <glm/glm.hpp>
@@ -208,11 +207,13 @@ void warn_if_sheltered(const Scene& scene, const SnowMaps& maps,
   };
   const size_t texels = maps.grid.texels();
   size_t with_surface = 0, receiving = 0;
-  std::map<int32_t, size_t> top_objects;
+  // Columns each object tops: [o + 1] for object o (-1: none).
+  std::vector<size_t> top_objects(scene.objects.size() + 1, 0);
   for (size_t t = 0; t < texels; ++t) {
     if (std::isnan(maps.ground[t])) continue;
     ++with_surface;
-    ++top_objects[maps.object[t]];
+    const int32_t top = maps.object[t];
+    ++top_objects[top >= 0 && size_t(top) < scene.objects.size() ? size_t(top) + 1 : 0];
     for (int l = 0; l < maps.layers; ++l) {
       const size_t k = size_t(l) * texels + t;
       if (coverage[k] > 0.5f && !is_enclosing(maps.object[k])) {
@@ -223,9 +224,11 @@ void warn_if_sheltered(const Scene& scene, const SnowMaps& maps,
   }
   if (with_surface == 0 || double(receiving) > 0.05 * double(with_surface)) return;
   std::vector<std::pair<size_t, int32_t>> ranked;
-  for (const auto& [object, count] : top_objects) {
+  for (size_t k = 0; k < top_objects.size(); ++k) {
+    if (top_objects[k] == 0) continue;
     // Enclosing objects first: they are the likely cause.
-    ranked.push_back({count + (is_enclosing(object) ? texels : 0), object});
+    const int32_t object = int32_t(k) - 1;
+    ranked.push_back({top_objects[k] + (is_enclosing(object) ? texels : 0), object});
   }
   std::sort(ranked.rbegin(), ranked.rend());
   std::string names;
@@ -233,9 +236,11 @@ void warn_if_sheltered(const Scene& scene, const SnowMaps& maps,
     const int32_t o = ranked[i].second;
     const std::string name =
         o >= 0 && size_t(o) < scene.objects.size() ? scene.objects[size_t(o)].name : "?";
-    names += (i ? ", '" : "'") + name + "' (" + (is_enclosing(o) ? "encloses the scene, " : "") +
-             "tops " + std::to_string(int(100.0 * double(top_objects[o]) / double(with_surface))) +
-             "% of the map)";
+    names +=
+        (i ? ", '" : "'") + name + "' (" + (is_enclosing(o) ? "encloses the scene, " : "") +
+        "tops " +
+        std::to_string(int(100.0 * double(top_objects[size_t(o + 1)]) / double(with_surface))) +
+        "% of the map)";
   }
   log_warn("almost nothing receives snow (" + std::to_string(receiving) + " of " +
            std::to_string(with_surface) + " columns); sheltered by " + names +

@@ -26,7 +26,6 @@
 #include <cstdio>
 #include <functional>
 #include <limits>
-#include <map>
 #include <mutex>
 #include <numeric>
 #include <optional>
@@ -1405,25 +1404,34 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const std::vector<floa
                                     const Scene& scene, const PolygonizeSettings& settings,
                                     float min_thickness, const PatchTexels& texels,
                                     double* small_area) {
+  const auto start = std::chrono::steady_clock::now();
+  auto lap = start;
+  const auto seconds = [&lap] {
+    const auto now = std::chrono::steady_clock::now();
+    const double s = std::chrono::duration<double>(now - lap).count();
+    lap = now;
+    return s;
+  };
   const float texel = maps.grid.texel;
   SnowPatch patch;
   patch.texels = texels.texels.size();
-  std::map<int, size_t> votes;
+  // Texels of each object: [o + 1] for object o, [0] for none (or one not in the scene).
+  std::vector<size_t> votes(scene.objects.size() + 1, 0);
   std::vector<float> thickness;
   thickness.reserve(texels.texels.size());
   for (size_t k : texels.texels) {
     patch.depth_volume += double(d[k]) * double(texel) * double(texel);
-    ++votes[maps.object[k]];
+    const int32_t o = maps.object[k];
+    ++votes[o >= 0 && size_t(o) < scene.objects.size() ? size_t(o) + 1 : 0];
     thickness.push_back(d[k]);
   }
   size_t best = 0;
-  for (const auto& [object, count] : votes) {
-    if (count > best) {
-      best = count;
-      patch.object = object;
+  for (size_t v = 0; v < votes.size(); ++v) {
+    if (votes[v] > best) {
+      best = votes[v];
+      patch.object = int(v) - 1;
     }
   }
-  if (patch.object < -1) patch.object = -1;
   const bool named = patch.object >= 0 && size_t(patch.object) < scene.objects.size();
   const std::string base =
       named ? "snow/" + scene.objects[size_t(patch.object)].name : std::string("snow/patch");
@@ -1437,6 +1445,7 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const std::vector<floa
 
   PatchField field = build_field(maps, d, texels);
   smooth_field(field, settings.smooth_iterations, min_thickness);
+  const double field_seconds = seconds();
   const double tolerance = error > 0.0 ? 0.5 * error : -1.0;
   // A wide window is triangulated with cuts between strips of columns (16
   // strips or more, each at least kMinCut wide, so the cuts only split a few
@@ -1459,6 +1468,7 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const std::vector<floa
     *small_area = patch.area;
     return std::nullopt;
   }
+  const double top_seconds = seconds();
 
   const float bottom_offset = std::max(settings.bottom_offset, 0.0f);
   Solid solid;
@@ -1483,11 +1493,21 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const std::vector<floa
     solid.add(mesh, is_top);
   }
 
+  const double solid_seconds = seconds();
   const TriMesh closed = to_trimesh(solid, false);
   patch.volume = signed_volume(closed);
   patch.mesh = settings.closed ? closed : to_trimesh(solid, true);
   patch.mesh.name = base;
   patch.mesh.material = 0;
+  if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >= 0.05) {
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "polygonize: %s, %zu texels, %zu top triangles in %zu pieces: field %.3f s, top "
+                  "%.3f s, solid %.3f s, mesh %.3f s",
+                  base.c_str(), patch.texels, top.tris.size() / 3, pieces, field_seconds,
+                  top_seconds, solid_seconds, seconds());
+    log_debug(line);
+  }
   return patch;
 }
 

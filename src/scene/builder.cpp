@@ -474,11 +474,15 @@ TopologyReport check_topology(const std::vector<glm::vec3>& positions,
 }
 
 namespace {
-void object_soup(const Scene& scene, int object, std::vector<glm::vec3>& positions,
-                 std::vector<uint32_t>& indices) {
+const SceneObject& object_at(const Scene& scene, int object) {
   if (object < 0 || object >= int(scene.objects.size()))
     throw InputError("scene: object " + std::to_string(object) + " does not exist");
-  const SceneObject& o = scene.objects[size_t(object)];
+  return scene.objects[size_t(object)];
+}
+
+void object_soup(const Scene& scene, int object, std::vector<glm::vec3>& positions,
+                 std::vector<uint32_t>& indices) {
+  const SceneObject& o = object_at(scene, object);
   const size_t first = size_t(o.first_triangle) * 3, count = size_t(o.triangle_count) * 3;
   positions.assign(scene.positions.begin() + long(first),
                    scene.positions.begin() + long(first + count));
@@ -513,11 +517,10 @@ double object_signed_volume(const Scene& scene, int object) {
 }
 
 Bounds object_bounds(const Scene& scene, int object) {
-  std::vector<glm::vec3> positions;
-  std::vector<uint32_t> indices;
-  object_soup(scene, object, positions, indices);
+  const SceneObject& o = object_at(scene, object);
+  const size_t first = size_t(o.first_triangle) * 3, count = size_t(o.triangle_count) * 3;
   Bounds b;
-  for (const glm::vec3& p : positions) b.extend(p);
+  for (size_t k = first; k < first + count; ++k) b.extend(scene.positions[k]);
   return b;
 }
 
