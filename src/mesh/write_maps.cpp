@@ -67,9 +67,8 @@ bool layer_has_surface(const SnowMaps& maps, int l) {
   return false;
 }
 
-// Range of the values of `v` at texels with a surface (finite ones only).
-// The range of v (one value per layer texel of the maps) over the texels
-// that hold a surface.
+// Range of the values of `v` (one per layer texel of the maps) at texels
+// with a surface (finite ones only).
 std::pair<float, float> value_range(const SnowMaps& maps, const float* v) {
   float lo = std::numeric_limits<float>::max(), hi = -std::numeric_limits<float>::max();
   for (size_t k = 0; k < maps.ground.size(); ++k) {

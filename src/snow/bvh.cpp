@@ -21,8 +21,9 @@ constexpr uint32_t kLeafSize = 4;
 // kLoopChunk, and splits them by a stable partition: the tree depends on the
 // triangles alone, not on the number of cores. Below, a single thread's
 // loops serve (each level's halves are built side by side) and the split is
-// std::partition. The 1M-triangle terrain at 2048: the tree's top levels
-// were most of the build on an H100 machine's 16 cores.
+// std::partition. The 1M-triangle terrain at 2048, built beside the peel on
+// an H100 machine's 16 cores: 0.17-0.25 s before, 0.11-0.26 s after (median
+// 0.14 s, three machines); as fast as before on 2 cores (0.34 s).
 constexpr uint32_t kLargeNode = 1u << 17;
 constexpr size_t kLoopChunk = size_t(1) << 14;
 
@@ -195,8 +196,9 @@ void Bvh::build(uint32_t first, uint32_t count, Prim* prims, Prim* scratch, std:
   const size_t index = out.size();
   out.emplace_back();
   const bool large = count >= kLargeNode;
-  // fn(begin, end) over the node's triangles: for a large node on all cores,
-  // once per range of kLoopChunk (its results merged in range order).
+  // fn(r, begin, end) over the node's triangles [begin, end): for a large
+  // node on all cores, once per range r of kLoopChunk (the caller merges the
+  // ranges' results in range order); else once, r = 0.
   const size_t ranges = large ? (size_t(count) + kLoopChunk - 1) / kLoopChunk : 1;
   const auto each_range = [&](auto&& fn) {
     if (!large) return fn(size_t(0), size_t(first), size_t(first) + count);
