@@ -426,12 +426,13 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const LayerArray<flo
   const int h = maps.grid.height;
   auto snowy = [&](size_t k) { return depth[k] > min_thickness; };
   auto top = [&](size_t k) { return maps.ground[k] + depth[k]; };
-  constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
   static const int kDi[4] = {1, -1, 0, 0};
   static const int kDj[4] = {0, 0, 1, -1};
 
   // Single snowy texels (layer 0; their index is their column's).
-  std::vector<uint8_t> single(per_layer, 0), clustered(per_layer, 0);
+  // (These arrays over every column are written on all cores; root and
+  // cluster only where a texel is clustered, the only entries read.)
+  LayerArray<uint8_t> single(per_layer), clustered(per_layer);
   parallel_for(size_t(h), [&](size_t j) {
     for (size_t c = j * size_t(w); c < (j + 1) * size_t(w); ++c) {
       single[c] = !std::isnan(maps.ground[c]) && std::isinf(maps.ceiling[c]) &&
@@ -445,7 +446,7 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const LayerArray<flo
   };
   // Union-find, each cluster's root its lowest index: strips of rows on all
   // cores, then the rows where strips meet.
-  std::vector<uint32_t> root(per_layer, kNone);
+  LayerArray<uint32_t> root(per_layer);
   auto find = [&](uint32_t a) {
     while (root[a] != a) a = root[a] = root[root[a]];
     return a;
@@ -474,7 +475,7 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const LayerArray<flo
       if (joined(c, c - uint32_t(w))) unite(c, c - uint32_t(w));
     }
   }
-  std::vector<uint32_t> cluster(per_layer, kNone);  // each clustered texel's root
+  LayerArray<uint32_t> cluster(per_layer);  // each clustered texel's root
   parallel_for(size_t(h), [&](size_t j) {
     for (size_t c = j * size_t(w); c < (j + 1) * size_t(w); ++c) {
       if (!clustered[c]) continue;
@@ -483,7 +484,7 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const LayerArray<flo
       cluster[c] = r;
     }
   });
-  root = std::vector<uint32_t>();
+  root = LayerArray<uint32_t>();
   // The cluster texels beside a column that is not single, by cluster: the
   // only ones a walk must visit.
   std::vector<std::pair<uint32_t, uint32_t>> edge;  // (root, texel)
