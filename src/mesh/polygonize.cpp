@@ -590,9 +590,10 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const LayerArray<flo
   // The clusters' texels join their patches in index order, each patch's
   // list grown once (a 4M-texel ground grown by doubling: 0.13-0.16 s of
   // copies and fresh pages on 2 cores), on all cores: each strip of rows
-  // counts its texels per patch, then writes them from its offsets (0.033 ->
-  // 0.01 s for the 1M-triangle terrain at 2048 on 2 cores). With very many
-  // patches, whose counts per strip would take much memory, on one core.
+  // counts its texels per patch, then writes them from its offsets (it took
+  // 0.033 s on one core for the 1M-triangle terrain at 2048; with the zero
+  // pages above, patches found 0.145 -> 0.106-0.114 s on 2 cores). With very
+  // many patches, whose counts per strip would take much memory, on one core.
   const auto patch_of = [&](size_t c) { return size_t(cluster_patch[cluster[c]] - 1); };
   const auto strip_texels = [&](size_t s, auto&& fn) {
     const size_t end = size_t(strip_row(s + 1)) * size_t(w);
