@@ -414,7 +414,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   const std::vector<uint8_t> receives = receiving_objects(snow_scene, s.no_snow_on);
   warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
   choose_automatic_side(s.peel, snow_scene.bounds, s.accumulate.fall_depth);
-  fit_heap(input_bytes, make_grid(snow_scene.bounds, s.peel).texels());
+  const size_t columns = make_grid(snow_scene.bounds, s.peel).texels();
+  fit_heap(input_bytes, columns);
 
   // Each GL stage runs in a context of its own, dropped when it is done:
   // Mesa keeps much of what a stage deleted allocated in the context (llvmpipe:
@@ -443,8 +444,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   if (software == false) {
     bvh_ahead = std::async(std::launch::async, [&] {
       return build_coverage_bvh(snow_scene,
-                                coverage_bvh_build(snow_scene.triangle_count(),
-                                                   make_grid(snow_scene.bounds, s.peel).texels()));
+                                coverage_bvh_build(snow_scene.triangle_count(), columns));
     });
   }
   SnowMaps maps;

@@ -132,12 +132,12 @@ std::optional<StreamPlan> plan_streamed_glb(const fs::path& input) {
         if (bin || !b["uri"].is_string()) return std::nullopt;
         const std::optional<fs::path> file =
             resolve_relative_uri(folder, b["uri"].get<std::string>());
-        if (!file || fs::file_size(*file, ec) < length || ec) return std::nullopt;
-        plan.buffer = file_bytes(*file, 0, length);
-        if (!plan.buffer) return std::nullopt;
+        if (file) plan.buffer = file_bytes(*file, 0, length);
+        if (!plan.buffer || plan.buffer->file_size < length) return std::nullopt;
       } else if (length > 0) {
         if (!bin || bin->length < length) return std::nullopt;
-        plan.buffer = file_bytes(input, bin->offset, length);
+        plan.buffer = bin;  // its bytes' start, with the file's size and time read above
+        plan.buffer->length = length;
       }
     }
   }

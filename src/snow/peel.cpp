@@ -234,7 +234,7 @@ float exact_height(const Scene& scene, const MapGrid& grid, size_t t, uint32_t t
   const glm::dvec3 a(scene.positions[3 * size_t(tri)]);
   const glm::dvec3 b(scene.positions[3 * size_t(tri) + 1]);
   const glm::dvec3 c(scene.positions[3 * size_t(tri) + 2]);
-  const double area = (b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z);
+  const double area = reference::ColumnWeights::area(a, b, c);
   if (area == 0.0) return drawn;
   const size_t width = size_t(grid.width);
   const double px = double(grid.origin.x) + (double(t % width) + 0.5) * double(grid.texel);

@@ -64,7 +64,7 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
       const glm::dvec3 b(scene.positions[3 * tri + 1]);
       const glm::dvec3 c(scene.positions[3 * tri + 2]);
       // Signed doubled area of the xz projection; 0: seen edge-on, no hit.
-      const double area = (b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z);
+      const double area = ColumnWeights::area(a, b, c);
       if (area == 0.0 || !std::isfinite(area)) continue;
       const double min_x = std::min({a.x, b.x, c.x}), max_x = std::max({a.x, b.x, c.x});
       const double min_z = std::min({a.z, b.z, c.z}), max_z = std::max({a.z, b.z, c.z});
@@ -153,7 +153,7 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
       const glm::dvec3 a(scene.positions[3 * tri]);
       const glm::dvec3 b(scene.positions[3 * tri + 1]);
       const glm::dvec3 c(scene.positions[3 * tri + 2]);
-      const double area = (b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z);
+      const double area = ColumnWeights::area(a, b, c);
       for (int j = j0; j <= j1; ++j) {
         const double pz = oz + (j + 0.5) * t;
         for (int i = r.i0; i <= r.i1; ++i) {

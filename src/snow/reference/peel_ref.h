@@ -13,6 +13,12 @@ namespace snow::reference {
 struct ColumnWeights {
   double wa, wb, wc;
 
+  /// The doubled signed area of the triangle's xz projection (0: seen
+  /// edge-on from above).
+  static double area(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+    return (b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z);
+  }
+
   ColumnWeights(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, double px, double pz)
       : wa((b.x - px) * (c.z - pz) - (c.x - px) * (b.z - pz)),
         wb((c.x - px) * (a.z - pz) - (a.x - px) * (c.z - pz)),
