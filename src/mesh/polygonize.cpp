@@ -405,6 +405,31 @@ TexelCoord coord_of(const SnowMaps& maps, size_t k) {
           int(rem / size_t(maps.grid.width))};
 }
 
+/// coord_of for many texels: each is found from the last where they share a
+/// row, as a patch's texels mostly do, so most take no division. With the
+/// bounds found on all cores, build_field of the 1M terrain's ground at
+/// 2048 (3.9M texels, 2 cores): bounds 0.026 -> 0.013 s, members 0.027-0.030
+/// -> 0.010-0.014 s.
+class TexelRows {
+ public:
+  explicit TexelRows(const SnowMaps& maps)
+      : per_layer_(maps.grid.texels()), width_(size_t(maps.grid.width)) {}
+  TexelCoord operator()(size_t k) {
+    if (k < row_ || k - row_ >= width_) {
+      const size_t rem = k % per_layer_;
+      row_ = k - rem % width_;
+      l_ = int(k / per_layer_);
+      j_ = int(rem / width_);
+    }
+    return {l_, int(k - row_), j_};
+  }
+
+ private:
+  size_t per_layer_, width_;
+  size_t row_ = SIZE_MAX;  // the first texel of the row of the last texel
+  int l_ = 0, j_ = 0;
+};
+
 /// Connected components of snowy texels; see polygonize()'s contract.
 ///
 /// Patches grow breadth first from seeds in index order, and take at most
@@ -640,10 +665,11 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const LayerArray<flo
 struct PatchField {
   int i0 = 0, j0 = 0;  // map column of window sample (0, 0)
   int w = 0, h = 0;    // window size in samples
-  std::vector<uint8_t> member;
-  std::vector<float> s;       // snow thickness, m (0 outside the patch)
-  std::vector<float> g;       // ground height, m (extrapolated outside; NaN far away)
-  std::vector<float> gx, gz;  // ground slope dy/dx, dy/dz (members)
+  // (resized unwritten, then filled on all cores)
+  LayerArray<uint8_t> member;
+  LayerArray<float> s;       // snow thickness, m (0 outside the patch)
+  LayerArray<float> g;       // ground height, m (extrapolated outside; NaN far away)
+  LayerArray<float> gx, gz;  // ground slope dy/dx, dy/dz (members)
 
   size_t at(int wi, int wj) const { return size_t(wj) * size_t(w) + size_t(wi); }
 };
@@ -658,8 +684,8 @@ unsigned threads_for(size_t samples) { return samples >= kParallelSamples ? 0u :
 
 // Calls fn(wi, wj, sample) for every window sample of f, rows on `threads`
 // threads (parallel_for's count).
-void each_sample(const PatchField& f, unsigned threads,
-                 const std::function<void(int, int, size_t)>& fn) {
+template <class Fn>
+void each_sample(const PatchField& f, unsigned threads, const Fn& fn) {
   parallel_for(
       size_t(f.h),
       [&](size_t row) {
@@ -672,39 +698,55 @@ void each_sample(const PatchField& f, unsigned threads,
 PatchField build_field(const SnowMaps& maps, const LayerArray<float>& depth,
                        const PatchTexels& patch) {
   PatchField f;
-  int i1 = -1, j1 = -1;
-  f.i0 = maps.grid.width;
-  f.j0 = maps.grid.height;
-  for (size_t k : patch.texels) {
-    const TexelCoord c = coord_of(maps, k);
-    f.i0 = std::min(f.i0, c.i);
-    f.j0 = std::min(f.j0, c.j);
-    i1 = std::max(i1, c.i);
-    j1 = std::max(j1, c.j);
-  }
-  f.i0 -= 1;
-  f.j0 -= 1;
-  f.w = i1 - f.i0 + 2;
-  f.h = j1 - f.j0 + 2;
-  const size_t count = size_t(f.w) * size_t(f.h);
-  f.member.assign(count, 0);
-  f.s.assign(count, 0.0f);
-  f.g.assign(count, kNoSurface);
-  f.gx.assign(count, 0.0f);
-  f.gz.assign(count, 0.0f);
   // Each step below writes each sample once and reads only what the steps
   // before wrote, so it runs on all cores in chunks with the serial result.
-  const unsigned threads = threads_for(count);
-  auto each_texel = [&](const std::function<void(size_t)>& fn) {
+  auto each_texel = [&](unsigned threads, const auto& fn) {
     parallel_for_ranges(
         patch.texels.size(), kFieldChunk,
         [&](size_t begin, size_t end) {
-          for (size_t t = begin; t < end; ++t) fn(patch.texels[t]);
+          TexelRows rows(maps);
+          for (size_t t = begin; t < end; ++t) fn(patch.texels[t], rows(patch.texels[t]), t);
         },
         threads);
   };
-  each_texel([&](size_t k) {
-    const TexelCoord c = coord_of(maps, k);
+  // The bounding box of each chunk of texels, then of all.
+  struct Box {
+    int i0, j0, i1, j1;
+  };
+  std::vector<Box> boxes((patch.texels.size() + kFieldChunk - 1) / kFieldChunk,
+                         Box{maps.grid.width, maps.grid.height, -1, -1});
+  each_texel(threads_for(patch.texels.size()), [&](size_t, const TexelCoord& c, size_t t) {
+    Box& b = boxes[t / kFieldChunk];
+    b = {std::min(b.i0, c.i), std::min(b.j0, c.j), std::max(b.i1, c.i), std::max(b.j1, c.j)};
+  });
+  Box box{maps.grid.width, maps.grid.height, -1, -1};
+  for (const Box& b : boxes) {
+    box = {std::min(box.i0, b.i0), std::min(box.j0, b.j0), std::max(box.i1, b.i1),
+           std::max(box.j1, b.j1)};
+  }
+  f.i0 = box.i0 - 1;
+  f.j0 = box.j0 - 1;
+  f.w = box.i1 - f.i0 + 2;
+  f.h = box.j1 - f.j0 + 2;
+  const size_t count = size_t(f.w) * size_t(f.h);
+  f.member.resize(count);
+  f.s.resize(count);
+  f.g.resize(count);
+  f.gx.resize(count);
+  f.gz.resize(count);
+  const unsigned threads = threads_for(count);
+  parallel_for(
+      size_t(f.h),
+      [&](size_t row) {
+        const size_t a = row * size_t(f.w), b = a + size_t(f.w);
+        std::fill(f.member.begin() + a, f.member.begin() + b, uint8_t(0));
+        std::fill(f.s.begin() + a, f.s.begin() + b, 0.0f);
+        std::fill(f.g.begin() + a, f.g.begin() + b, kNoSurface);
+        std::fill(f.gx.begin() + a, f.gx.begin() + b, 0.0f);
+        std::fill(f.gz.begin() + a, f.gz.begin() + b, 0.0f);
+      },
+      threads);
+  each_texel(threads, [&](size_t k, const TexelCoord& c, size_t) {
     const size_t a = f.at(c.i - f.i0, c.j - f.j0);
     f.member[a] = 1;
     f.s[a] = depth[k];
@@ -714,8 +756,7 @@ PatchField build_field(const SnowMaps& maps, const LayerArray<float>& depth,
   // steep, else from differences with member neighbours.
   const float texel = maps.grid.texel;
   const float kMaxSlope = 4.0f;
-  each_texel([&](size_t k) {
-    const TexelCoord c = coord_of(maps, k);
+  each_texel(threads, [&](size_t k, const TexelCoord& c, size_t) {
     const int wi = c.i - f.i0, wj = c.j - f.j0;
     const size_t a = f.at(wi, wj);
     const glm::vec3 n = maps.normal[k];
@@ -778,7 +819,7 @@ void smooth_field(PatchField& f, int iterations, float min_thickness) {
   // The pairs a serial sweep visits: a sample with a right and a lower
   // neighbour in the window sends to both, if both are members.
   auto sends = [&](int i, int j) { return i < f.w - 1 && j < f.h - 1; };
-  std::vector<float> next(f.s.size());
+  LayerArray<float> next(f.s.size());  // each sample written in each iteration
   for (int it = 0; it < iterations; ++it) {
     each_sample(f, threads_for(f.s.size()), [&](int wi, int wj, size_t a) {
       float delta = 0.0f;
