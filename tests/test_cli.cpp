@@ -353,6 +353,14 @@ TEST(Cli, ExitCodesAndNoPartialOutputs) {
   EXPECT_EQ(run("snow " + q(kCourtyard) + " --layers 0 -o " + q(out / "x.glb")).code, 2);
   EXPECT_EQ(run("snow " + q(kCourtyard) + " --wind 3 -o " + q(out / "x.glb")).code, 2);
   EXPECT_EQ(run("snow " + q(kCourtyard) + " --frobnicate -o " + q(out / "x.glb")).code, 2);
+  // Unsigned options take no negative number (not as their largest value).
+  for (const char* option : {"--seed -1", "--piece-triangles -1"}) {
+    const RunResult negative =
+        run("snow " + q(kCourtyard) + " " + option + " -o " + q(out / "x.glb"));
+    EXPECT_EQ(negative.code, 2) << option;
+    EXPECT_NE(negative.output.find("expected a whole number >= 0, got '-1'"), std::string::npos)
+        << negative.output;
+  }
   // Stabilizer settings are checked before the scene is loaded and peeled.
   const RunResult bad_stride =
       run("snow " + q(kCourtyard) + " --max-stride 3 -o " + q(out / "x.glb"));

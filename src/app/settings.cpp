@@ -131,6 +131,16 @@ void add_settings_options(CLI::App& cmd, PipelineSettings& settings) {
           opt->default_str(std::to_string(field.x) + "," + std::to_string(field.y));
         } else {
           opt = cmd.add_option(flag, field, help)->capture_default_str();
+          // CLI11 would take "-1" for an unsigned field, as its largest value.
+          if constexpr (std::is_unsigned_v<T> && !std::is_same_v<T, bool>) {
+            opt->check(CLI::Validator(
+                [](const std::string& text) {
+                  return text.find('-') == std::string::npos
+                             ? std::string()
+                             : "expected a whole number >= 0, got '" + text + "'";
+                },
+                "NONNEGATIVE"));
+          }
         }
         opt->group(section);
       },

@@ -123,6 +123,11 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     s.polygonize.closed);
   v("mesh.bottom_offset", "--bottom-offset", "Snow bottom lies this far under its support, metres",
     s.polygonize.bottom_offset);
+  v("mesh.piece_triangles", "--piece-triangles",
+    "A snow patch whose top has more triangles than this is decimated in pieces of about this "
+    "many, side by side, on all cores (0 = whole); smaller pieces keep more cores busy and add a "
+    "few triangles along their seams",
+    s.polygonize.piece_triangles);
   // Object filters.
   v("filters.no_snow_on", "--no-snow-on",
     "Name glob of objects that receive no snow but still shelter (repeatable)", s.no_snow_on);
