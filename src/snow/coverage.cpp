@@ -866,8 +866,18 @@ size_t triangles_near_receivers(const Bvh& bvh, const MapGrid& grid,
   const auto tile_of = [&](double x, double origin, int tiles) {
     return int(std::clamp(std::floor((x - origin) / tile), -1.0, double(tiles)));
   };
-  size_t drawn = 0;
   const std::vector<Bvh::Node>& nodes = bvh.nodes();
+  if (nodes.empty()) return 0;
+  // Receivers in every tile, and the root's box on the grid: every node's
+  // box, within the root's, meets some tile, so every node is near (ToyCar,
+  // 109k triangles on 16 x 16 texels: a walk of every node saved).
+  const Bvh::Node& root = nodes.front();
+  if (sum.back() == uint32_t(tw) * uint32_t(th) && tile_of(root.min.x, grid.origin.x, tw) >= 0 &&
+      tile_of(root.max.x, grid.origin.x, tw) < tw && tile_of(root.min.z, grid.origin.y, th) >= 0 &&
+      tile_of(root.max.z, grid.origin.y, th) < th) {
+    return bvh.triangle_count();
+  }
+  size_t drawn = 0;
   for (size_t n = 0; n < nodes.size();) {
     const Bvh::Node& node = nodes[n];
     const int a0 = std::max(0, tile_of(double(node.min.x) - reach, grid.origin.x, tw));
