@@ -33,7 +33,7 @@ void main() {
   float s = d.r;
   float lost = d.g;
   if (p != self_index && (u_drain == 0 || p == kPointerVoid)) {
-    float e = (cell.x + s) - texelFetch(u_stable, t, 0).r;
+    float e = min((cell.x + s) - texelFetch(u_stable, t, 0).r, s);  // never more than the snow
     if (p == kPointerVoid) lost = lost + e;
     s = s - e;
   }

@@ -21,7 +21,8 @@ void main() {
   bool surface = (int(texelFetch(u_cells, t, 0).w) & kCellSurface) != 0;  // else p is not set
   v_out.emit = (surface && p != k && p != kPointerVoid) ? 1 : 0;
   v_out.target = v_out.emit != 0 ? texel_of_index(p) : ivec3(0);
-  v_out.amount = (texelFetch(u_cells, t, 0).x + texelFetch(u_depth, t, 0).r) -
-                 texelFetch(u_stable, t, 0).r;
+  float s = texelFetch(u_depth, t, 0).r;
+  v_out.amount = min((texelFetch(u_cells, t, 0).x + s) - texelFetch(u_stable, t, 0).r,
+                     s);  // never more than the snow (CpuStabilizer::route)
   gl_Position = vec4(0.0, 0.0, 0.0, 1.0);
 }
