@@ -479,6 +479,18 @@ TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
   ASSERT_EQ(shallow.code, 0) << shallow.output;
   EXPECT_EQ(shallow.output.find("of the scene's width"), std::string::npos) << shallow.output;
   EXPECT_EQ(shallow.output.find("texels deep"), std::string::npos) << shallow.output;
+  EXPECT_EQ(shallow.output.find("from the origin"), std::string::npos) << shallow.output;
+
+  // A floor 5e6 m from the origin (as UTM northings put a model): floats are
+  // 0.5 m apart there, too coarse for 0.3 m of snow.
+  const float far[9] = {0, 0, 5e6f, 0, 0, 5e6f + 4, 4, 0, 5e6f};
+  const RunResult distant = run("snow " + q(write_triangle_gltf(dir, "far", far)) +
+                                " --max-side 16 --directions 4 -o " + q(dir / "far.obj"));
+  ASSERT_EQ(distant.code, 0) << distant.output;
+  EXPECT_NE(distant.output.find("reaches 5e+06 m from the origin, where 32-bit floats are 0.5 m "
+                                "apart: too coarse for 0.3 m of snow"),
+            std::string::npos)
+      << distant.output;
 
   // 0.3 m on 1.04 m / 256 texels is 74 texels deep: the run warns and names
   // the map side that makes it 32 (16 passes keep the run short).

@@ -62,6 +62,25 @@ void warn_if_out_of_scale(const Scene& scene, float fall_depth) {
   log_warn(line);
 }
 
+/// Warns when the scene lies so far from the origin that 32-bit floats (as
+/// glTF stores them, and as the maps hold heights) step by more than a tenth
+/// of the fresh snow's depth there: the snow's surface rounds that coarsely
+/// (a georeferenced model, e.g. UTM northings of 5e6 m: floats 0.5 m apart).
+void warn_if_imprecise(const Scene& scene, float fall_depth) {
+  const glm::vec3 far = glm::max(glm::abs(scene.bounds.min), glm::abs(scene.bounds.max));
+  const float reach = std::max({far.x, far.y, far.z});
+  if (!(std::isfinite(reach) && fall_depth > 0.0f)) return;
+  const float step = std::nextafter(reach, INFINITY) - reach;
+  if (!(step > 0.1f * fall_depth)) return;
+  char line[300];
+  std::snprintf(line, sizeof line,
+                "the scene reaches %.3g m from the origin, where 32-bit floats are %.3g m apart: "
+                "too coarse for %.3g m of snow; move the scene near the origin (or check its "
+                "units)",
+                double(reach), double(step), double(fall_depth));
+  log_warn(line);
+}
+
 /// Fresh snow deeper than this many texels is slow to stabilize: piles
 /// about as wide as the snow is deep settle in passes growing with the
 /// square of that width (building-small-a, 0.3 m of snow: 32 texels deep
@@ -413,6 +432,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   const Scene snow_scene = without_ignored(std::move(scene), s.ignore);
   const std::vector<uint8_t> receives = receiving_objects(snow_scene, s.no_snow_on);
   warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
+  warn_if_imprecise(snow_scene, s.accumulate.fall_depth);
   choose_automatic_side(s.peel, snow_scene.bounds, s.accumulate.fall_depth);
   const size_t columns = make_grid(snow_scene.bounds, s.peel).texels();
   fit_heap(input_bytes, columns);
