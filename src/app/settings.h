@@ -125,8 +125,8 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     s.polygonize.bottom_offset);
   v("mesh.piece_triangles", "--piece-triangles",
     "A snow patch whose top has more triangles than this is decimated in pieces of about this "
-    "many, side by side, on all cores (0 = whole); smaller pieces keep more cores busy and add a "
-    "few triangles along their seams",
+    "many, side by side, on all cores (0 = whole); smaller pieces keep more cores busy, and each "
+    "seam keeps its full-grid triangles",
     s.polygonize.piece_triangles);
   // Object filters.
   v("filters.no_snow_on", "--no-snow-on",
