@@ -864,16 +864,15 @@ double plan_area2(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c)
 /// tolerance < 0: every cell at full resolution. cut (a power of two >= 2,
 /// or 0): no triangle crosses a window sample column k * cut, so the top
 /// splits into strips of columns along edges (see top_pieces).
-/// own_bottom (with tolerance >= 0): the bottom gets a triangulation of its
-/// own (TopMesh::bottom), within the tolerance of the ground alone: the
-/// same network, split only where the ground needs it, so a coarsening of
-/// the top's with the same outline cells. On flat ground it is a few large
+/// A top of at most own_bottom_below triangles (with tolerance >= 0) gets a
+/// bottom triangulated on its own (TopMesh::bottom), within the tolerance
+/// of the ground alone: the same network, split only where the ground needs
+/// it, so a coarsening of the top's with the same outline cells. On flat ground it is a few large
 /// triangles and the outline's ring, which the decimation no longer has to
 /// collapse (Kenney tiles at 0.3 m: the largest patch's solid 25-27 ->
 /// 19-24 ms; triangles out within 1 %, the same volumes).
 TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thickness,
-                        double tolerance, int cut = 0, bool own_bottom = false) {
-  own_bottom = own_bottom && tolerance >= 0.0;
+                        double tolerance, int cut = 0, size_t own_bottom_below = 0) {
   std::vector<uint32_t>* out = nullptr;  // where emit() puts triangles: top.tris, then top.bottom
   TopMesh top;
   std::vector<int32_t> sample_vertex(f.member.size(), -1);
@@ -965,33 +964,30 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
   while (tile + 1 < std::max(f.w, f.h)) tile *= 2;
   const int n = tile + 1;
   std::vector<float> error(size_t(n) * size_t(n), 0.0f);
-  std::vector<float> ground_error(own_bottom ? error.size() : 0, 0.0f);  // the bottom's
   auto member = [&](int x, int y) { return x < f.w && y < f.h && f.member[f.at(x, y)] != 0; };
-  const float kForce = std::numeric_limits<float>::infinity();
-  for (int cj = 0; cj + 1 < f.h; ++cj) {
-    for (int ci = 0; ci + 1 < f.w; ++ci) {
-      const int inside = int(member(ci, cj)) + int(member(ci + 1, cj)) + int(member(ci, cj + 1)) +
-                         int(member(ci + 1, cj + 1));
-      if (inside == 0 || inside == 4) continue;
-      for (int q = 0; q < 4; ++q) {
-        const size_t at = size_t(cj + (q >> 1)) * size_t(n) + size_t(ci + (q & 1));
-        error[at] = kForce;
-        if (own_bottom) ground_error[at] = kForce;
+  // The errors of the top and ground together into the zeroed grid, or
+  // (ground_only) of the ground alone, the bottom's where it has its own.
+  const auto compute_errors = [&](bool ground_only) {
+    const float kForce = std::numeric_limits<float>::infinity();
+    for (int cj = 0; cj + 1 < f.h; ++cj) {
+      for (int ci = 0; ci + 1 < f.w; ++ci) {
+        const int inside = int(member(ci, cj)) + int(member(ci + 1, cj)) +
+                           int(member(ci, cj + 1)) + int(member(ci + 1, cj + 1));
+        if (inside == 0 || inside == 4) continue;
+        for (int q = 0; q < 4; ++q)
+          error[size_t(cj + (q >> 1)) * size_t(n) + size_t(ci + (q & 1))] = kForce;
       }
     }
-  }
-  if (tolerance >= 0.0 && cut >= 2) {
-    // Split every triangle whose hypotenuse midpoint lies on the grid of half
-    // the cut: down to the triangles inside one cut x cut square, whose legs
-    // lie on its sides, centre lines and diagonals.
-    for (int y = 0; y <= tile; y += cut / 2) {
-      for (int x = 0; x <= tile; x += cut / 2) {
-        error[size_t(y) * size_t(n) + size_t(x)] = kForce;
-        if (own_bottom) ground_error[size_t(y) * size_t(n) + size_t(x)] = kForce;
+    if (tolerance >= 0.0 && cut >= 2 && !ground_only) {
+      // Split every triangle whose hypotenuse midpoint lies on the grid of
+      // half the cut: down to the triangles inside one cut x cut square,
+      // whose legs lie on its sides, centre lines and diagonals (a bottom of
+      // its own is never cut).
+      for (int y = 0; y <= tile; y += cut / 2) {
+        for (int x = 0; x <= tile; x += cut / 2) error[size_t(y) * size_t(n) + size_t(x)] = kForce;
       }
     }
-  }
-  if (tolerance >= 0.0) {
+    if (tolerance < 0.0) return;
     // A triangle's error takes in its own (how far top and ground at its
     // hypotenuse midpoint lie from the hypotenuse's) and its children's,
     // kept at that midpoint, which the two triangles sharing a hypotenuse
@@ -1009,11 +1005,10 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
     // midpoint written by one task, rows in parallel (the 1M terrain at
     // 2048: triangulate_top 0.21-0.35 -> 0.07-0.08 s on 2 cores).
     //
-    // own: the error of triangle (a, b) with its right angle at c (eg: the
-    // ground's alone, where the bottom has its own). Every triangle turns the
-    // same way from a to b to c, and its sums run in that order, so the two
-    // that share a hypotenuse may round apart.
-    const auto own = [&](int ax, int ay, int bx, int by, int cx, int cy, float& e, float* eg) {
+    // own: the error of triangle (a, b) with its right angle at c. Every
+    // triangle turns the same way from a to b to c, and its sums run in that
+    // order, so the two that share a hypotenuse may round apart.
+    const auto own = [&](int ax, int ay, int bx, int by, int cx, int cy, float& e) {
       if ((bx - ax) * (cy - ay) - (by - ay) * (cx - ax) > 0) {
         std::swap(ax, bx);
         std::swap(ay, by);
@@ -1023,14 +1018,10 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
       const size_t a = f.at(ax, ay), b = f.at(bx, by), m = f.at(mx, my);
       const float dg = std::abs(0.5f * (f.g[a] + f.g[b]) - f.g[m]);
       const float dt = std::abs(0.5f * (f.g[a] + f.s[a] + f.g[b] + f.s[b]) - (f.g[m] + f.s[m]));
-      e = std::max(e, std::max(dg, dt));
-      if (eg) *eg = std::max(*eg, dg);
+      e = std::max(e, ground_only ? dg : std::max(dg, dt));
     };
     const auto at = [&](int x, int y) -> float& {
       return error[size_t(y) * size_t(n) + size_t(x)];
-    };
-    const auto ground_at = [&](int x, int y) -> float* {
-      return own_bottom ? &ground_error[size_t(y) * size_t(n) + size_t(x)] : nullptr;
     };
     const unsigned threads = threads_for(error.size());
     for (int side = 2; side <= tile; side *= 2) {
@@ -1043,18 +1034,15 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
             const int y = int(row) * h;
             for (int x = (y % side == 0) ? h : 0; x <= tile; x += side) {
               float& e = at(x, y);
-              float* eg = ground_at(x, y);
               const bool horizontal = y % side == 0;
               const int dx = horizontal ? h : 0, dy = horizontal ? 0 : h;
               for (int sgn = -1; sgn <= 1; sgn += 2) {
                 const int cx = x + sgn * dy, cy = y + sgn * dx;  // right angle
                 if (cx < 0 || cy < 0 || cx > tile || cy > tile) continue;
-                own(x - dx, y - dy, x + dx, y + dy, cx, cy, e, eg);
+                own(x - dx, y - dy, x + dx, y + dy, cx, cy, e);
                 if (!parent) continue;
-                const int ux = (x - dx + cx) >> 1, uy = (y - dy + cy) >> 1;
-                const int vx = (x + dx + cx) >> 1, vy = (y + dy + cy) >> 1;
-                e = std::max({e, at(ux, uy), at(vx, vy)});
-                if (eg) *eg = std::max({*eg, *ground_at(ux, uy), *ground_at(vx, vy)});
+                e = std::max({e, at((x - dx + cx) >> 1, (y - dy + cy) >> 1),
+                              at((x + dx + cx) >> 1, (y + dy + cy) >> 1)});
               }
             }
           },
@@ -1068,32 +1056,27 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
             for (int qx = 0; qx * side < tile; ++qx) {
               const int x = qx * side + h;
               float& e = at(x, y);
-              float* eg = ground_at(x, y);
               if ((qx + int(qy)) % 2 == 0) {
-                own(x - h, y - h, x + h, y + h, x + h, y - h, e, eg);
-                own(x - h, y - h, x + h, y + h, x - h, y + h, e, eg);
+                own(x - h, y - h, x + h, y + h, x + h, y - h, e);
+                own(x - h, y - h, x + h, y + h, x - h, y + h, e);
               } else {
-                own(x + h, y - h, x - h, y + h, x - h, y - h, e, eg);
-                own(x + h, y - h, x - h, y + h, x + h, y + h, e, eg);
+                own(x + h, y - h, x - h, y + h, x - h, y - h, e);
+                own(x + h, y - h, x - h, y + h, x + h, y + h, e);
               }
               e = std::max({e, at(x - h, y), at(x + h, y), at(x, y - h), at(x, y + h)});
-              if (eg) {
-                *eg = std::max({*eg, *ground_at(x - h, y), *ground_at(x + h, y),
-                                *ground_at(x, y - h), *ground_at(x, y + h)});
-              }
             }
           },
           threads);
     }
-  }
+  };
+  compute_errors(false);
   std::vector<uint8_t> cell_done(f.member.size(), 0);
   const float split_above = tolerance >= 0.0 ? float(tolerance) : -1.0f;
-  const std::vector<float>* errors = &error;  // the visit's: error, then ground_error
   // Triangle (a, b, c): hypotenuse a-b, right angle at c.
   const auto visit = [&](const auto& self, int ax, int ay, int bx, int by, int cx, int cy) -> void {
     const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
     const bool leaf = std::abs(ax - cx) + std::abs(ay - cy) <= 1;
-    if (!leaf && (*errors)[size_t(my) * size_t(n) + size_t(mx)] > split_above) {
+    if (!leaf && error[size_t(my) * size_t(n) + size_t(mx)] > split_above) {
       self(self, cx, cy, ax, ay, mx, my);
       self(self, bx, by, cx, cy, mx, my);
       return;
@@ -1126,8 +1109,9 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
   out = &top.tris;
   visit(visit, 0, 0, tile, tile, tile, 0);
   visit(visit, tile, tile, 0, 0, 0, tile);
-  if (own_bottom) {
-    errors = &ground_error;
+  if (tolerance >= 0.0 && top.tris.size() / 3 <= own_bottom_below) {
+    std::fill(error.begin(), error.end(), 0.0f);
+    compute_errors(true);
     out = &top.bottom;
     std::fill(cell_done.begin(), cell_done.end(), uint8_t(0));
     visit(visit, 0, 0, tile, tile, tile, 0);
@@ -1588,9 +1572,10 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const LayerArray<float
   if (error > 0.0 && settings.piece_triangles > 0) {
     for (int c = kMinCut; c * 16 <= field.w; c *= 2) cut = c;
   }
-  // A top that cannot be cut into pieces gets a bottom of its own (a top cut
-  // into pieces shares its triangles with the bottom).
-  TopMesh top = triangulate_top(field, maps.grid, min_thickness, tolerance, cut, cut == 0);
+  // A top decimated whole gets a bottom of its own (one cut into pieces
+  // shares its triangles with the bottom).
+  TopMesh top = triangulate_top(field, maps.grid, min_thickness, tolerance, cut,
+                                cut > 0 ? settings.piece_triangles : SIZE_MAX);
   size_t pieces = 1;
   std::vector<uint32_t> piece;
   if (cut > 0 && top.tris.size() / 3 > settings.piece_triangles) {
