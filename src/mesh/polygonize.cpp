@@ -973,8 +973,8 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
     const float kForce = std::numeric_limits<float>::infinity();
     for (int cj = 0; cj + 1 < f.h; ++cj) {
       for (int ci = 0; ci + 1 < f.w; ++ci) {
-        const int inside = int(member(ci, cj)) + int(member(ci + 1, cj)) +
-                           int(member(ci, cj + 1)) + int(member(ci + 1, cj + 1));
+        const int inside = int(member(ci, cj)) + int(member(ci + 1, cj)) + int(member(ci, cj + 1)) +
+                           int(member(ci + 1, cj + 1));
         if (inside == 0 || inside == 4) continue;
         for (int q = 0; q < 4; ++q)
           error[size_t(cj + (q >> 1)) * size_t(n) + size_t(ci + (q & 1))] = kForce;
@@ -1200,7 +1200,8 @@ size_t build_solid(const TopMesh& top, const PatchField& f, float bottom_offset,
   // arrays were a twentieth of polygonize on a small scene (edges: 3 per 2 faces).
   const size_t inner =
       size_t(std::count_if(top.sample.begin(), top.sample.end(), [](int32_t a) { return a >= 0; }));
-  const size_t faces = top.tris.size() / 3 + (top.bottom.empty() ? top.tris : top.bottom).size() / 3;
+  const std::vector<uint32_t>& bottom_tris = top.bottom.empty() ? top.tris : top.bottom;
+  const size_t faces = (top.tris.size() + bottom_tris.size()) / 3;
   mesh.reserve(top.positions.size() + inner, faces * 3 / 2 + 3, faces);
   for (size_t v = 0; v < top.positions.size(); ++v) {
     const glm::dvec3& p = top.positions[v];

@@ -1230,11 +1230,11 @@ struct CoverageRenderer::Impl {
     }
     // Each chunk's receivers (neighbours along a row) are cast in turn:
     // reference::open_directions with the last occluder of each direction
-    // tried first (sees_sky_after).
-    // Chunks of at most kChunk receivers, and at least 4 per core where there
-    // are enough receivers; a round takes at least 4 chunks per core. (With
-    // 256 receivers a chunk and a chunk a round, up to 4096 receivers were
-    // cast on one core: ToyCar's 93, 4.2-4.3 -> 2.6-3.5 ms.)
+    // tried first (sees_sky_after). A chunk holds at most kChunk receivers,
+    // and there are at least 4 chunks per core where there are enough
+    // receivers; a round takes at least 4 chunks per core. (With 256
+    // receivers a chunk and a chunk a round, up to 4096 receivers were cast
+    // on one core: ToyCar's 93, 4.2-4.3 -> 2.6-3.5 ms.)
     constexpr size_t kChunk = 256, kRounds = 16;
     const size_t threads = default_threads();
     const size_t chunk = std::clamp(recv.size() / (4 * threads), size_t(8), kChunk);
