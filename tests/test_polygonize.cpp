@@ -696,5 +696,56 @@ TEST(Polygonize, LargePatchDecimatedInPiecesJoinsClosed) {
   EXPECT_NEAR(hb.area, ha.area, 1e-9);
 }
 
+TEST(Polygonize, BottomOverFlatGroundIsCoarseAlsoInPieces) {
+  // Rough snow on a flat floor: a top of many triangles, a bottom that needs
+  // few, whole or in pieces.
+  const SnowMaps maps = flat_floor(400, 0.008f);
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  uint32_t state = 777u;
+  for (int j = 20; j < 380; ++j) {
+    for (int i = 20; i < 380; ++i) {
+      state = state * 1664525u + 1013904223u;
+      depth[maps.index(0, i, j)] = 0.05f + 0.03f * float(state >> 8) / float(1u << 24);
+    }
+  }
+  const Scene scene = names_scene({"Floor"});
+  PolygonizeSettings whole;
+  whole.piece_triangles = 0;
+  PolygonizeSettings split;
+  split.piece_triangles = 20000;
+  const auto a = polygonize(maps, depth, scene, whole);
+  const LogLevel level = log_level();
+  set_log_level(LogLevel::Debug);
+  testing::internal::CaptureStderr();
+  const auto b = polygonize(maps, depth, scene, split);
+  const std::string log = testing::internal::GetCapturedStderr();
+  set_log_level(level);
+  EXPECT_EQ(log.find("decimating it whole"), std::string::npos) << log;
+  ASSERT_EQ(a.size(), 1u);
+  ASSERT_EQ(b.size(), 1u);
+  // Faces facing up (the top's) or down (the bottom's).
+  const auto faces = [](const TriMesh& m, bool up) {
+    size_t count = 0;
+    for (size_t t = 0; t < m.indices.size(); t += 3) {
+      const glm::dvec3 p0 = m.positions[m.indices[t]], p1 = m.positions[m.indices[t + 1]],
+                       p2 = m.positions[m.indices[t + 2]];
+      count += size_t((glm::cross(p1 - p0, p2 - p0).y > 0.0) == up);
+    }
+    return count;
+  };
+  for (const auto* patch : {&a[0], &b[0]}) {
+    expect_closed(*patch);
+    const size_t top = faces(patch->mesh, true), bottom = faces(patch->mesh, false);
+    std::printf("rough snow on a flat floor (%s): %zu top faces, %zu bottom faces\n",
+                patch == &a[0] ? "whole" : "in pieces", top, bottom);
+    // Here 120x (whole) and 36x (in pieces); a bottom on the top's triangles,
+    // decimated, kept 9x fewer.
+    EXPECT_LT(bottom * 16, top);
+  }
+  // In pieces, the seams keep their vertices: more top faces.
+  EXPECT_GT(faces(b[0].mesh, true), faces(a[0].mesh, true));
+  EXPECT_NEAR(b[0].volume, a[0].volume, 1e-3 * a[0].volume);
+}
+
 }  // namespace
 }  // namespace snow

@@ -864,17 +864,18 @@ double plan_area2(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c)
 /// tolerance < 0: every cell at full resolution. cut (a power of two >= 2,
 /// or 0): no triangle crosses a window sample column k * cut, so the top
 /// splits into strips of columns along edges (see top_pieces).
-/// A top of at most own_bottom_below triangles (with tolerance >= 0) gets a
-/// bottom triangulated on its own (TopMesh::bottom), within the tolerance
-/// of the ground alone: the same network, split only where the ground
-/// needs it, so a coarsening of the top's with the same outline cells. On
-/// flat ground it is a few large triangles and the outline's ring, which
-/// the decimation no longer has to collapse (Kenney tiles at 0.3 m: the
-/// largest patch's solid 25-27 -> 19-24 ms; the courtyard's house roof
-/// 0.133-0.142 -> 0.079-0.102 s; triangles out within 1 %, the same
-/// volumes).
+/// With tolerance >= 0 the bottom is triangulated on its own
+/// (TopMesh::bottom), within the tolerance of the ground alone: the same
+/// network, split only where the ground needs it, so a coarsening of the
+/// top's with the same outline cells. On flat ground it is a few large
+/// triangles and the outline's ring, which the decimation no longer has to
+/// collapse (Kenney tiles at 0.3 m: the largest patch's solid 25-27 ->
+/// 19-24 ms; the courtyard's house roof 0.133-0.142 -> 0.079-0.102 s;
+/// triangles out within 1 %, the same volumes). The bottom keeps the cut
+/// where the top has more than cut_bottom_above triangles, i.e. is decimated
+/// in pieces.
 TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thickness,
-                        double tolerance, int cut = 0, size_t own_bottom_below = 0) {
+                        double tolerance, int cut = 0, size_t cut_bottom_above = SIZE_MAX) {
   std::vector<uint32_t>* out = nullptr;  // where emit() puts triangles: top.tris, then top.bottom
   TopMesh top;
   std::vector<int32_t> sample_vertex(f.member.size(), -1);
@@ -965,30 +966,37 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
   int tile = 1;
   while (tile + 1 < std::max(f.w, f.h)) tile *= 2;
   const int n = tile + 1;
+  // The errors of the top and ground together (error), and of the ground
+  // alone (ground_error), the bottom's.
   std::vector<float> error(size_t(n) * size_t(n), 0.0f);
+  std::vector<float> ground_error(tolerance >= 0.0 ? error.size() : 0, 0.0f);
   auto member = [&](int x, int y) { return x < f.w && y < f.h && f.member[f.at(x, y)] != 0; };
-  // The errors of the top and ground together into the zeroed grid, or
-  // (ground_only) of the ground alone, the bottom's where it has its own.
-  const auto compute_errors = [&](bool ground_only) {
-    const float kForce = std::numeric_limits<float>::infinity();
+  const float kForce = std::numeric_limits<float>::infinity();
+  // Split every triangle whose hypotenuse midpoint lies on the grid of half
+  // the cut: down to the triangles inside one cut x cut square, whose legs
+  // lie on its sides, centre lines and diagonals. Those midpoints are the
+  // ones of the triangles with hypotenuses `cut` samples long or longer,
+  // their ancestors' included: forced after the errors are worked out, they
+  // split the same triangles as forced before.
+  const auto force_cut = [&](std::vector<float>& e) {
+    for (int y = 0; y <= tile; y += cut / 2) {
+      for (int x = 0; x <= tile; x += cut / 2) e[size_t(y) * size_t(n) + size_t(x)] = kForce;
+    }
+  };
+  const auto compute_errors = [&] {
     for (int cj = 0; cj + 1 < f.h; ++cj) {
       for (int ci = 0; ci + 1 < f.w; ++ci) {
         const int inside = int(member(ci, cj)) + int(member(ci + 1, cj)) + int(member(ci, cj + 1)) +
                            int(member(ci + 1, cj + 1));
         if (inside == 0 || inside == 4) continue;
-        for (int q = 0; q < 4; ++q)
-          error[size_t(cj + (q >> 1)) * size_t(n) + size_t(ci + (q & 1))] = kForce;
+        for (int q = 0; q < 4; ++q) {
+          const size_t k = size_t(cj + (q >> 1)) * size_t(n) + size_t(ci + (q & 1));
+          error[k] = kForce;
+          if (!ground_error.empty()) ground_error[k] = kForce;
+        }
       }
     }
-    if (tolerance >= 0.0 && cut >= 2 && !ground_only) {
-      // Split every triangle whose hypotenuse midpoint lies on the grid of
-      // half the cut: down to the triangles inside one cut x cut square,
-      // whose legs lie on its sides, centre lines and diagonals (a bottom of
-      // its own is never cut).
-      for (int y = 0; y <= tile; y += cut / 2) {
-        for (int x = 0; x <= tile; x += cut / 2) error[size_t(y) * size_t(n) + size_t(x)] = kForce;
-      }
-    }
+    if (tolerance >= 0.0 && cut >= 2) force_cut(error);
     if (tolerance < 0.0) return;
     // A triangle's error takes in its own (how far top and ground at its
     // hypotenuse midpoint lie from the hypotenuse's) and its children's,
@@ -1010,7 +1018,7 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
     // own: the error of triangle (a, b) with its right angle at c. Every
     // triangle turns the same way from a to b to c, and its sums run in that
     // order, so the two that share a hypotenuse may round apart.
-    const auto own = [&](int ax, int ay, int bx, int by, int cx, int cy, float& e) {
+    const auto own = [&](int ax, int ay, int bx, int by, int cx, int cy, float& e, float& eg) {
       if ((bx - ax) * (cy - ay) - (by - ay) * (cx - ax) > 0) {
         std::swap(ax, bx);
         std::swap(ay, by);
@@ -1020,10 +1028,16 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
       const size_t a = f.at(ax, ay), b = f.at(bx, by), m = f.at(mx, my);
       const float dg = std::abs(0.5f * (f.g[a] + f.g[b]) - f.g[m]);
       const float dt = std::abs(0.5f * (f.g[a] + f.s[a] + f.g[b] + f.s[b]) - (f.g[m] + f.s[m]));
-      e = std::max(e, ground_only ? dg : std::max(dg, dt));
+      e = std::max(e, std::max(dg, dt));
+      eg = std::max(eg, dg);
     };
-    const auto at = [&](int x, int y) -> float& {
-      return error[size_t(y) * size_t(n) + size_t(x)];
+    const auto at = [&](int x, int y) { return size_t(y) * size_t(n) + size_t(x); };
+    // Both errors at midpoint k take in those at its children's midpoints.
+    const auto take = [&](size_t k, std::initializer_list<size_t> children) {
+      for (size_t c : children) {
+        error[k] = std::max(error[k], error[c]);
+        ground_error[k] = std::max(ground_error[k], ground_error[c]);
+      }
     };
     const unsigned threads = threads_for(error.size());
     for (int side = 2; side <= tile; side *= 2) {
@@ -1035,16 +1049,16 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
           [&](size_t row) {
             const int y = int(row) * h;
             for (int x = (y % side == 0) ? h : 0; x <= tile; x += side) {
-              float& e = at(x, y);
+              const size_t k = at(x, y);
               const bool horizontal = y % side == 0;
               const int dx = horizontal ? h : 0, dy = horizontal ? 0 : h;
               for (int sgn = -1; sgn <= 1; sgn += 2) {
                 const int cx = x + sgn * dy, cy = y + sgn * dx;  // right angle
                 if (cx < 0 || cy < 0 || cx > tile || cy > tile) continue;
-                own(x - dx, y - dy, x + dx, y + dy, cx, cy, e);
+                own(x - dx, y - dy, x + dx, y + dy, cx, cy, error[k], ground_error[k]);
                 if (!parent) continue;
-                e = std::max({e, at((x - dx + cx) >> 1, (y - dy + cy) >> 1),
-                              at((x + dx + cx) >> 1, (y + dy + cy) >> 1)});
+                take(k, {at((x - dx + cx) >> 1, (y - dy + cy) >> 1),
+                         at((x + dx + cx) >> 1, (y + dy + cy) >> 1)});
               }
             }
           },
@@ -1057,28 +1071,30 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
             const int y = int(qy) * side + h;
             for (int qx = 0; qx * side < tile; ++qx) {
               const int x = qx * side + h;
-              float& e = at(x, y);
+              const size_t k = at(x, y);
+              float &e = error[k], &eg = ground_error[k];
               if ((qx + int(qy)) % 2 == 0) {
-                own(x - h, y - h, x + h, y + h, x + h, y - h, e);
-                own(x - h, y - h, x + h, y + h, x - h, y + h, e);
+                own(x - h, y - h, x + h, y + h, x + h, y - h, e, eg);
+                own(x - h, y - h, x + h, y + h, x - h, y + h, e, eg);
               } else {
-                own(x + h, y - h, x - h, y + h, x - h, y - h, e);
-                own(x + h, y - h, x - h, y + h, x + h, y + h, e);
+                own(x + h, y - h, x - h, y + h, x - h, y - h, e, eg);
+                own(x + h, y - h, x - h, y + h, x + h, y + h, e, eg);
               }
-              e = std::max({e, at(x - h, y), at(x + h, y), at(x, y - h), at(x, y + h)});
+              take(k, {at(x - h, y), at(x + h, y), at(x, y - h), at(x, y + h)});
             }
           },
           threads);
     }
   };
-  compute_errors(false);
+  compute_errors();
   std::vector<uint8_t> cell_done(f.member.size(), 0);
   const float split_above = tolerance >= 0.0 ? float(tolerance) : -1.0f;
+  const float* split_error = error.data();  // the top's, then the bottom's
   // Triangle (a, b, c): hypotenuse a-b, right angle at c.
   const auto visit = [&](const auto& self, int ax, int ay, int bx, int by, int cx, int cy) -> void {
     const int mx = (ax + bx) >> 1, my = (ay + by) >> 1;
     const bool leaf = std::abs(ax - cx) + std::abs(ay - cy) <= 1;
-    if (!leaf && error[size_t(my) * size_t(n) + size_t(mx)] > split_above) {
+    if (!leaf && split_error[size_t(my) * size_t(n) + size_t(mx)] > split_above) {
       self(self, cx, cy, ax, ay, mx, my);
       self(self, bx, by, cx, cy, mx, my);
       return;
@@ -1111,9 +1127,9 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
   out = &top.tris;
   visit(visit, 0, 0, tile, tile, tile, 0);
   visit(visit, tile, tile, 0, 0, 0, tile);
-  if (tolerance >= 0.0 && top.tris.size() / 3 <= own_bottom_below) {
-    std::fill(error.begin(), error.end(), 0.0f);
-    compute_errors(true);
+  if (tolerance >= 0.0) {
+    if (cut >= 2 && top.tris.size() / 3 > cut_bottom_above) force_cut(ground_error);
+    split_error = ground_error.data();
     out = &top.bottom;
     std::fill(cell_done.begin(), cell_done.end(), uint8_t(0));
     visit(visit, 0, 0, tile, tile, tile, 0);
@@ -1263,66 +1279,91 @@ struct TopPiece {
 /// decimation in pieces.
 constexpr int kMinCut = 16;
 
+/// The piece of each top triangle (top) and of each bottom one (bottom,
+/// where the bottom has triangles of its own).
+struct Pieces {
+  std::vector<uint32_t> top, bottom;
+};
+
 /// The strip of window columns [k * cut, (k + 1) * cut] each triangle of a
-/// top triangulated with that cut lies in, grouped into at most `pieces`
-/// runs of whole strips with about equally many triangles; returns the run
-/// of each triangle, and in `pieces` the number of runs that got triangles.
-std::vector<uint32_t> top_pieces(const TopMesh& top, const PatchField& f, const MapGrid& grid,
-                                 int cut, size_t& pieces) {
-  const size_t n = top.tris.size() / 3;
-  std::vector<uint32_t> strip(n);
+/// top (and of its bottom) triangulated with that cut lies in, grouped into
+/// at most `pieces` runs of whole strips with about equally many top
+/// triangles; returns the run of each triangle, and in `pieces` the number
+/// of runs that got top triangles.
+Pieces top_pieces(const TopMesh& top, const PatchField& f, const MapGrid& grid, int cut,
+                  size_t& pieces) {
+  const auto strips_of = [&](const std::vector<uint32_t>& tris) {
+    std::vector<uint32_t> strip(tris.size() / 3);
+    for (size_t t = 0; t < strip.size(); ++t) {
+      double x = 0.0;
+      for (int e = 0; e < 3; ++e) x += top.positions[tris[3 * t + size_t(e)]].x;
+      const double column = (x / 3.0 - double(grid.origin.x)) / double(grid.texel) - 0.5 - f.i0;
+      strip[t] = uint32_t(std::clamp(std::floor(column / double(cut)), 0.0, 1e9));
+    }
+    return strip;
+  };
+  Pieces out{strips_of(top.tris), strips_of(top.bottom)};
+  const size_t n = out.top.size();
   size_t strips = 0;
-  for (size_t t = 0; t < n; ++t) {
-    double x = 0.0;
-    for (int e = 0; e < 3; ++e) x += top.positions[top.tris[3 * t + size_t(e)]].x;
-    const double column = (x / 3.0 - double(grid.origin.x)) / double(grid.texel) - 0.5 - f.i0;
-    strip[t] = uint32_t(std::clamp(std::floor(column / double(cut)), 0.0, 1e9));
-    strips = std::max(strips, size_t(strip[t]) + 1);
-  }
+  for (uint32_t k : out.top) strips = std::max(strips, size_t(k) + 1);
+  for (uint32_t k : out.bottom) strips = std::max(strips, size_t(k) + 1);
   std::vector<size_t> count(strips, 0);
-  for (uint32_t k : strip) ++count[k];
+  for (uint32_t k : out.top) ++count[k];
   std::vector<uint32_t> run(strips, 0);
   uint32_t p = 0;
   size_t before = 0, used = 0;
   for (size_t k = 0; k < strips; ++k) {
-    if (count[k] == 0) continue;
-    if (used > 0 && p + 1 < pieces && before * pieces >= (p + 1) * n) ++p;
+    if (count[k] > 0 && used > 0 && p + 1 < pieces && before * pieces >= (p + 1) * n) ++p;
     run[k] = p;
-    used = size_t(p) + 1;
+    if (count[k] > 0) used = size_t(p) + 1;
     before += count[k];
   }
   pieces = used;
-  for (uint32_t& k : strip) k = run[k];
-  return strip;
+  for (uint32_t& k : out.top) k = run[k];
+  for (uint32_t& k : out.bottom) k = run[k];
+  return out;
 }
 
-/// The top triangles of each piece (piece[t] of triangle t, below `pieces`).
-/// Where a piece's triangles around a vertex form several fans (the outline
-/// comes in between them), each fan gets a vertex of its own, so every piece
-/// is a manifold mesh; they share the origin.
-std::vector<TopPiece> split_top(const TopMesh& top, const std::vector<uint32_t>& piece,
-                                size_t pieces) {
-  const size_t nv = top.positions.size();
-  // The triangles around each vertex, in index order: vertex v's are
-  // around_all[first[v], first[v + 1]) (one array, not a vector per vertex:
-  // 0.03-0.04 -> 0.013 s for the 1M-triangle terrain's ground at 2048).
-  std::vector<uint32_t> first(nv + 1, 0);
-  for (size_t c = 0; c < 3 * piece.size(); ++c) ++first[top.tris[c] + 1];
-  for (size_t v = 0; v < nv; ++v) first[v + 1] += first[v];
-  std::vector<uint32_t> around_all(first[nv]);
-  {
+/// The triangles around each vertex of a mesh of nv vertices, in index
+/// order: vertex v's are around[first[v], first[v + 1]) (one array, not a
+/// vector per vertex: 0.03-0.04 -> 0.013 s for the 1M-triangle terrain's
+/// ground at 2048).
+struct Around {
+  std::vector<uint32_t> first, around;
+  Around(const std::vector<uint32_t>& tris, size_t nv) : first(nv + 1, 0), around(tris.size()) {
+    for (uint32_t v : tris) ++first[v + 1];
+    for (size_t v = 0; v < nv; ++v) first[v + 1] += first[v];
     std::vector<uint32_t> next(first.begin(), first.end() - 1);
-    for (size_t c = 0; c < 3 * piece.size(); ++c) around_all[next[top.tris[c]]++] = uint32_t(c / 3);
+    for (size_t c = 0; c < tris.size(); ++c) around[next[tris[c]]++] = uint32_t(c / 3);
   }
-  std::vector<TopPiece> out(pieces);
-  std::vector<uint32_t> local(top.tris.size());  // piece vertex of each corner
+  const uint32_t* begin(size_t v) const { return around.data() + first[v]; }
+  size_t count(size_t v) const { return first[v + 1] - first[v]; }
+};
+
+/// The top triangles of each piece (pieces.top[t] of triangle t, below
+/// `count`), and its bottom ones where the bottom has its own. Where a
+/// piece's top triangles around a vertex form several fans (the outline
+/// comes in between them), each fan gets a vertex of its own, so every piece
+/// is a manifold mesh; they share the origin. A bottom triangle takes the
+/// vertices of its piece's top there (the bottom is a coarsening of the
+/// top); empty where its piece's top has no fan or several at a corner of
+/// it (never seen: the outline's cells are whole in both).
+std::vector<TopPiece> split_top(const TopMesh& top, const Pieces& pieces, size_t count) {
+  const size_t nv = top.positions.size();
+  const Around tops(top.tris, nv), bottoms(top.bottom, nv);
+  std::vector<TopPiece> out(count);
+  std::vector<uint32_t> local(top.tris.size());           // piece vertex of each corner
+  std::vector<uint32_t> local_bottom(top.bottom.size());  // the same for the bottom's
   std::vector<uint32_t> fan;
-  std::vector<std::pair<uint32_t, uint32_t>> fan_vertex;  // fan root, piece vertex
+  struct FanVertex {
+    uint32_t root, piece, vertex;  // fan root (an index around v), its piece and piece vertex
+  };
+  std::vector<FanVertex> fan_vertex;
   for (size_t v = 0; v < nv; ++v) {
     // The triangles around v of each piece, joined into fans by the edges
     // (v, w) they share.
-    const uint32_t* const around = around_all.data() + first[v];
-    const size_t around_count = first[v + 1] - first[v];
+    const uint32_t* const around = tops.begin(v);
+    const size_t around_count = tops.count(v);
     fan.resize(around_count);
     std::iota(fan.begin(), fan.end(), 0u);
     const auto root = [&](uint32_t a) {
@@ -1332,7 +1373,7 @@ std::vector<TopPiece> split_top(const TopMesh& top, const std::vector<uint32_t>&
     for (size_t a = 0; a < around_count; ++a) {
       for (size_t b = a + 1; b < around_count; ++b) {
         const uint32_t ta = around[a], tb = around[b];
-        if (piece[ta] != piece[tb]) continue;
+        if (pieces.top[ta] != pieces.top[tb]) continue;
         int shared = 0;
         for (int ea = 0; ea < 3; ++ea) {
           for (int eb = 0; eb < 3; ++eb) {
@@ -1345,12 +1386,13 @@ std::vector<TopPiece> split_top(const TopMesh& top, const std::vector<uint32_t>&
     }
     fan_vertex.clear();
     for (size_t a = 0; a < around_count; ++a) {
-      TopPiece& part = out[piece[around[a]]];
+      const uint32_t p = pieces.top[around[a]];
+      TopPiece& part = out[p];
       const uint32_t r = root(uint32_t(a));
       auto it = std::find_if(fan_vertex.begin(), fan_vertex.end(),
-                             [&](const auto& fv) { return fv.first == r; });
+                             [&](const FanVertex& fv) { return fv.root == r; });
       if (it == fan_vertex.end()) {
-        fan_vertex.emplace_back(r, uint32_t(part.origin.size()));
+        fan_vertex.push_back({r, p, uint32_t(part.origin.size())});
         it = fan_vertex.end() - 1;
         part.origin.push_back(uint32_t(v));
         part.top.positions.push_back(top.positions[v]);
@@ -1358,12 +1400,31 @@ std::vector<TopPiece> split_top(const TopMesh& top, const std::vector<uint32_t>&
       }
       const size_t t = around[a];
       for (size_t e = 0; e < 3; ++e) {
-        if (top.tris[3 * t + e] == v) local[3 * t + e] = it->second;
+        if (top.tris[3 * t + e] == v) local[3 * t + e] = it->vertex;
+      }
+    }
+    // A bottom triangle at v takes the vertex of its piece's one fan there.
+    for (size_t k = 0; k < bottoms.count(v); ++k) {
+      const uint32_t b = bottoms.begin(v)[k], p = pieces.bottom[b];
+      const FanVertex* found = nullptr;
+      for (const FanVertex& fv : fan_vertex) {
+        if (fv.piece != p) continue;
+        if (found) return {};
+        found = &fv;
+      }
+      if (!found) return {};
+      for (size_t e = 0; e < 3; ++e) {
+        if (top.bottom[3 * size_t(b) + e] == v) local_bottom[3 * size_t(b) + e] = found->vertex;
       }
     }
   }
-  for (size_t t = 0; t < piece.size(); ++t) {
-    for (size_t e = 0; e < 3; ++e) out[piece[t]].top.tris.push_back(local[3 * t + e]);
+  for (size_t t = 0; t < pieces.top.size(); ++t) {
+    for (size_t e = 0; e < 3; ++e) out[pieces.top[t]].top.tris.push_back(local[3 * t + e]);
+  }
+  for (size_t t = 0; t < pieces.bottom.size(); ++t) {
+    for (size_t e = 0; e < 3; ++e) {
+      out[pieces.bottom[t]].top.bottom.push_back(local_bottom[3 * t + e]);
+    }
   }
   return out;
 }
@@ -1394,16 +1455,17 @@ struct Solid {
   }
 };
 
-/// The closed solid of a large top, built and decimated in pieces (piece[t]
-/// of top triangle t, below `pieces`) on all cores and joined into `out`
+/// The closed solid of a large top, built and decimated in pieces (those of
+/// top_pieces, `count` of them) on all cores and joined into `out`
 /// (PolygonizeSettings::piece_triangles). The vertices a piece shares with
 /// another are locked, so every piece keeps the seam edges as they are and
-/// the pieces join into a closed solid. Returns false when a piece would not
-/// form a manifold mesh.
-bool build_decimated_in_pieces(const TopMesh& top, const std::vector<uint32_t>& piece,
-                               size_t pieces, const PatchField& field, float bottom_offset,
-                               double max_error, Solid& out) {
-  const std::vector<TopPiece> parts = split_top(top, piece, pieces);
+/// the pieces join into a closed solid. Returns false when the top does not
+/// split into pieces that each form a manifold mesh.
+bool build_decimated_in_pieces(const TopMesh& top, const Pieces& pieces, size_t count,
+                               const PatchField& field, float bottom_offset, double max_error,
+                               Solid& out) {
+  const std::vector<TopPiece> parts = split_top(top, pieces, count);
+  if (parts.empty()) return false;
   std::vector<uint8_t> users(top.positions.size(), 0);
   for (const TopPiece& part : parts) {
     for (uint32_t v : part.origin) users[v] = uint8_t(std::min(users[v] + 1, 2));
@@ -1429,7 +1491,7 @@ bool build_decimated_in_pieces(const TopMesh& top, const std::vector<uint32_t>& 
       if (users[size_t(o)] < 2) continue;
       m.property(keys[p], solid.top[v]) = 2 * o;
       seam.push_back(solid.top[v]);
-      if (solid.bottom[v] != solid.top[v]) {
+      if (solid.bottom[v].is_valid() && solid.bottom[v] != solid.top[v]) {
         m.property(keys[p], solid.bottom[v]) = 2 * o + 1;
         seam.push_back(solid.bottom[v]);
       }
@@ -1575,12 +1637,11 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const LayerArray<float
   if (error > 0.0 && settings.piece_triangles > 0) {
     for (int c = kMinCut; c * 16 <= field.w; c *= 2) cut = c;
   }
-  // A top decimated whole gets a bottom of its own (one cut into pieces
-  // shares its triangles with the bottom).
+  // The bottom keeps the cut where the top is decimated in pieces.
   TopMesh top = triangulate_top(field, maps.grid, min_thickness, tolerance, cut,
                                 cut > 0 ? settings.piece_triangles : SIZE_MAX);
   size_t pieces = 1;
-  std::vector<uint32_t> piece;
+  Pieces piece;
   if (cut > 0 && top.tris.size() / 3 > settings.piece_triangles) {
     pieces = (top.tris.size() / 3 + settings.piece_triangles - 1) / settings.piece_triangles;
     piece = top_pieces(top, field, maps.grid, cut, pieces);
