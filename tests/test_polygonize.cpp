@@ -442,6 +442,35 @@ TEST(Polygonize, OpenFloorJoinsThroughColumnsUnderABridge) {
   }
 }
 
+// A floor that is the top of a slab (its underside a second layer, as a
+// closed ground gives) meshes as the same floor alone: snow on the slab's
+// top joins as on a one-surface floor, also across a step too high to join.
+TEST(Polygonize, SlabUndersideChangesNothing) {
+  const int size = 48;
+  std::vector<std::vector<SnowPatch>> results;
+  for (const int layers : {1, 2}) {
+    SnowMaps maps = make_maps(size, size, 0.1f, layers);
+    std::vector<float> depth(maps.ground.size(), 0.0f);
+    for (int j = 0; j < size; ++j) {
+      for (int i = 0; i < size; ++i) {
+        const float floor = i >= 30 ? 0.5f : 0.0f;
+        set_layer(maps, 0, i, j, {floor, kOpenSky, {0, 1, 0}, 0});
+        if (layers == 2) set_layer(maps, 1, i, j, {-0.3f, floor, {0, -1, 0}, 0});
+        depth[maps.index(0, i, j)] = 0.2f + 0.05f * std::sin(0.7f * float(i)) * float(j % 3);
+      }
+    }
+    results.push_back(polygonize(maps, depth, names_scene({"Slab"}), {}));
+  }
+  ASSERT_EQ(results[0].size(), 2u);  // the step splits the floor
+  ASSERT_EQ(results[1].size(), results[0].size());
+  for (size_t p = 0; p < results[0].size(); ++p) {
+    expect_closed(results[1][p]);
+    EXPECT_EQ(results[1][p].texels, results[0][p].texels);
+    EXPECT_EQ(results[1][p].mesh.positions, results[0][p].mesh.positions);
+    EXPECT_EQ(results[1][p].mesh.indices, results[0][p].mesh.indices);
+  }
+}
+
 TEST(Polygonize, TwoSeparatePatchesGetUniqueNames) {
   const SnowMaps maps = flat_floor(48, 0.1f);
   std::vector<float> depth(maps.ground.size(), 0.0f);

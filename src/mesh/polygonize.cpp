@@ -433,10 +433,13 @@ class TexelRows {
 /// Connected components of snowy texels; see polygonize()'s contract.
 ///
 /// Patches grow breadth first from seeds in index order, and take at most
-/// one layer per column. Most texels of a terrain or a floor are the one
-/// surface of a column under the open sky ("single" texels): between two of
-/// them the landing rule reduces to "tops within max_step", which is
-/// symmetric and never meets the one-layer rule. So those are first joined
+/// one layer per column. Most texels of a terrain, a floor or a roof lie on
+/// the top surface of a column, under the open sky, with no snow on the
+/// surfaces below it (a slab's underside, the floor under a roof): "single"
+/// texels. Between two of them the landing rule reduces to "tops within
+/// max_step" (snow that does not land on a column's top lands lower, where
+/// there is no snow to join), which is symmetric and never meets the
+/// one-layer rule. So those are first joined
 /// into clusters on all cores (union-find over strips of rows), and a patch
 /// that reaches a cluster takes all of it; only the texels of other columns,
 /// and the cluster texels beside them, are walked one by one. The patches
@@ -457,12 +460,17 @@ std::vector<PatchTexels> find_patches(const SnowMaps& maps, const LayerArray<flo
   // Single snowy texels (layer 0; their index is their column's).
   // (These arrays over every column are written on all cores; root and
   // cluster only where a texel is clustered, the only entries read.)
+  const auto snow_below = [&](size_t c) {
+    for (size_t k = c + per_layer; k < n && !std::isnan(maps.ground[k]); k += per_layer) {
+      if (snowy(k)) return true;
+    }
+    return false;
+  };
   LayerArray<uint8_t> single(per_layer), clustered(per_layer);
   parallel_for(size_t(h), [&](size_t j) {
     for (size_t c = j * size_t(w); c < (j + 1) * size_t(w); ++c) {
       single[c] = !std::isnan(maps.ground[c]) && std::isinf(maps.ceiling[c]) &&
-                  maps.ceiling[c] > 0.0f &&
-                  (maps.layers == 1 || std::isnan(maps.ground[c + per_layer]));
+                  maps.ceiling[c] > 0.0f && !snow_below(c);
       clustered[c] = single[c] && snowy(c);
     }
   });
