@@ -128,7 +128,7 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
     r.composite = std::min(r.composite, t.composite);
     r.readback = std::min(r.readback, t.readback);
     r.culled_share =
-        double(t.culled) /
+        double(t.culled - t.shaded) /
         double(std::max<uint64_t>(1, t.culled + t.pairs / uint64_t(std::max(1, cs.directions))));
     r.method = t.method;
     r.queued_share =

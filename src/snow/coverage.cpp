@@ -353,6 +353,38 @@ bool leaves_open(const Bvh& bvh, const std::vector<TrianglePlane>& planes,
   return true;
 }
 
+// True when triangle t (leaf order; false for Bvh::kNone) blocks every
+// line of fall from p whose tilt from the vertical is at most
+// atan(tan_max), higher than reference::own_surface(p.y) above p: p is
+// shaded along every direction, as the reference's rays find (a receiver
+// on the bottom of a solid whose top is t). The lines of the cone meet t's
+// plane within R sideways of p, R = H tan_max / (1 - tan_max |g|) for a
+// plane H above p rising |g| metres per metre, and at least
+// H / (1 + tan_max |g|) above p; so that disc (with a margin for the rays'
+// float rounding) must lie inside the triangle.
+bool shades_cone(const Bvh& bvh, uint32_t t, const glm::vec3& p, double tan_max) {
+  if (t == Bvh::kNone) return false;
+  const float own = reference::own_surface(p.y);
+  const glm::dvec3 a(bvh.corners()[3 * size_t(t)]), b(bvh.corners()[3 * size_t(t) + 1]),
+      c(bvh.corners()[3 * size_t(t) + 2]), q(p);
+  const glm::dvec3 m = glm::cross(b - a, c - a);
+  if (!(std::abs(m.y) > 0.0)) return false;
+  const double slope = std::hypot(m.x, m.z) / std::abs(m.y);
+  if (!(tan_max * slope < 0.5)) return false;
+  const double h = a.y - (m.x * (q.x - a.x) + m.z * (q.z - a.z)) / m.y - q.y;
+  if (!(h / (1.0 + tan_max * slope) > 2.0 * double(own))) return false;
+  const double scale = std::max({std::abs(q.x), std::abs(q.z), std::abs(a.x), std::abs(a.z),
+                                 std::abs(b.x), std::abs(b.z), std::abs(c.x), std::abs(c.z)});
+  const double r = h * tan_max / (1.0 - tan_max * slope) + 1e-5 * (1.0 + scale);
+  const glm::dvec2 v[3] = {{a.x, a.z}, {b.x, b.z}, {c.x, c.z}}, at(q.x, q.z);
+  const double turn = m.y > 0.0 ? -1.0 : 1.0;  // v runs counter-clockwise in (x, z) for m.y < 0
+  for (int e = 0; e < 3; ++e) {
+    const glm::dvec2 d = v[(e + 1) % 3] - v[e], w = at - v[e];
+    if (!(turn * (d.x * w.y - d.y * w.x) >= r * glm::length(d))) return false;
+  }
+  return true;
+}
+
 // Max pyramid over the snowy tops (each spread over its 3 x 3 texel squares,
 // since the heightfield spans texel centres): open(p, y) when every cell's
 // max passes the test at the cell's distance.
@@ -1683,6 +1715,9 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     // with the shadow maps' bias (a quarter texel) instead kept fewer
     // receivers only where a surface lies that close above one: 125462
     // against 125791 of 3.9M on the 1M-triangle terrain at 2048.
+    // Per receiver: 0, kOpen (lit along every direction) or kShaded (shaded
+    // along every direction).
+    constexpr uint8_t kOpen = 1, kShaded = 2;
     std::vector<uint8_t> open(recv.size(), 0);
     // A receiver with a surface of the maps straight above it, higher than
     // its own (by twice own_surface, for the peel's rounding), is shaded
@@ -1692,7 +1727,10 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     // candidate leaves are the other receivers'. (One open after all would
     // still be counted lit along every direction.) Culling, the same
     // receivers kept: SheenChair at --depth 0.01 386 -> 135 ms, the
-    // courtyard 131 -> 74 ms, grass-trees 6.0 -> 3.6 ms.
+    // courtyard 131 -> 74 ms, grass-trees 6.0 -> 3.6 ms. These are tested
+    // instead for a triangle above that shades them along every direction
+    // (shades_cone): the bottoms of solids, such as a ground
+    // slab's underside, most of the courtyard's receivers.
     const auto covered = [&](size_t r) {
       const size_t k = recv_index[r];
       if (k < texels) return false;  // layer 0
@@ -1716,8 +1754,20 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
       const auto tile_of = [&](size_t r) { return (recv[r].x & 0xffffu) / uint32_t(kTile); };
       std::vector<uint32_t> order;
       order.reserve(r1 - r0);
+      uint32_t shade = Bvh::kNone;
       for (size_t r = r0; r < r1; ++r) {
-        if (!covered(r)) order.push_back(uint32_t(r));
+        if (!covered(r)) {
+          order.push_back(uint32_t(r));
+          continue;
+        }
+        // The last receiver's triangle, else the first the vertical line
+        // up meets.
+        const glm::vec3 p = receiver_point(grid, recv[r]);
+        if (!shades_cone(im.bvh, shade, p, tan_max)) {
+          shade = im.bvh.first_hit(p, glm::vec3(0.0f, 1.0f, 0.0f), reference::own_surface(p.y),
+                                   kOpenSky);
+        }
+        if (shades_cone(im.bvh, shade, p, tan_max)) open[r] = kShaded;
       }
       std::stable_sort(order.begin(), order.end(),
                        [&](uint32_t a, uint32_t c) { return tile_of(a) < tile_of(c); });
@@ -1739,7 +1789,9 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
           const glm::vec3 p = receiver_point(grid, recv[order[a]]);
           const Cone cone(glm::vec2(p.x, p.z), p.y, reference::own_surface(p.y), cot_max);
           open[order[a]] =
-              leaves_open(im.bvh, planes, leaves, cone) && (!snow_bound || snow_bound->open(cone));
+              leaves_open(im.bvh, planes, leaves, cone) && (!snow_bound || snow_bound->open(cone))
+                  ? kOpen
+                  : 0;
         }
       }
     });
@@ -1768,7 +1820,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     size_t kept = 0;
     for (size_t r = 0; r < recv.size(); ++r) {
       if (open[r]) {
-        coverage[recv_index[r]] = 1.0f;
+        coverage[recv_index[r]] = open[r] == kOpen ? 1.0f : 0.0f;
         continue;
       }
       recv[kept] = recv[r];
@@ -1778,12 +1830,13 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     recv.resize(kept);
     recv_index.resize(kept);
     im.timings.culled = open.size() - kept;
+    im.timings.shaded = size_t(std::count(open.begin(), open.end(), kShaded));
   }
   im.timings.method = method;
   if (recv.empty()) return coverage;
   if (method == CoverageMethod::CpuRays) {
     log_debug("coverage: " + std::to_string(recv.size()) +
-              " receivers not open to the sky, every line cast on the CPU");
+              " receivers neither open to the sky nor under a solid, every line cast on the CPU");
     im.cast_on_cpu(maps, dirs, snow_depth, recv, recv_index, coverage, progress);
     im.timings.shadow = now_seconds() - t_start;
     im.timings.pairs = uint64_t(recv.size()) * uint64_t(dirs.size());
@@ -1828,7 +1881,8 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
   }
   if (method != CoverageMethod::GpuRays) im.shadow_size = size;
   const bool rays = method == CoverageMethod::GpuRays;
-  log_debug("coverage: " + std::to_string(recv.size()) + " receivers not open to the sky, " +
+  log_debug("coverage: " + std::to_string(recv.size()) +
+            " receivers neither open to the sky nor under a solid, " +
             std::to_string(size_t(work.triangles)) + " triangles per shadow map" +
             (on_cpu && work.drawn >= 0.0
                  ? " (about " + std::to_string(size_t(work.drawn)) + " near the receivers)"

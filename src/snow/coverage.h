@@ -219,7 +219,8 @@ class CoverageRenderer {
     double shadow = 0;      // K shadow-map depth passes
     double composite = 0;   // counting: classification and exact ray casts (compute passes)
     double readback = 0;    // one readback of the counts
-    uint64_t culled = 0;    // receivers open to the sky along every direction (no GPU work)
+    uint64_t culled = 0;    // receivers lit or shaded along every direction (no GPU work)
+    uint64_t shaded = 0;    // of those, the ones shaded (under a solid's top; shades_cone)
     uint64_t queued = 0;    // receivers sent to the exact pass, summed over batches (profiling;
                             // CPU shadow maps: the uncertain pairs cast exactly)
     uint64_t pairs = 0;     // (receiver, direction) pairs classified
