@@ -359,6 +359,47 @@ TEST(StabilizeReference, RoutingFarFromTheOriginGivesUpNoMoreThanTheSnow) {
   EXPECT_EQ(gpu, cpu);
 }
 
+// With volume sums off (the batch job, which sums once at the end),
+// iterate() leaves volume and lost_volume 0 and does the same passes.
+template <class AnyStabilizer>
+void expect_volume_sums_change_only_the_sums(const SnowMaps& maps, AnyStabilizer& summed,
+                                             AnyStabilizer& quiet) {
+  const std::vector<float> start = random_snow(maps, 0.5f, 7);
+  summed.set_depth(start);
+  quiet.set_depth(start);
+  quiet.set_volume_sums(false);
+  for (int chunk = 0; chunk < 3; ++chunk) {
+    const StabilizeResult a = summed.iterate(40), b = quiet.iterate(40);
+    EXPECT_GT(a.volume, 0.0);
+    if (chunk == 0) {
+      EXPECT_GT(a.lost_volume, 0.0);  // the hole and the edges swallow some
+    }
+    EXPECT_EQ(b.volume, 0.0);
+    EXPECT_EQ(b.lost_volume, 0.0);
+    EXPECT_EQ(b.iterations, a.iterations);
+    EXPECT_EQ(b.residual, a.residual);
+    EXPECT_EQ(quiet.depth(), summed.depth());
+  }
+  EXPECT_EQ(quiet.lost_volume(), summed.lost_volume());
+}
+
+TEST(StabilizeCpu, VolumeSumsOffChangeOnlyTheSums) {
+  const SnowMaps maps = bumpy_maps(64, 4);
+  StabilizeSettings settings;
+  settings.tolerance = 0.0f;  // run every pass
+  CpuStabilizer summed(maps, settings), quiet(maps, settings);
+  expect_volume_sums_change_only_the_sums(maps, summed, quiet);
+}
+
+TEST(StabilizeGpu, VolumeSumsOffChangeOnlyTheSums) {
+  REQUIRE_GL();
+  const SnowMaps maps = bumpy_maps(64, 4);
+  StabilizeSettings settings;
+  settings.tolerance = 0.0f;
+  Stabilizer summed(maps, settings), quiet(maps, settings);
+  expect_volume_sums_change_only_the_sums(maps, summed, quiet);
+}
+
 TEST(StabilizeReference, ConvergedSnowIsAtRest) {
   const SnowMaps maps = bumpy_maps(64, 4);
   std::vector<float> depth = random_snow(maps, 0.5f, 11);

@@ -137,11 +137,14 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
     result.lost_volume = stabilizer.lost_volume();
     result.volume = snow_volume(maps, result.depth);
   };
+  // The volumes are summed once, at the end.
   if (on_cpu) {
     CpuStabilizer stabilizer(maps, stabilize);
+    stabilizer.set_volume_sums(false);
     run_steps(stabilizer);
   } else {
     Stabilizer stabilizer(maps, stabilize);
+    stabilizer.set_volume_sums(false);
     run_steps(stabilizer);
   }
   return result;

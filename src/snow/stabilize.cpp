@@ -239,6 +239,7 @@ struct Stabilizer::Impl {
   glm::vec2 distance{0.0f};
   bool route_pending = false;
   bool lost_is_zero = true;      // no pass ran since construction or set_depth
+  bool volume_sums = true;       // iterate() sums volume and lost_volume
   int cur = 0;                   // depth[cur] holds the current snow
   std::vector<uint8_t> surface;  // per layer texel: has a surface
   // The cells with a surface, for pouring the piles on the CPU
@@ -988,7 +989,8 @@ std::vector<glm::vec2> Stabilizer::Impl::read_depth() const {
 StabilizeResult Stabilizer::Impl::iterate(int passes) {
   StabilizeResult result;
   const double area = double(grid.texel) * double(grid.texel);
-  const double lost_before = lost_is_zero ? 0.0 : sum_blocks().y * area;
+  const bool routes = route_pending && settings.route_steep;
+  const double lost_before = lost_is_zero || !(volume_sums || routes) ? 0.0 : sum_blocks().y * area;
   lost_is_zero = false;
   if (route_pending) {
     if (settings.route_steep) {
@@ -1033,10 +1035,12 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
       }
     }
   }
-  const glm::dvec3 totals = sum_blocks();
+  if (volume_sums) {
+    const glm::dvec3 totals = sum_blocks();
+    result.volume = totals.x * area;
+    result.lost_volume = totals.y * area - lost_before;
+  }
   release_bindings();
-  result.volume = totals.x * area;
-  result.lost_volume = totals.y * area - lost_before;
   result.tile_share = !tiled ? 1.0
                       : settings.count_tiles && result.iterations > 0
                           ? tiles_drawn / (double(result.iterations) * tiles_x * tiles_y * layers)
@@ -1083,6 +1087,8 @@ void Stabilizer::add_snow(const std::vector<float>& amount, float scale) {
 }
 
 StabilizeResult Stabilizer::iterate(int passes) { return impl_->iterate(std::max(0, passes)); }
+
+void Stabilizer::set_volume_sums(bool on) { impl_->volume_sums = on; }
 
 StabilizeResult Stabilizer::run() {
   const double before = impl_->lost_is_zero ? 0.0 : lost_volume();

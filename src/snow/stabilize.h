@@ -317,8 +317,12 @@ class Stabilizer {
   /// Runs the pending routing, then up to `passes` relaxation passes,
   /// stopping early once converged (checked every check_every passes and
   /// after the last). Fills every field; volume and lost_volume come from a
-  /// GPU sum (float per block, double over blocks).
+  /// GPU sum (float per block, double over blocks), unless volume sums are
+  /// off.
   StabilizeResult iterate(int passes);
+  /// Off: iterate() leaves volume and lost_volume 0, for a caller that sums
+  /// them once at the end (each is a sum over the maps).
+  void set_volume_sums(bool on);
   /// iterate(settings.max_iterations), with volume and lost_volume summed
   /// exactly (double) from a full readback.
   StabilizeResult run();

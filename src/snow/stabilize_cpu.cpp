@@ -848,7 +848,7 @@ int CpuStabilizer::route(double* routed_volume, bool drain) {
 
 StabilizeResult CpuStabilizer::iterate(int passes) {
   StabilizeResult result;
-  const double lost_before = lost_volume();
+  const double lost_before = volume_sums_ ? lost_volume() : 0.0;
   if (route_pending_) {
     const auto t0 = std::chrono::steady_clock::now();
     if (settings_.route_steep) result.route_passes = route(&result.routed_volume);
@@ -891,8 +891,10 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
   if (settings_.count_tiles && result.iterations > 0 && !surface_tiles_.empty()) {
     result.tile_share = tile_work_ / (double(result.iterations) * double(surface_tiles_.size()));
   }
-  result.lost_volume = lost_volume() - lost_before;
-  result.volume = snow_volume();
+  if (volume_sums_) {
+    result.lost_volume = lost_volume() - lost_before;
+    result.volume = snow_volume();
+  }
   return result;
 }
 
