@@ -1729,8 +1729,9 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     // receivers kept: SheenChair at --depth 0.01 386 -> 135 ms, the
     // courtyard 131 -> 74 ms, grass-trees 6.0 -> 3.6 ms. These are tested
     // instead for a triangle above that shades them along every direction
-    // (shades_cone): the bottoms of solids, such as a ground
-    // slab's underside, most of the courtyard's receivers.
+    // (shades_cone): the bottoms of solids, such as the courtyard's ground
+    // slab's underside (1.37M -> 0.27M receivers left for the shadow maps,
+    // coverage 0.65 -> 0.40 s).
     const auto covered = [&](size_t r) {
       const size_t k = recv_index[r];
       if (k < texels) return false;  // layer 0
