@@ -45,7 +45,7 @@ struct PolygonizeSettings {
   /// 25k: the 1M-triangle terrain's ground at 2048 texels (182k triangles)
   /// goes in 8 pieces, enough for a many-core machine; decimating pieces of
   /// 25k rather than 100k also halved the time on 2 cores, for 1.9 % more
-  /// triangles out (10k: 5 %, little faster). 12.5k: 15 pieces, 1.9 % more
+  /// triangles out (10k: 5 %, little faster). 12.5k: 14 pieces, 1.7 % more
   /// triangles, as fast on 2 cores (--piece-triangles).
   size_t piece_triangles = 25000;
 };
