@@ -686,25 +686,32 @@ TEST(Polygonize, NoisySnowOnWavyGroundStaysClosed) {
               volume, depth_volume);
 }
 
+/// The patches decimated whole and in pieces of 20000 top triangles; these
+/// really are decimated in pieces (no note of a fall back to one piece).
+std::pair<std::vector<SnowPatch>, std::vector<SnowPatch>> whole_and_in_pieces(
+    const SnowMaps& maps, const std::vector<float>& depth, const Scene& scene) {
+  PolygonizeSettings whole;
+  whole.piece_triangles = 0;
+  PolygonizeSettings split;
+  split.piece_triangles = 20000;
+  auto a = polygonize(maps, depth, scene, whole);
+  const LogLevel level = log_level();
+  set_log_level(LogLevel::Debug);
+  testing::internal::CaptureStderr();
+  auto b = polygonize(maps, depth, scene, split);
+  const std::string log = testing::internal::GetCapturedStderr();
+  set_log_level(level);
+  EXPECT_EQ(log.find("decimating it whole"), std::string::npos) << log;
+  return {std::move(a), std::move(b)};
+}
+
 TEST(Polygonize, LargePatchDecimatedInPiecesJoinsClosed) {
   // The hill is about 280 texels wide, so its top is cut into strips of 16.
   SnowMaps maps;
   std::vector<float> depth;
   wavy_noisy(maps, depth, 400, 0.008f);
-  const Scene scene = names_scene({"Hill"});
-  PolygonizeSettings whole;
-  whole.piece_triangles = 0;
-  PolygonizeSettings split;
-  split.piece_triangles = 20000;  // the hill's top has a few ten thousand: a few pieces
-  const auto a = polygonize(maps, depth, scene, whole);
-  // It really is decimated in pieces: no note of a fall back to one piece.
-  const LogLevel level = log_level();
-  set_log_level(LogLevel::Debug);
-  testing::internal::CaptureStderr();
-  const auto b = polygonize(maps, depth, scene, split);
-  const std::string log = testing::internal::GetCapturedStderr();
-  set_log_level(level);
-  EXPECT_EQ(log.find("decimating it whole"), std::string::npos) << log;
+  // The hill's top has a few ten thousand triangles: a few pieces.
+  const auto [a, b] = whole_and_in_pieces(maps, depth, names_scene({"Hill"}));
   ASSERT_GE(a.size(), 1u);
   ASSERT_EQ(a.size(), b.size());
   for (const auto& p : b) expect_closed(p);
@@ -737,19 +744,7 @@ TEST(Polygonize, BottomOverFlatGroundIsCoarseAlsoInPieces) {
       depth[maps.index(0, i, j)] = 0.05f + 0.03f * float(state >> 8) / float(1u << 24);
     }
   }
-  const Scene scene = names_scene({"Floor"});
-  PolygonizeSettings whole;
-  whole.piece_triangles = 0;
-  PolygonizeSettings split;
-  split.piece_triangles = 20000;
-  const auto a = polygonize(maps, depth, scene, whole);
-  const LogLevel level = log_level();
-  set_log_level(LogLevel::Debug);
-  testing::internal::CaptureStderr();
-  const auto b = polygonize(maps, depth, scene, split);
-  const std::string log = testing::internal::GetCapturedStderr();
-  set_log_level(level);
-  EXPECT_EQ(log.find("decimating it whole"), std::string::npos) << log;
+  const auto [a, b] = whole_and_in_pieces(maps, depth, names_scene({"Floor"}));
   ASSERT_EQ(a.size(), 1u);
   ASSERT_EQ(b.size(), 1u);
   // Faces facing up (the top's) or down (the bottom's).
