@@ -859,6 +859,7 @@ struct TopMesh {
   // The bottom's triangles, wound as tris, where it has its own (empty:
   // the top's); over the top's vertices, with the same outline.
   std::vector<uint32_t> bottom;
+  bool in_pieces = false;  // to be decimated in pieces (triangulate_top)
 };
 
 double plan_area2(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
@@ -879,11 +880,11 @@ double plan_area2(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c)
 /// triangles and the outline's ring, which the decimation no longer has to
 /// collapse (Kenney tiles at 0.3 m: the largest patch's solid 25-27 ->
 /// 19-24 ms; the courtyard's house roof 0.133-0.142 -> 0.079-0.102 s;
-/// triangles out within 1 %, the same volumes). The bottom keeps the cut
-/// where the top has more than cut_bottom_above triangles, i.e. is decimated
-/// in pieces.
+/// triangles out within 1 %, the same volumes). A top cut into strips with
+/// more than piece_triangles triangles is to be decimated in pieces
+/// (TopMesh::in_pieces), and its bottom keeps the cut.
 TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thickness,
-                        double tolerance, int cut = 0, size_t cut_bottom_above = SIZE_MAX) {
+                        double tolerance, int cut = 0, size_t piece_triangles = SIZE_MAX) {
   std::vector<uint32_t>* out = nullptr;  // where emit() puts triangles: top.tris, then top.bottom
   TopMesh top;
   std::vector<int32_t> sample_vertex(f.member.size(), -1);
@@ -1135,8 +1136,9 @@ TopMesh triangulate_top(const PatchField& f, const MapGrid& grid, float min_thic
   out = &top.tris;
   visit(visit, 0, 0, tile, tile, tile, 0);
   visit(visit, tile, tile, 0, 0, 0, tile);
+  top.in_pieces = tolerance >= 0.0 && cut >= 2 && top.tris.size() / 3 > piece_triangles;
   if (tolerance >= 0.0) {
-    if (cut >= 2 && top.tris.size() / 3 > cut_bottom_above) force_cut(ground_error);
+    if (top.in_pieces) force_cut(ground_error);
     split_error = ground_error.data();
     out = &top.bottom;
     std::fill(cell_done.begin(), cell_done.end(), uint8_t(0));
@@ -1648,11 +1650,11 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const LayerArray<float
   // The bottom keeps the cut where the top is decimated in pieces (its own
   // bottom there: the courtyard's ground, 4 pieces, solid 0.28 -> 0.17 s;
   // grass at --depth 0.05, 6 pieces, 0.33 -> 0.19 s).
-  TopMesh top = triangulate_top(field, maps.grid, min_thickness, tolerance, cut,
-                                cut > 0 ? settings.piece_triangles : SIZE_MAX);
+  TopMesh top =
+      triangulate_top(field, maps.grid, min_thickness, tolerance, cut, settings.piece_triangles);
   size_t pieces = 1;
   Pieces piece;
-  if (cut > 0 && top.tris.size() / 3 > settings.piece_triangles) {
+  if (top.in_pieces) {
     pieces = (top.tris.size() / 3 + settings.piece_triangles - 1) / settings.piece_triangles;
     piece = top_pieces(top, field, maps.grid, cut, pieces);
   }

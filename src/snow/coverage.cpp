@@ -875,16 +875,17 @@ inline int classify_on_cpu(const std::vector<float>& height, const ShadowFrame& 
 /// BVH), for choose_coverage_method: seen from straight above, those in
 /// leaves whose box comes within `reach` metres (the lines of fall's
 /// sideways travel over the scene's heights) of a column holding a receiver
-/// that is not `open`, on a grid of 16-texel tiles.
+/// that is not `culled` (lit or shaded along every direction), on a grid of
+/// 16-texel tiles.
 size_t triangles_near_receivers(const Bvh& bvh, const MapGrid& grid,
                                 const std::vector<glm::uvec4>& recv,
-                                const std::vector<uint8_t>& open, double reach) {
+                                const std::vector<uint8_t>& culled, double reach) {
   constexpr int kTile = 16;
   const int tw = (grid.width + kTile - 1) / kTile, th = (grid.height + kTile - 1) / kTile;
   // Receivers per tile, summed (sum[(b + 1) (tw + 1) + a + 1]: tiles below b, left of a).
   std::vector<uint32_t> sum(size_t(tw + 1) * size_t(th + 1), 0);
   for (size_t r = 0; r < recv.size(); ++r) {
-    if (open[r]) continue;
+    if (culled[r]) continue;
     const glm::ivec2 t = receiver_texel(recv[r]) / kTile;
     sum[size_t(t.y + 1) * size_t(tw + 1) + size_t(t.x + 1)] = 1;
   }
@@ -1718,7 +1719,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     // Per receiver: 0, kOpen (lit along every direction) or kShaded (shaded
     // along every direction).
     constexpr uint8_t kOpen = 1, kShaded = 2;
-    std::vector<uint8_t> open(recv.size(), 0);
+    std::vector<uint8_t> culled(recv.size(), 0);
     // A receiver with a surface of the maps straight above it, higher than
     // its own (by twice own_surface, for the peel's rounding), is shaded
     // along the vertical line of fall, which every cone holds: the test
@@ -1762,13 +1763,16 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
           continue;
         }
         // The last receiver's triangle, else the first the vertical line
-        // up meets.
+        // up meets (tested again only if it is another).
         const glm::vec3 p = receiver_point(grid, recv[r]);
-        if (!shades_cone(im.bvh, shade, p, tan_max)) {
-          shade = im.bvh.first_hit(p, glm::vec3(0.0f, 1.0f, 0.0f), reference::own_surface(p.y),
-                                   kOpenSky);
+        bool shaded = shades_cone(im.bvh, shade, p, tan_max);
+        if (!shaded) {
+          const uint32_t hit = im.bvh.first_hit(p, glm::vec3(0.0f, 1.0f, 0.0f),
+                                                reference::own_surface(p.y), kOpenSky);
+          shaded = hit != shade && shades_cone(im.bvh, hit, p, tan_max);
+          shade = hit;
         }
-        if (shades_cone(im.bvh, shade, p, tan_max)) open[r] = kShaded;
+        if (shaded) culled[r] = kShaded;
       }
       std::stable_sort(order.begin(), order.end(),
                        [&](uint32_t a, uint32_t c) { return tile_of(a) < tile_of(c); });
@@ -1789,7 +1793,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
         for (; a < e; ++a) {
           const glm::vec3 p = receiver_point(grid, recv[order[a]]);
           const Cone cone(glm::vec2(p.x, p.z), p.y, reference::own_surface(p.y), cot_max);
-          open[order[a]] =
+          culled[order[a]] =
               leaves_open(im.bvh, planes, leaves, cone) && (!snow_bound || snow_bound->open(cone))
                   ? kOpen
                   : 0;
@@ -1802,7 +1806,7 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     y_hi = -kOpenSky;
     texel_box = glm::ivec4(grid.width, grid.height, -1, -1);
     for (size_t r = 0; r < recv.size(); ++r) {
-      if (open[r]) continue;
+      if (culled[r]) continue;
       ++work.receivers;
       const float y = receiver_height(recv[r]);
       y_lo = std::min(y_lo, y);
@@ -1815,13 +1819,13 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
                          double(std::max(texel_box.w - texel_box.y + 1, 0));
     if ((work.software || work.gl_cold) && !work.snow && work.receivers > 0) {
       const double reach = tan_max * std::max(0.0, double(scene_hi) - double(y_lo));
-      work.drawn = double(triangles_near_receivers(im.bvh, grid, recv, open, reach));
+      work.drawn = double(triangles_near_receivers(im.bvh, grid, recv, culled, reach));
     }
     method = choose_coverage_method(settings, work);
     size_t kept = 0;
     for (size_t r = 0; r < recv.size(); ++r) {
-      if (open[r]) {
-        coverage[recv_index[r]] = open[r] == kOpen ? 1.0f : 0.0f;
+      if (culled[r]) {
+        coverage[recv_index[r]] = culled[r] == kOpen ? 1.0f : 0.0f;
         continue;
       }
       recv[kept] = recv[r];
@@ -1830,8 +1834,8 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
     }
     recv.resize(kept);
     recv_index.resize(kept);
-    im.timings.culled = open.size() - kept;
-    im.timings.shaded = size_t(std::count(open.begin(), open.end(), kShaded));
+    im.timings.culled = culled.size() - kept;
+    im.timings.shaded = size_t(std::count(culled.begin(), culled.end(), kShaded));
   }
   im.timings.method = method;
   if (recv.empty()) return coverage;
