@@ -493,6 +493,21 @@ TEST(Coverage, AutomaticMethodCastsRaysWhereReceiversAreFew) {
   EXPECT_EQ(choose_coverage_method(s, terrain), CoverageMethod::CpuRays);
   terrain.drawn = 40000;
   EXPECT_EQ(choose_coverage_method(s, terrain), CoverageMethod::CpuShadowMaps);
+  // A few triangles under 1M-texel maps (Kenney grass and road-corner at
+  // 0.05 m): a CPU map's texels cost what llvmpipe's do, and its counting
+  // less, so grass's 105k receivers take the CPU maps (0.24 s against
+  // llvmpipe's 0.42 s); its rays walk a shallow BVH, so road-corner's 17k
+  // receivers take rays (0.11 against 0.16 s on the CPU maps).
+  CoverageWork grass;
+  grass.triangles = grass.drawn = 30;
+  grass.shadow_texels = 999 * 1000;
+  grass.receivers = 104704;
+  grass.software = true;
+  EXPECT_EQ(choose_coverage_method(s, grass), CoverageMethod::CpuShadowMaps);
+  CoverageWork corner = grass;
+  corner.triangles = corner.drawn = 126;
+  corner.receivers = 16984;
+  EXPECT_EQ(choose_coverage_method(s, corner), CoverageMethod::CpuRays);
   car.gl_cold = building.gl_cold = false;  // its driver started: the GPU
   EXPECT_EQ(choose_coverage_method(s, car), CoverageMethod::GpuRays);
   EXPECT_EQ(choose_coverage_method(s, building), CoverageMethod::ShadowMaps);

@@ -63,16 +63,31 @@ constexpr int kMaxBatch = 32;               // shadow maps per batch (a 32-bit d
 // (road-straight-lightposts at 364 texels, 32k receivers: 0.14 s against
 // 0.06 s on the CPU). A triangle drawn into a CPU shadow map: 25 ns to set
 // up (SheenChair at 91 texels, 40k triangles on maps of 96 x 73: 0.08 s,
-// against 0.13 s for its 0.5M rays), and its texels about as many again as
-// the map's.
+// against 0.13 s for its 0.5M rays).
+// Measured again on a 2-core Xeon VM, 2026-11-27, after the CPU maps had
+// learnt to settle runs of receivers, to draw only the triangles near
+// them and to skip receivers under a solid (tools/RESULTS.md, "After
+// session 35"): a CPU map's texels cost what llvmpipe's do (grass, pavement
+// and road-corner at 0.05 m, maps of 1M texels: 0.14-0.23 s, not 0.26 s
+// for their texels alone), counting a receiver 1.6-2.2 times less than on
+// llvmpipe (median 1.8; 11 cases), and a CPU ray grows with the scene:
+// 0.3-0.7 units for Kenney tiles and the courtyard (20-956 triangles), 1.1
+// for SheenChair (40k), 2.0-2.4 for ToyCar and a terrain (100k).
 constexpr double kCostUnitSeconds = 80e-9;  // a drawn triangle on llvmpipe, 2 cores
 constexpr double kShadowTexelCost = 1.0 / 40.0;
 constexpr double kGpuRayCost = 16.0;
-constexpr double kCpuRayCost = 2.0;
+constexpr double kCpuRayCost = 2.0;  // from 2^16 triangles up; see cpu_ray_cost
 constexpr double kGpuCountCost = 0.28;
 constexpr double kGpuPassCost = 11000.0;
-constexpr double kCpuCountCost = 0.21;  // kGpuCountCost / 1.3
+constexpr double kCpuCountCost = 0.155;  // kGpuCountCost / 1.8
 constexpr double kCpuTriangleCost = 0.3;
+
+/// A CPU ray walks the BVH down its depth, log2 of the triangles:
+/// kCpuRayCost from 2^16 triangles up, proportionally less below (grass at
+/// 0.05 m, 30 triangles: 0.4 units measured, 0.6 estimated).
+double cpu_ray_cost(double triangles) {
+  return kCpuRayCost * std::clamp(std::log2(std::max(triangles, 2.0)) / 16.0, 0.0625, 1.0);
+}
 // CPU shadow maps in flight at once take at most this much memory (a map each).
 constexpr double kCpuShadowBytes = 256.0 * 1024 * 1024;
 
@@ -493,9 +508,9 @@ CoverageMethod choose_coverage_method(const CoverageSettings& settings, const Co
     // CPU shadow maps take a map per core; beyond kCpuShadowBytes fewer cores.
     const unsigned threads = w.threads > 0 ? w.threads : default_threads();
     const bool maps_fit = 4.0 * w.shadow_texels * threads <= kCpuShadowBytes;
-    const double cpu_shadow = (w.drawn >= 0.0 ? w.drawn : w.triangles) * kCpuTriangleCost +
-                              2.0 * texels + receivers * kCpuCountCost;
-    const double cpu_rays = receivers * kCpuRayCost;
+    const double cpu_shadow = (w.drawn >= 0.0 ? w.drawn : w.triangles) * kCpuTriangleCost + texels +
+                              receivers * kCpuCountCost;
+    const double cpu_rays = receivers * cpu_ray_cost(w.triangles);
     const bool rays = cpu_rays <= cpu_shadow || !maps_fit;
     if (w.software) {
       if (rays && cpu_rays < gpu) return CoverageMethod::CpuRays;

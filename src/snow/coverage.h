@@ -102,7 +102,8 @@ constexpr double kCpuSecondsBeforeGl = 0.05;
 /// "rays" (GpuRays), "cpu-rays", or "auto": the cheapest by the costs
 /// measured on llvmpipe (tools/RESULTS.md). A shadow map draws every
 /// triangle however small the map (80 ns each on llvmpipe), a ray walks the
-/// BVH (75-100 ns on a CPU core, 0.5-1.3 us in llvmpipe's compute pass). So
+/// BVH (75-100 ns on a CPU core in scenes of 10k-100k triangles, a third of
+/// that in a few hundred; 0.5-1.3 us in llvmpipe's compute pass). So
 /// small, dense models (a 109k-triangle toy car mapped at 16 x 16 texels: 84
 /// receivers left) and terrains (most receivers culled) cast rays, and
 /// scenes mapped finer than their triangles (a 440-triangle building at 110
