@@ -373,6 +373,16 @@ std::vector<uint32_t> select_in_order(size_t count, Keep keep, Value value) {
   return out;
 }
 
+/// The layer texels with a surface under a ceiling, in texel order: the only
+/// ones pour_pressed_snow pours from.
+std::vector<uint32_t> texels_under_ceilings(const glm::vec4* cells, const DepositGrid& grid) {
+  const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
+  return select_in_order(
+      count,
+      [&](size_t k) { return (int(cells[k].w) & kCellSurface) != 0 && cells[k].y < kCellOpenSky; },
+      [](size_t k) { return uint32_t(k); });
+}
+
 }  // namespace
 
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
@@ -392,17 +402,10 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
   return terminals.size();
 }
 
-std::vector<uint32_t> texels_under_ceilings(const glm::vec4* cells, const DepositGrid& grid) {
-  const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
-  return select_in_order(
-      count,
-      [&](size_t k) { return (int(cells[k].w) & kCellSurface) != 0 && cells[k].y < kCellOpenSky; },
-      [](size_t k) { return uint32_t(k); });
-}
-
 size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
                          float min_over, const std::vector<uint32_t>& under) {
-  // The texels pressed above their ceilings, in texel order (most calls find none).
+  // The texels pressed above their ceilings, in the order of `under` (most
+  // calls find none; deposit_piles pours them in texel order).
   std::vector<uint32_t> terminals = select_in_order(
       under.size(),
       [&](size_t u) {

@@ -66,14 +66,11 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
 size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
                          float min_over);
 
-/// The layer texels with a surface under a ceiling, in texel order: the only
-/// ones pour_pressed_snow pours from.
-std::vector<uint32_t> texels_under_ceilings(const glm::vec4* cells, const DepositGrid& grid);
-
-/// pour_pressed_snow looking only at `under` (texels_under_ceilings of the
-/// same cells, kept by a caller that pours often): the same piles, without
-/// reading every cell each call (the courtyard's 6M layer texels: 9 ms a
-/// call, 15 calls a run).
+/// pour_pressed_snow looking only at the layer texels `under` (in any
+/// order; only those with a surface under a ceiling can be pressed): the
+/// same piles where `under` holds every pressed texel, without reading
+/// every cell each call. The CPU stabilizer passes those of the tiles whose
+/// depth changed since its last call (CpuStabilizer::pour_pressed).
 size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
                          float min_over, const std::vector<uint32_t>& under);
 

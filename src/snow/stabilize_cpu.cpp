@@ -109,6 +109,7 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
   for (int level = 0; level < levels_; ++level) dirty_[level].reset(tiles);
   sent_.reset(tiles);
   near_.reset(tiles);
+  pressed_stale_.reset(tiles);
   changed_.assign(tiles, 0);
   changed_box_.assign(tiles, Tile{});
 }
@@ -150,10 +151,12 @@ void CpuStabilizer::touch_all() {
     dirty_[level].clear();
     for (int t : surface_tiles_) dirty_[level].add(t);
   }
+  for (int t : surface_tiles_) pressed_stale_.add(t);
 }
 
 void CpuStabilizer::touch(int t) {
   for (int level = 0; level < levels_; ++level) add_near(dirty_[level], t, reach(1 << level));
+  pressed_stale_.add(t);
 }
 
 void CpuStabilizer::touch(int t, const Tile& box) {
@@ -173,6 +176,7 @@ void CpuStabilizer::touch(int t, const Tile& box) {
       return std::max(dx, dy) <= stride;
     });
   }
+  pressed_stale_.add(t);
 }
 
 template <class Fn>
@@ -878,10 +882,7 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
         ++result.drains;
       } else if (pressed_snow_due(settings_, schedule_, result.residual)) {
         schedule_.pressed_looked_for();
-        const DepositGrid grid{width_, height_, layers_, texel_};
-        if (!under_ceilings_) under_ceilings_ = texels_under_ceilings(cells_.data(), grid);
-        if (pour_pressed_snow(cells_.data(), depth_.data(), grid, settings_.tolerance,
-                              *under_ceilings_) > 0) {
+        if (pour_pressed() > 0) {
           ++result.pours;
           touch_all();
         }
@@ -896,6 +897,51 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
     result.volume = snow_volume();
   }
   return result;
+}
+
+size_t CpuStabilizer::pour_pressed() {
+  if (under_start_.empty()) {
+    // The layer texels with a surface under a ceiling, by tile (texel order
+    // within each): counted, then listed, on all cores.
+    const size_t tiles = size_t(tiles_x_) * size_t(tiles_y_);
+    under_start_.assign(tiles + 1, 0);
+    const auto each_under = [&](int t, auto fn) {
+      const Tile b = tile(t);
+      for (int l = 0; l < layers_; ++l) {
+        for (int j = b.j0; j < b.j1; ++j) {
+          for (int i = b.i0; i < b.i1; ++i) {
+            if (l >= column_layers_[size_t(j) * size_t(width_) + size_t(i)]) continue;
+            const size_t k = index(l, i, j);
+            if (cells_[k].y < kCellOpenSky) fn(uint32_t(k));
+          }
+        }
+      }
+    };
+    for_tiles(surface_tiles_, [&](int t, size_t) {
+      uint32_t count = 0;
+      each_under(t, [&](uint32_t) { ++count; });
+      under_start_[size_t(t) + 1] = count;
+    });
+    for (size_t t = 0; t < tiles; ++t) under_start_[t + 1] += under_start_[t];
+    under_ceilings_.resize(under_start_[tiles]);
+    for_tiles(surface_tiles_, [&](int t, size_t) {
+      uint32_t at = under_start_[size_t(t)];
+      each_under(t, [&](uint32_t k) { under_ceilings_[at++] = k; });
+    });
+  }
+  // Only the texels of tiles whose depth changed since the last look can
+  // have come to lie above their ceilings: the others were looked at then
+  // (and poured where they were), and are as they were.
+  std::vector<uint32_t> candidates;
+  for (int t : pressed_stale_.list) {
+    candidates.insert(candidates.end(), under_ceilings_.begin() + under_start_[size_t(t)],
+                      under_ceilings_.begin() + under_start_[size_t(t) + 1]);
+  }
+  pressed_stale_.clear();
+  if (candidates.empty()) return 0;
+  return pour_pressed_snow(cells_.data(), depth_.data(),
+                           DepositGrid{width_, height_, layers_, texel_}, settings_.tolerance,
+                           candidates);
 }
 
 double CpuStabilizer::snow_volume() const {
