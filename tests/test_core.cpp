@@ -233,6 +233,36 @@ TEST(ZeroedArray, LargeArraysCostOnlyThePagesWritten) {
   EXPECT_EQ(small[999], 2.0);
 }
 
+// populate() makes the pages of a range resident in one call, and only
+// those: the values read as zeros, and writes land as before. Small arrays
+// (calloc) have nothing to populate.
+TEST(ZeroedArray, PopulateFaultsInOnlyTheRange) {
+  const size_t count = size_t(8) << 20;  // 32 MiB of floats
+  snow::ZeroedArray<float> large(count);
+  const size_t page = size_t(sysconf(_SC_PAGESIZE));
+  const auto resident_pages = [&]() {
+    const uintptr_t begin = reinterpret_cast<uintptr_t>(large.data()) / page * page;
+    const uintptr_t end = reinterpret_cast<uintptr_t>(large.data() + count);
+    std::vector<unsigned char> resident((end - begin + page - 1) / page);
+    EXPECT_EQ(mincore(reinterpret_cast<void*>(begin), end - begin, resident.data()), 0);
+    size_t pages = 0;
+    for (unsigned char r : resident) pages += r & 1;
+    return pages;
+  };
+  const size_t before = resident_pages();
+  const size_t first = count / 4, floats = 64 * page / sizeof(float);  // 64 pages
+  if (!large.populate(first, first + floats)) GTEST_SKIP() << "no MADV_POPULATE_WRITE here";
+  const size_t after = resident_pages();
+  EXPECT_GE(after, before + 64);
+  EXPECT_LE(after, before + 66);  // the range's pages, one more at each end if unaligned
+  for (size_t k = first; k < first + floats; k += 997) ASSERT_EQ(large[k], 0.0f);
+  large[first + 5] = 3.0f;
+  EXPECT_EQ(large[first + 5], 3.0f);
+  EXPECT_FALSE(large.populate(count, count + 10));  // clamped: an empty range
+  snow::ZeroedArray<float> small(1000);
+  EXPECT_FALSE(small.populate(0, 1000));
+}
+
 // A quiet thread prints nothing but still records its warnings; other
 // threads print as before.
 TEST(Log, QuietThreadPrintsNothingAndKeepsWarnings) {

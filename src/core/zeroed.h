@@ -15,6 +15,14 @@
 // 490 -> 325 MiB).
 // Smaller blocks come from calloc, whose huge pages serve the small jobs
 // (their arrays are few and mostly written).
+//
+// A mapped page that is read before it is written maps the kernel's shared
+// zero page, and its first write then copies that and flushes the TLBs of
+// every core running the process: on a 2-core VM, reading then writing 24
+// MiB of fresh pages took 55-66 ms, writing them 10-13 ms. Where a stage
+// knows which pages it will write, populate() faults them in for writing
+// first, a run of pages per call.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -53,6 +61,19 @@ class ZeroedArray {
     data_ = std::unique_ptr<T[], Free>(static_cast<T*>(p), Free{bytes});
   }
 
+  /// Faults in the pages holding elements [begin, end) (end clamped to the
+  /// size) for writing, in one call (MADV_POPULATE_WRITE, Linux 5.14). The
+  /// values stay zero where never written. Returns whether it did: false for
+  /// blocks from calloc, an empty range, or a kernel without it.
+  bool populate(size_t begin, size_t end) {
+    end = std::min(end, size_);
+    if (!data_ || size_ * sizeof(T) < kMappedBytes || begin >= end) return false;
+    constexpr uintptr_t kPage = 4096;
+    const uintptr_t lo = reinterpret_cast<uintptr_t>(data_.get() + begin) & ~(kPage - 1);
+    const uintptr_t hi = reinterpret_cast<uintptr_t>(data_.get() + end);
+    constexpr int kPopulateWrite = 23;  // MADV_POPULATE_WRITE, where the headers lack it
+    return madvise(reinterpret_cast<void*>(lo), hi - lo, kPopulateWrite) == 0;
+  }
   size_t size() const { return size_; }
   T* data() { return data_.get(); }
   const T* data() const { return data_.get(); }
