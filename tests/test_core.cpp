@@ -191,6 +191,22 @@ TEST(Heap, FreePageReportingIsFoundInTheVirtioDevices) {
   fs::remove_all(dir);
 }
 
+namespace {
+
+// The pages of `count` floats from `data` that are resident (mincore).
+size_t resident_pages(const float* data, size_t count) {
+  const size_t page = size_t(sysconf(_SC_PAGESIZE));
+  const uintptr_t begin = reinterpret_cast<uintptr_t>(data) / page * page;
+  const uintptr_t end = reinterpret_cast<uintptr_t>(data + count);
+  std::vector<unsigned char> resident((end - begin + page - 1) / page);
+  EXPECT_EQ(mincore(reinterpret_cast<void*>(begin), end - begin, resident.data()), 0);
+  size_t pages = 0;
+  for (unsigned char r : resident) pages += r & 1;
+  return pages;
+}
+
+}  // namespace
+
 // A large ZeroedArray reads as zeros and costs only the pages written: one
 // write makes one small page resident, not the 2 MiB huge page (512 small
 // ones) that the heap's huge pages (or the kernel's THP mode "always")
@@ -202,17 +218,13 @@ TEST(ZeroedArray, LargeArraysCostOnlyThePagesWritten) {
   EXPECT_EQ(large[0], 0.0f);
   EXPECT_EQ(large[count - 1], 0.0f);
   large[count / 2] = 1.0f;
-  const size_t page = size_t(sysconf(_SC_PAGESIZE));
-  const uintptr_t begin = reinterpret_cast<uintptr_t>(large.data()) / page * page;
-  const uintptr_t end = reinterpret_cast<uintptr_t>(large.data() + count);
-  std::vector<unsigned char> resident((end - begin + page - 1) / page);
-  ASSERT_EQ(mincore(reinterpret_cast<void*>(begin), end - begin, resident.data()), 0);
-  size_t pages = 0;
-  for (unsigned char r : resident) pages += r & 1;
+  const size_t pages = resident_pages(large.data(), count);
   EXPECT_LE(pages, 3u) << pages << " pages resident after one write";
   EXPECT_EQ(large[count / 2], 1.0f);
   // The kernel keeps it off huge pages whatever the heap or THP mode: its
   // mapping carries the "nh" flag (MADV_NOHUGEPAGE).
+  const uintptr_t begin = reinterpret_cast<uintptr_t>(large.data());
+  const uintptr_t end = reinterpret_cast<uintptr_t>(large.data() + count);
   std::ifstream smaps("/proc/self/smaps");
   std::string line;
   bool inside = false, no_huge = false;
@@ -240,19 +252,10 @@ TEST(ZeroedArray, PopulateFaultsInOnlyTheRange) {
   const size_t count = size_t(8) << 20;  // 32 MiB of floats
   snow::ZeroedArray<float> large(count);
   const size_t page = size_t(sysconf(_SC_PAGESIZE));
-  const auto resident_pages = [&]() {
-    const uintptr_t begin = reinterpret_cast<uintptr_t>(large.data()) / page * page;
-    const uintptr_t end = reinterpret_cast<uintptr_t>(large.data() + count);
-    std::vector<unsigned char> resident((end - begin + page - 1) / page);
-    EXPECT_EQ(mincore(reinterpret_cast<void*>(begin), end - begin, resident.data()), 0);
-    size_t pages = 0;
-    for (unsigned char r : resident) pages += r & 1;
-    return pages;
-  };
-  const size_t before = resident_pages();
+  const size_t before = resident_pages(large.data(), count);
   const size_t first = count / 4, floats = 64 * page / sizeof(float);  // 64 pages
   if (!large.populate(first, first + floats)) GTEST_SKIP() << "no MADV_POPULATE_WRITE here";
-  const size_t after = resident_pages();
+  const size_t after = resident_pages(large.data(), count);
   EXPECT_GE(after, before + 64);
   EXPECT_LE(after, before + 66);  // the range's pages, one more at each end if unaligned
   for (size_t k = first; k < first + floats; k += 997) ASSERT_EQ(large[k], 0.0f);
