@@ -219,15 +219,18 @@ void CpuStabilizer::add_snow(const std::vector<float>& amount, float scale) {
                      " entries, the maps have " + std::to_string(cells_.size()) + " layer texels");
   }
   // Mirrors shaders/stabilize_add.frag.
+  const bool populate = !populated_;
+  populated_ = true;
   parallel_for_ranges(cells_.size(), kSumChunk, [&](size_t begin, size_t end) {
-    // The pages of depths this adds to, and of the gates of those texels,
-    // are faulted in first, a run of them per call: a page's first read maps
-    // the shared zero page, and its first write then copies it and flushes
-    // the other cores' TLBs, five times what a first write costs (24 MiB on
-    // a 2-core VM: 55-66 against 10-13 ms).
+    // At the first snowfall, the pages of depths this adds to, and of the
+    // gates of those texels, are faulted in first, a run of them per call:
+    // a page's first read maps the shared zero page, and its first write
+    // then copies it and flushes the other cores' TLBs, five times what a
+    // first write costs (24 MiB on a 2-core VM: 55-66 against 10-13 ms).
+    // Later snowfalls (steps, the live preview's frames) mostly land there.
     constexpr size_t kPage = 4096 / sizeof(float);
     size_t run = end;  // start of the open run of pages to fault in
-    for (size_t page = begin; page < end; page += kPage) {
+    for (size_t page = begin; populate && page < end; page += kPage) {
       const size_t page_end = std::min(end, page + kPage);
       bool adds = false;
       for (size_t k = page; k < page_end && !adds; ++k) adds = amount[k] * scale > 0.0f;

@@ -186,6 +186,7 @@ class CpuStabilizer {
   float residual_void_ = 0.0f;  // and the largest into the void
   bool route_pending_ = false;
   bool volume_sums_ = true;
+  bool populated_ = false;  // add_snow faulted in the pages of its snow (once)
   // The layer texels with a surface under a ceiling, by tile: those of tile
   // t are under_ceilings_[under_start_[t], under_start_[t + 1]), listed at
   // the first check for pressed snow (pour_pressed).
