@@ -7,13 +7,16 @@
 // Usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]
 //                             [--big-side N] [--big-triangles T] [--no-big | --big-only]
 //                             [--method auto|shadow-maps|rays|cpu-rays|cpu-shadow-maps]
-//                             [--accuracy] [scene.glb|scene.gltf ...]
+//                             [--accuracy] [--verbose] [scene.glb|scene.gltf ...]
 // Without scene arguments it runs the bundled courtyard, a few scenes from
 // ../shared/scenes (when present) and a generated scene of about
 // --big-triangles triangles (default 1M) at --big-side (default 2048).
 // --accuracy also casts the same K rays on the CPU for every layer texel
 // (snow::reference::compute_coverage) and adds the mean and largest
-// |GPU - CPU| coverage over the texels with a surface.
+// |GPU - CPU| coverage over the texels with a surface. --verbose prints the
+// stages' debug lines (stderr): the receivers left after the culls, the
+// triangles per map and the method the automatic choice took, what
+// choose_coverage_method's costs are measured against.
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -60,6 +63,7 @@ struct Options {
   bool big_only = false;
   int repeat = 1;               // coverage runs per scene; each stage's best time is reported
   bool accuracy = false;        // compare with the CPU ray-cast reference
+  bool verbose = false;         // the stages' debug lines
   std::string method = "auto";  // snow::CoverageSettings::method
   std::vector<std::string> scenes;
 };
@@ -219,6 +223,8 @@ int main(int argc, char** argv) {
       o.big_only = true;
     else if (a == "--accuracy")
       o.accuracy = true;
+    else if (a == "--verbose")
+      o.verbose = true;
     else if (a == "--method" && i + 1 < argc)
       o.method = argv[++i];
     else if (a == "--repeat")
@@ -227,7 +233,7 @@ int main(int argc, char** argv) {
       std::printf(
           "usage: snowmodel_bench_maps [--side N] [--layers L] [--directions K]\n"
           "  [--big-side N] [--big-triangles T] [--no-big | --big-only] [--repeat R]\n"
-          "  [--method auto|shadow-maps|rays|cpu-rays|cpu-shadow-maps] [--accuracy]\n"
+          "  [--method auto|shadow-maps|rays|cpu-rays|cpu-shadow-maps] [--accuracy] [--verbose]\n"
           "  [scene.glb|scene.gltf ...]\n");
       return 0;
     } else if (a.rfind("--", 0) == 0) {
@@ -237,7 +243,7 @@ int main(int argc, char** argv) {
       o.scenes.push_back(a);
   }
   try {
-    snow::set_log_level(snow::LogLevel::Warn);
+    snow::set_log_level(o.verbose ? snow::LogLevel::Debug : snow::LogLevel::Warn);
     auto context = snow::gl::create_context();
     std::printf("GL: %s\n", context->description().c_str());
     std::printf("maps side %d (generated scene %d), L = %d, K = %d\n\n", o.side, o.big_side,
