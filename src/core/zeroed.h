@@ -18,10 +18,10 @@
 //
 // A mapped page that is read before it is written maps the kernel's shared
 // zero page, and its first write then copies that and flushes the TLBs of
-// the other cores running the process's threads: on a 2-core VM, reading then writing 24
-// MiB of fresh pages took 55-66 ms, writing them 10-13 ms. Where a stage
-// knows which pages it will write, populate() faults them in for writing
-// first, a run of pages per call.
+// the other cores running the process's threads: on a 2-core VM, reading
+// then writing 24 MiB of fresh pages took 55-66 ms, writing them 10-13 ms.
+// Where a stage knows which pages it will write, populate() faults them in
+// for writing first, a run of pages per call.
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>

@@ -81,6 +81,8 @@ constexpr double kGpuCountCost = 0.28;
 constexpr double kGpuPassCost = 11000.0;
 constexpr double kCpuCountCost = 0.155;  // kGpuCountCost / 1.8
 constexpr double kCpuTriangleCost = 0.3;
+// CPU shadow maps in flight at once take at most this much memory (a map each).
+constexpr double kCpuShadowBytes = 256.0 * 1024 * 1024;
 
 /// A CPU ray walks the BVH down its depth, log2 of the triangles:
 /// kCpuRayCost from 2^16 triangles up, proportionally less below (grass at
@@ -88,8 +90,6 @@ constexpr double kCpuTriangleCost = 0.3;
 double cpu_ray_cost(double triangles) {
   return kCpuRayCost * std::clamp(std::log2(std::max(triangles, 2.0)) / 16.0, 0.0625, 1.0);
 }
-// CPU shadow maps in flight at once take at most this much memory (a map each).
-constexpr double kCpuShadowBytes = 256.0 * 1024 * 1024;
 
 /// splitmix64 (Steele, Lea and Flood 2014): tiny, fast, same stream everywhere.
 class SplitMix64 {

@@ -230,21 +230,19 @@ void CpuStabilizer::add_snow(const std::vector<float>& amount, float scale) {
     // Later snowfalls (steps, the live preview's frames) mostly land there.
     constexpr size_t kPage = 4096 / sizeof(float);
     size_t run = end;  // start of the open run of pages to fault in
+    const auto fault_in = [&](size_t to) {
+      depth_.populate(run, to);
+      gate_.populate(run, to);
+      run = end;
+    };
     for (size_t page = begin; populate && page < end; page += kPage) {
       const size_t page_end = std::min(end, page + kPage);
       bool adds = false;
       for (size_t k = page; k < page_end && !adds; ++k) adds = amount[k] * scale > 0.0f;
       if (adds && run == end) run = page;
-      if (!adds && run != end) {
-        depth_.populate(run, page);
-        gate_.populate(run, page);
-        run = end;
-      }
+      if (!adds && run != end) fault_in(page);
     }
-    if (run != end) {
-      depth_.populate(run, end);
-      gate_.populate(run, end);
-    }
+    if (run != end) fault_in(end);
     for (size_t k = begin; k < end; ++k) {
       const float add = amount[k] * scale;
       if ((cell_flags(cells_[k]) & kCellSurface) && add > 0.0f) depth_[k] = depth_[k] + add;
