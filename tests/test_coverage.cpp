@@ -852,9 +852,10 @@ INSTANTIATE_TEST_SUITE_P(Bvh, BvhBuilds, ::testing::Values(Bvh::Build::Sah, Bvh:
 // A BVH large enough to be built on several threads (the SAH build's top
 // splits build their halves beside each other, spliced into one pre-order
 // array, and its nodes of 128k triangles or more bin and partition them on
-// all cores; the Morton build is serial): the spliced skip links and boxes hold
-// for every node, the leaves cover every triangle once in order, and rays
-// find what a walk over all triangles finds.
+// all cores; the Morton build's loops run on all cores, its tree on one):
+// the spliced skip links and boxes hold for every node, the leaves cover
+// every triangle once in order, and rays find what a walk over all
+// triangles finds.
 TEST_P(BvhBuilds, ParallelBuildIsOneValidTree) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> where(-50.0f, 50.0f), size(-0.3f, 0.3f);
@@ -919,6 +920,34 @@ TEST_P(BvhBuilds, ParallelBuildIsOneValidTree) {
   }
   EXPECT_GT(hits, 5u);
   EXPECT_EQ(differ, 0u);
+}
+
+// The Morton build's radix sort runs on all cores in ranges of 16k
+// triangles and must stay stable: triangles of one code (here, of one of
+// four centroids, interleaved over 5 ranges) keep their input order, in one
+// run per code.
+TEST(Bvh, MortonOrderKeepsEqualCodesInInputOrder) {
+  const size_t n = 70000;
+  const glm::vec3 at[4] = {{0, 0, 0}, {3, 1, 0}, {0, 2, 3}, {3, 0, 3}};
+  std::vector<glm::vec3> corners;
+  for (size_t t = 0; t < n; ++t) {
+    const glm::vec3 c = at[t % 4];
+    corners.insert(corners.end(), {c + glm::vec3(0.1f, 0, 0), c + glm::vec3(0, 0, 0.1f),
+                                   c - glm::vec3(0.1f, 0, 0.1f)});
+  }
+  const Bvh bvh(corners, Bvh::Build::Morton);
+  const std::vector<uint32_t>& order = bvh.order();
+  ASSERT_EQ(order.size(), n);
+  size_t runs = 1, out_of_order = 0;
+  for (size_t k = 1; k < n; ++k) {
+    if (order[k] % 4 != order[k - 1] % 4) {
+      ++runs;
+    } else {
+      out_of_order += order[k] < order[k - 1];
+    }
+  }
+  EXPECT_EQ(runs, 4u);
+  EXPECT_EQ(out_of_order, 0u);
 }
 
 // Triangles the split cannot part (one shared centroid, or NaN corners):
