@@ -73,8 +73,10 @@ Backend requested_backend(const ContextOptions& options);
 /// Whether create_context(options) would give a software renderer, found
 /// without creating a context: OSMesa always; Auto (and SNOWMODEL_GL_BACKEND),
 /// egl-device and egl-surfaceless when EGL lists devices and none is
-/// hardware (Mesa's surfaceless display then runs llvmpipe). Empty where
-/// only a context can tell (GLFW; EGL without device enumeration).
+/// hardware (Mesa's surfaceless display then runs llvmpipe); not where EGL
+/// lists no devices but NVIDIA's driver node (/dev/nvidiactl) is there.
+/// Empty where only a context can tell (GLFW; other EGL without device
+/// enumeration).
 std::optional<bool> probe_software(const ContextOptions& options = {});
 
 /// A context made when a pass first needs GL (require_context), for runs
