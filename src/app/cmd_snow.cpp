@@ -471,9 +471,10 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   SnowMaps maps;
   stage("peel", [&] {
     const auto context = stage_context();
-    // Where the probe could not tell, the peel's context, made already,
-    // tells (an H100 machine whose EGL lists no devices: the 1M terrain's
-    // BVH of 0.14-0.16 s came after its peel).
+    // Where the probe could not tell (GLFW; EGL without a device list and
+    // no NVIDIA driver node), the peel's context, made already, tells: an
+    // H100 machine probed so, before the probe took /dev/nvidiactl, built
+    // the 1M terrain's BVH (0.13-0.16 s) after its peel, 1.72 -> 1.59 s.
     if (!software.has_value() && !gl::renderer_is_software()) build_bvh_ahead();
     maps = peel_layers(snow_scene, s.peel);
   });
