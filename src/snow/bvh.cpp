@@ -101,7 +101,7 @@ Bvh::Bvh(const std::vector<glm::vec3>& corners, Build how) {
       }
       range_bounds[begin / kLoopChunk] = {lo, hi};
     });
-    glm::vec3 lo = range_bounds[0][0], hi = range_bounds[0][1];
+    glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
     for (const auto& [rlo, rhi] : range_bounds) {
       lo = glm::min(lo, rlo);
       hi = glm::max(hi, rhi);
