@@ -598,11 +598,12 @@ TEST(Coverage, AutomaticMethodCastsRaysWhereReceiversAreFew) {
 // texel) the cull took 5 texels of the table's floor that the reference
 // finds shaded.
 // CPU shadow maps settle runs of neighbouring receivers at once where the
-// texels they read bound every receiver's plane (classify_run_on_cpu), and
-// where triangles outnumber the runs draw only those near texels the
-// receivers read: the counts are those of classifying each receiver alone
-// on whole maps, bit for bit, in calm and wind, with the snow surface drawn
-// too, on a terrain of many triangles and on the bundled courtyard.
+// texels they read bound every receiver's plane (classify_run_on_cpu),
+// clear and draw only the tiles of texels that the receivers read, and where
+// triangles outnumber the runs draw only the triangles near those: the
+// counts are those of classifying each receiver alone on whole maps, bit for
+// bit, in calm and wind, with the snow surface drawn too, on a terrain of
+// many triangles and on the bundled courtyard.
 TEST(Coverage, ReceiverRunsCountAsEachReceiverAlone) {
   REQUIRE_GL();  // for the peel
   struct Run {

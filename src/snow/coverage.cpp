@@ -654,6 +654,29 @@ struct TexelMask {
                   (i1 >> kShift) - (i0 >> kShift) + 1, uint8_t(1));
     }
   }
+  /// fn(s, e) for each longest span [s, e] of texels [a, b] of row j that
+  /// lies in marked tiles, left to right.
+  template <class Fn>
+  void each_span(int j, int a, int b, const Fn& fn) const {
+    const uint8_t* row = on.data() + size_t(j >> kShift) * size_t(tiles_x);
+    for (int t = a >> kShift; t <= b >> kShift;) {
+      if (!row[t]) {
+        ++t;
+        continue;
+      }
+      const int s = std::max(a, t << kShift);
+      while (t <= b >> kShift && row[t]) ++t;
+      fn(s, std::min(b, (t << kShift) - 1));
+    }
+  }
+  /// Sets the marked tiles' texels of a map of `size` texels to v.
+  void fill(std::vector<float>& map, glm::ivec2 size, float v) const {
+    for (int j = 0; j < size.y; ++j) {
+      each_span(j, 0, size.x - 1, [&](int s, int e) {
+        std::fill_n(map.begin() + ptrdiff_t(size_t(j) * size_t(size.x) + size_t(s)), e - s + 1, v);
+      });
+    }
+  }
   /// Whether a tile of texels [i0, i1] x [j0, j1] is marked.
   bool any(int i0, int i1, int j0, int j1) const {
     for (int b = j0 >> kShift; b <= j1 >> kShift; ++b) {
@@ -675,7 +698,8 @@ struct TexelMask {
 /// the triangle's edges; the height is the triangle's plane in the sheared
 /// space, as GL interpolates depth. Triangles seen edge-on draw nothing, nor
 /// do those whose box meets no tile of `read` (given): no receiver reads
-/// their texels. Draws the soup's triangles [first, first + count). Returns
+/// their texels; and rows drawn as runs leave out the texels of tiles not
+/// in `read`. Draws the soup's triangles [first, first + count). Returns
 /// how many `read` left out.
 size_t draw_cpu_shadow_map(const std::vector<glm::vec3>& corners, const ShadowFrame& f,
                            std::vector<float>& height, std::vector<uint32_t>& drawn, bool numbered,
@@ -775,7 +799,13 @@ size_t draw_cpu_shadow_map(const std::vector<glm::vec3>& corners, const ShadowFr
           b = a - 1;
         }
       }
-      for (int i = a; i <= b; ++i) draw(i, i + 0.5);
+      if (read) {
+        read->each_span(j, a, b, [&](int s, int e) {
+          for (int i = s; i <= e; ++i) draw(i, i + 0.5);
+        });
+      } else {
+        for (int i = a; i <= b; ++i) draw(i, i + 0.5);
+      }
     }
   }
   return skipped;
@@ -1387,15 +1417,17 @@ struct CoverageRenderer::Impl {
     std::vector<std::vector<uint32_t>> drawn(workers);  // triangle per texel
     std::vector<std::vector<uint16_t>> lit(workers);
     std::vector<uint64_t> uncertain(workers, 0), settled(workers, 0), left_out(workers, 0);
-    // Where the triangles outnumber the groups of receivers, each map draws
-    // only those whose box meets a tile that a group reads, found through
-    // the BVH (the 100k-triangle terrain at 2048: 126k receivers left, in 9k
-    // groups; 95 % of the triangles left out, coverage 0.81 -> 0.58 s). Where
-    // a worker's first map leaves out less than kCullShare, the marking and
-    // the walk cost more than they save (SheenChair at 0.3 m: 40k
-    // triangles, receivers all over the chair), and it draws every triangle.
-    const bool masks =
-        run_bounds && bvh.triangle_count() + snow_triangles.size() / 3 >= groups.size();
+    // With runs of receivers, each map marks the tiles that its groups of
+    // receivers read (TexelMask), and clears and draws only those.
+    // Where the triangles outnumber the groups, it also draws only the
+    // triangles whose box meets a marked tile, found through the BVH (the
+    // 100k-triangle terrain at 2048: 126k receivers left, in 9k groups; 95 %
+    // of the triangles left out, coverage 0.81 -> 0.58 s). Where a worker's
+    // first map leaves out less than kCullShare that way, the walk costs
+    // more than it saves (SheenChair at 0.3 m: 40k triangles, receivers all
+    // over the chair), and it draws every triangle.
+    const bool masks = run_bounds;
+    const bool culls = masks && bvh.triangle_count() + snow_triangles.size() / 3 >= groups.size();
     std::vector<TexelMask> mask(masks ? workers : 0);
     std::vector<uint8_t> cull_on(workers, 1);
     try {
@@ -1415,20 +1447,22 @@ struct CoverageRenderer::Impl {
           workers,
           [&](size_t w) {
             for (size_t k = k0 + w; k < k1; k += workers) {
-              std::fill(height[w].begin(), height[w].end(), kNoShadow);
-              // Each worker culls its first map; it goes on culling only
-              // where that left out a good share of the triangles.
-              const bool cull = masks && cull_on[w];
               TexelMask* read = nullptr;
-              if (cull) {
+              if (masks) {
                 read = &mask[w];
                 read->reset(size);
                 for (const ReceiverRun& group : groups) mark_run_texels(frames[k], group, *read);
+                read->fill(height[w], size, kNoShadow);
+              } else {
+                std::fill(height[w].begin(), height[w].end(), kNoShadow);
               }
+              // Each worker culls its first map; it goes on culling only
+              // where that left out a good share of the triangles.
+              const bool cull = culls && cull_on[w];
               const size_t out =
-                  (cull
-                       ? draw_cpu_shadow_map(bvh, frames[k], height[w], drawn[w], read)
-                       : draw_cpu_shadow_map(bvh.corners(), frames[k], height[w], drawn[w], true)) +
+                  (cull ? draw_cpu_shadow_map(bvh, frames[k], height[w], drawn[w], read)
+                        : draw_cpu_shadow_map(bvh.corners(), frames[k], height[w], drawn[w], true,
+                                              read)) +
                   draw_cpu_shadow_map(snow_triangles, frames[k], height[w], drawn[w], false, read);
               left_out[w] += out;
               if (cull && k < workers) {
