@@ -33,6 +33,7 @@
 #include <draco/mesh/mesh.h>
 #endif
 
+#include "core/default_init.h"
 #include "core/error.h"
 #include "core/fs.h"
 #include "core/log.h"
@@ -42,6 +43,12 @@ namespace snow {
 namespace {
 
 namespace fs = std::filesystem;
+
+/// Bytes read from a file or a data: URI. Sized without writing zeros
+/// first: the read or the decoding writes every byte, and zero-filling a
+/// large buffer (fresh pages) cost as much as reading the file into it
+/// (ToyCar's 3.6 MB .bin: 5 + 2 ms).
+using Bytes = std::vector<uint8_t, DefaultInitAllocator<uint8_t>>;
 using json = nlohmann::json;
 
 constexpr int kByte = 5120;
@@ -207,7 +214,7 @@ uint32_t read_u32_le(const uint8_t* p) {
 }
 
 /// Strict base64 (RFC 4648); whitespace is ignored. False on bad input.
-bool base64_decode(std::string_view in, std::vector<uint8_t>& out) {
+bool base64_decode(std::string_view in, Bytes& out) {
   static const std::array<int8_t, 256> table = [] {
     std::array<int8_t, 256> t{};
     t.fill(-1);
@@ -352,7 +359,7 @@ constexpr size_t kLoadChunk = size_t(1) << 15;
 
 struct BufferSlot {
   bool loaded = false;
-  std::vector<uint8_t> owned;
+  Bytes owned;
   const uint8_t* data = nullptr;
   uint64_t size = 0;  // declared byteLength (the data holds at least this)
 };
@@ -539,8 +546,8 @@ class GltfLoader {
 
   // --- files and URIs --------------------------------------------------------
 
-  std::vector<uint8_t> read_file(const fs::path& file, const std::string& what, bool missing_ok,
-                                 bool* missing) const {
+  Bytes read_file(const fs::path& file, const std::string& what, bool missing_ok,
+                  bool* missing) const {
     std::error_code ec;
     const auto status = fs::status(file, ec);
     if (ec || !fs::exists(status)) {
@@ -556,7 +563,7 @@ class GltfLoader {
       fail(what + ": '" + one_line(file.string()) + "' is " + std::to_string(size) +
            " bytes, over the limit of " + std::to_string(settings_.limits.max_file_bytes) +
            " (LoadLimits::max_file_bytes)");
-    std::vector<uint8_t> bytes(size);
+    Bytes bytes(size);
     std::ifstream in(file, std::ios::binary);
     if (!in || !in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(size)))
       fail(what + ": cannot read '" + one_line(file.string()) + "'");
@@ -572,14 +579,13 @@ class GltfLoader {
   }
 
   /// Bytes of a data: URI.
-  std::vector<uint8_t> decode_data_uri(const std::string& uri, const std::string& what,
-                                       std::string* mime) const {
+  Bytes decode_data_uri(const std::string& uri, const std::string& what, std::string* mime) const {
     const size_t comma = uri.find(',');
     if (comma == std::string::npos) fail(what + ": malformed data uri (no ',')");
     const std::string header = uri.substr(5, comma - 5);
     if (mime) *mime = header.substr(0, header.find(';'));
     const std::string_view payload(uri.data() + comma + 1, uri.size() - comma - 1);
-    std::vector<uint8_t> bytes;
+    Bytes bytes;
     if (header.size() >= 7 && header.compare(header.size() - 7, 7, ";base64") == 0) {
       if (!base64_decode(payload, bytes)) fail(what + ": data uri is not valid base64");
     } else {
@@ -1712,7 +1718,7 @@ class GltfLoader {
     const json& object = element(top_array("images"), uint64_t(index), what);
     const std::string name = opt_string(object, "name");
     std::string mime = opt_string(object, "mimeType");
-    std::vector<uint8_t> owned;
+    Bytes owned;
     const uint8_t* data = nullptr;
     uint64_t size = 0;
     std::string label = what;
@@ -1781,7 +1787,7 @@ class GltfLoader {
   fs::path folder_;
   LoadSettings settings_;
   std::string label_;
-  std::vector<uint8_t> file_;
+  Bytes file_;
   bool is_glb_ = false;
   bool has_glb_bin_ = false;
   const uint8_t* glb_bin_ = nullptr;
