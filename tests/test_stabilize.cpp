@@ -553,6 +553,67 @@ SnowMaps box_on_plate_maps(int side = 48) {
   });
 }
 
+// Maps of 512 rows and more pour their piles by bands of rows, the bands of
+// a phase on several threads: the same bits as on one thread, where the
+// bands' piles stay apart (poured in parallel) and where two of them meet
+// (the phase undone and poured again serially), and the volume is exact.
+TEST(StabilizeReference, PilesPouredByBandsAreTheSameOnAnyThreads) {
+  const int width = 24, height = 512;  // bands of 64 rows
+  const float texel = 0.05f;
+  const SnowMaps maps = make_maps(width, height, texel, 2, [](float, float) {
+    return std::vector<Surface>{{0.0f, kUp}};
+  });
+  const std::vector<glm::vec4> cells = stabilize_cells(maps, StabilizeSettings{});
+  const std::vector<float> lying = snow_on_top(maps, 0.1f);
+  const DepositGrid grid{width, height, 2, texel};
+  struct Pile {
+    int i, j;
+    float metres;
+  };
+  const auto pour = [&](const std::vector<Pile>& piles, unsigned threads, DepositStats& stats) {
+    std::vector<float> depth = lying, arrive(depth.size(), 0.0f);
+    std::vector<uint32_t> terminals;
+    for (const Pile& p : piles) {
+      const size_t k = maps.index(0, p.i, p.j);
+      arrive[k] = p.metres;
+      terminals.push_back(uint32_t(k));
+    }
+    EXPECT_EQ(
+        deposit_piles(cells.data(), depth.data(), arrive.data(), terminals, grid, threads, &stats),
+        piles.size());
+    double added = 0.0;
+    for (size_t k = 0; k < depth.size(); ++k) added += double(depth[k]) - double(lying[k]);
+    double poured = 0.0;
+    for (const Pile& p : piles) poured += p.metres;
+    EXPECT_NEAR(added, poured, 1e-4 * poured);
+    return depth;
+  };
+  // Three piles in each band's middle rows, 7 texels or so across, two of
+  // them overlapping (their order matters).
+  std::vector<Pile> apart;
+  for (int band = 0; band < 8; ++band) {
+    apart.push_back({7, 64 * band + 30, 20.0f});
+    apart.push_back({12, 64 * band + 32, 10.0f});
+    apart.push_back({17, 64 * band + 34, 20.0f});
+  }
+  // Two piles of 10 m^3 each at the near edges of bands 0 and 2: both spread
+  // over band 1, between them. Band 0's small piles come first, so they are
+  // poured (and must be undone) before its large pile can meet band 2's.
+  const std::vector<Pile> meeting = {
+      {12, 10, 5.0f}, {12, 20, 5.0f}, {12, 60, 4000.0f}, {12, 132, 4000.0f}, {12, 290, 5.0f}};
+  for (const auto& [name, piles, parallel] :
+       {std::make_tuple("apart", apart, true), std::make_tuple("meeting", meeting, false)}) {
+    SCOPED_TRACE(name);
+    DepositStats one, many;
+    const std::vector<float> serial = pour(piles, 1, one);
+    const std::vector<float> banded = pour(piles, 4, many);
+    EXPECT_EQ(one.piles_in_parallel, 0u);
+    EXPECT_EQ(many.piles_in_parallel, parallel ? piles.size() : 0u);
+    ASSERT_EQ(serial.size(), banded.size());
+    EXPECT_EQ(std::memcmp(serial.data(), banded.data(), serial.size() * sizeof(float)), 0);
+  }
+}
+
 TEST(StabilizeReference, SnowCreepingOffAnEdgeIsDrained) {
   const SnowMaps maps = box_on_plate_maps();
   const std::vector<float> start = snow_on_top(maps, 0.1f);

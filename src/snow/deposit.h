@@ -27,8 +27,14 @@
 // what the cone does not place stays on the terminal.
 //
 // Both stabilizers run this on the CPU after their routing (the GPU reads
-// the depth and the scattered sums back and uploads the result), in texel
-// order of the terminals, so they agree bit for bit.
+// the depth and the scattered sums back and uploads the result), in the
+// same order of the terminals, so they agree bit for bit. The order is the
+// texel order, except on maps of 512 rows or more, which are cut into 8
+// bands of rows: the terminals of the even bands first, then those of the
+// odd ones, each band's in texel order. Two bands of a phase lie a band
+// apart, so their piles rarely meet, and they are poured on all cores,
+// with the same result (the serial pouring was a fifth of the courtyard's
+// run at 2048 texels).
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -43,26 +49,32 @@ struct DepositGrid {
 };
 
 /// Pours arrive[k] (metres of depth; > 0 at the terminals, 0 elsewhere) as
-/// a pile around each terminal k, in texel order, adding to depth. `cells`
+/// a pile around each terminal k, in the order above, adding to depth. `cells`
 /// are those of stabilize_cells (texels without a surface may be all zero),
 /// all three arrays have grid.layers * width * height entries in the maps'
 /// layout. Returns the number of piles poured.
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
                      const DepositGrid& grid);
+struct DepositStats {
+  size_t piles_in_parallel = 0;  // piles poured by bands on several threads
+};
+
 /// The same with the terminals given (the texels where arrive > 0, in any
-/// order), as the routing that filled arrive knows them.
+/// order), as the routing that filled arrive knows them. `threads`: the
+/// most threads to pour on (0 = default_threads()); the result does not
+/// depend on it.
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
-                     std::vector<uint32_t> terminals, const DepositGrid& grid);
+                     std::vector<uint32_t> terminals, const DepositGrid& grid, unsigned threads = 0,
+                     DepositStats* stats = nullptr);
 
 /// Snow pressed above its ceiling: where snow lies more than `min_over`
 /// metres above kCeilingClearance under its ceiling, the excess is taken
-/// off and poured as a pile from that texel (in texel order, as
-/// deposit_piles). The relaxation squeezes such snow out one texel per pass,
-/// and where a whole gap is full (2 m of snow drifting into a house through
-/// its door, up to the ceiling) the pressure only diffuses, over thousands
-/// of passes, or rocks back and forth between texels; the pile spreads
-/// through the full gaps to the nearest room in one go. Both stabilizers
-/// call it at the same checks (pressed_snow_due). Returns the piles poured.
+/// off and poured as a pile from that texel (in deposit_piles' order). The relaxation squeezes such
+/// snow out one texel per pass, and where a whole gap is full (2 m of snow drifting into a house
+/// through its door, up to the ceiling) the pressure only diffuses, over thousands of passes, or
+/// rocks back and forth between texels; the pile spreads through the full gaps to the nearest room
+/// in one go. Both stabilizers call it at the same checks (pressed_snow_due). Returns the piles
+/// poured.
 size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
                          float min_over);
 
