@@ -540,19 +540,6 @@ TEST(StabilizeReference, RoutedSnowUnderACeilingFillsTheGap) {
   EXPECT_NEAR(depth[under], 0.1f - kCeilingClearance, 1e-6f);
 }
 
-// A 0.2 m box on a plate of side * 1 cm (0.48 m by default), the void
-// beyond: snow routed off the box piles at its walls and spreads out to the
-// plate's edge, where it creeps off.
-SnowMaps box_on_plate_maps(int side = 48) {
-  const float texel = 0.01f, half = 0.12f, mid = 0.24f;
-  return make_maps(side, side, texel, 2, [=](float x, float z) {
-    std::vector<Surface> s;
-    if (std::abs(x - mid) < half && std::abs(z - mid) < half) s.push_back({0.2f, kUp});
-    s.push_back({0.0f, kUp});
-    return s;
-  });
-}
-
 // Maps of 512 rows and more pour their piles by bands of rows, the bands of
 // a phase on several threads: the same bits as on one thread, where the
 // bands' piles stay apart (poured in parallel) and where two of them meet
@@ -588,8 +575,8 @@ TEST(StabilizeReference, PilesPouredByBandsAreTheSameOnAnyThreads) {
     EXPECT_NEAR(added, poured, 1e-4 * poured);
     return depth;
   };
-  // Three piles in each band's middle rows, 7 texels or so across, two of
-  // them overlapping (their order matters).
+  // Three piles in the middle rows of each band, about 7 texels in radius,
+  // overlapping (their order matters).
   std::vector<Pile> apart;
   for (int band = 0; band < 8; ++band) {
     apart.push_back({7, 64 * band + 30, 20.0f});
@@ -612,6 +599,19 @@ TEST(StabilizeReference, PilesPouredByBandsAreTheSameOnAnyThreads) {
     ASSERT_EQ(serial.size(), banded.size());
     EXPECT_EQ(std::memcmp(serial.data(), banded.data(), serial.size() * sizeof(float)), 0);
   }
+}
+
+// A 0.2 m box on a plate of side * 1 cm (0.48 m by default), the void
+// beyond: snow routed off the box piles at its walls and spreads out to the
+// plate's edge, where it creeps off.
+SnowMaps box_on_plate_maps(int side = 48) {
+  const float texel = 0.01f, half = 0.12f, mid = 0.24f;
+  return make_maps(side, side, texel, 2, [=](float x, float z) {
+    std::vector<Surface> s;
+    if (std::abs(x - mid) < half && std::abs(z - mid) < half) s.push_back({0.2f, kUp});
+    s.push_back({0.0f, kUp});
+    return s;
+  });
 }
 
 TEST(StabilizeReference, SnowCreepingOffAnEdgeIsDrained) {
