@@ -7,6 +7,7 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <new>
 #include <numeric>
 #include <utility>
 #include <vector>
@@ -523,29 +524,37 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
   std::vector<std::unique_ptr<Pourer>> pourers;
   const auto pour_in_parallel = [&](const std::vector<std::pair<size_t, size_t>>& bands) {
     const size_t n = std::min<size_t>(workers, bands.size());
-    if (!claims) claims = std::make_unique<PhaseClaims>(per_layer);
-    while (pourers.size() < n) pourers.push_back(std::make_unique<Pourer>(cells, depth, grid));
-    const uint32_t first_id = claims->start(bands.size());
     std::vector<std::vector<std::pair<uint32_t, float>>> undo(bands.size());
     std::vector<size_t> band_covered(bands.size(), 0);
-    std::atomic<size_t> next{0};
-    parallel_for(
-        n,
-        [&](size_t w) {
-          Pourer& pourer = *pourers[w];
-          for (size_t b = next++; b < bands.size() && !claims->aborted(); b = next++) {
-            pourer.pour_as(claims.get(), first_id + uint32_t(b), &undo[b]);
-            const size_t before = pourer.covered();
-            for (size_t t = bands[b].first; t < bands[b].second && !claims->aborted(); ++t) {
-              pourer.pour(terminals[t], arrive[terminals[t]]);
+    bool poured_all = false;
+    try {
+      if (!claims) claims = std::make_unique<PhaseClaims>(per_layer);
+      while (pourers.size() < n) pourers.push_back(std::make_unique<Pourer>(cells, depth, grid));
+      const uint32_t first_id = claims->start(bands.size());
+      std::atomic<size_t> next{0};
+      parallel_for(
+          n,
+          [&](size_t w) {
+            Pourer& pourer = *pourers[w];
+            for (size_t b = next++; b < bands.size() && !claims->aborted(); b = next++) {
+              pourer.pour_as(claims.get(), first_id + uint32_t(b), &undo[b]);
+              const size_t before = pourer.covered();
+              for (size_t t = bands[b].first; t < bands[b].second && !claims->aborted(); ++t) {
+                pourer.pour(terminals[t], arrive[terminals[t]]);
+              }
+              band_covered[b] = pourer.covered() - before;
             }
-            band_covered[b] = pourer.covered() - before;
-          }
-          pourer.pour_as(nullptr, 0, nullptr);
-        },
-        unsigned(n));
+            pourer.pour_as(nullptr, 0, nullptr);
+          },
+          unsigned(n));
+      poured_all = !claims->aborted();
+    } catch (const std::bad_alloc&) {
+      // No memory for the pourers' marks or the undo logs: serially. (Each
+      // write is logged before it is made, so the logs hold all of them.)
+      pourers.clear();
+    }
     const size_t poured = std::accumulate(band_covered.begin(), band_covered.end(), size_t(0));
-    if (!claims->aborted() && covered + poured < budget) {
+    if (poured_all && covered + poured < budget) {
       covered += poured;
       return true;
     }
