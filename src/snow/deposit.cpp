@@ -517,8 +517,8 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
   // Where two bands would touch the same column, or the piles would exceed
   // the budget, all their writes are undone and the phase is poured
   // serially: either way the result is that of the order above, on any
-  // number of threads. (Courtyard, 2 cores: pouring 222 -> 157 ms at 1024
-  // texels, 1.47 -> 0.95 s at 2048; the claims cost a tenth more per pile.)
+  // number of threads. (Courtyard, 2 cores: pouring 222 -> 161 ms at 1024
+  // texels, 1.47 -> 1.00 s at 2048; the claims cost a tenth more per pile.)
   const unsigned workers = threads > 0 ? threads : default_threads();
   std::unique_ptr<PhaseClaims> claims;
   std::vector<std::unique_ptr<Pourer>> pourers;

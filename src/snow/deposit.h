@@ -69,12 +69,13 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
 
 /// Snow pressed above its ceiling: where snow lies more than `min_over`
 /// metres above kCeilingClearance under its ceiling, the excess is taken
-/// off and poured as a pile from that texel (in deposit_piles' order). The relaxation squeezes such
-/// snow out one texel per pass, and where a whole gap is full (2 m of snow drifting into a house
-/// through its door, up to the ceiling) the pressure only diffuses, over thousands of passes, or
-/// rocks back and forth between texels; the pile spreads through the full gaps to the nearest room
-/// in one go. Both stabilizers call it at the same checks (pressed_snow_due). Returns the piles
-/// poured.
+/// off and poured as a pile from that texel (in deposit_piles' order). The
+/// relaxation squeezes such snow out one texel per pass, and where a whole
+/// gap is full (2 m of snow drifting into a house through its door, up to
+/// the ceiling) the pressure only diffuses, over thousands of passes, or
+/// rocks back and forth between texels; the pile spreads through the full
+/// gaps to the nearest room in one go. Both stabilizers call it at the same
+/// checks (pressed_snow_due). Returns the piles poured.
 size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
                          float min_over);
 
