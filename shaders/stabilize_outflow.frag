@@ -1,5 +1,5 @@
 #version 450 core
-// Stabilizer outflow pass (DESIGN.md "Stabilizer"): for each of the 8
+// Stabilizer outflow pass (contract: src/snow/stabilize.h): for each of the 8
 // directions, where snow leaving this texel lands u_stride columns away
 // (column.glsl, along a path of single steps for strided passes) and how
 // much goes there. Mirrors CpuStabilizer::outflow_texel.

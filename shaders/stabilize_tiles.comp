@@ -12,9 +12,9 @@
 //
 // One invocation per block of kBlock x kBlock tiles: a block with no change
 // within reach of any of its tiles (most of them, late in a relaxation) ends
-// after one look at that window. Per tile, the cost was the invocation and
-// its (2 u_reach + 1)^2 loads, about 7 ms a pass on the 262k tiles of a
-// 2048 map however few were active.
+// after one look at that window. An invocation per tile would pay for itself
+// and its (2 u_reach + 1)^2 loads on every tile of the map, however few are
+// active.
 #include "bindings.h"
 
 layout(local_size_x = 8, local_size_y = 8) in;

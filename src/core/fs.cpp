@@ -85,13 +85,13 @@ class TempRegistration {
 };
 
 /// Puts the finished temporary file `tmp` at `path`, in one step for any
-/// reader: `path` holds the old file or the new one, never a part. Where
-/// `path` exists, the two are swapped (renameat2 RENAME_EXCHANGE) and the
-/// old file, now at `tmp`, removed: a rename over an existing file on ext4
-/// first writes the new file's data out (its auto_da_alloc; a 5.8 MB GLB:
-/// 6 ms of a 50 ms run), which a swap does not. The data then reach the disk
-/// as those of any new file do. Elsewhere (no such file, a file system
-/// without the swap): rename(2). Returns 0 or an errno value.
+/// reader: `path` holds the old file or the new one, never a part. Where `path`
+/// exists, the two are swapped (renameat2 RENAME_EXCHANGE) and the old file,
+/// now at `tmp`, removed: a rename over an existing file on ext4 first writes
+/// the new file's data out (its auto_da_alloc), a wait the swap does not have.
+/// The data then reach the disk as those of any new file do. Elsewhere (no such
+/// file, a file system without the swap): rename(2). Returns 0 or an errno
+/// value.
 int replace_file(const fs::path& tmp, const fs::path& path) {
   if (renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, path.c_str(), RENAME_EXCHANGE) == 0) {
     unlink(tmp.c_str());

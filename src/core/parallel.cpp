@@ -36,9 +36,9 @@ struct Loop {
 };
 
 // Threads kept for the program's life, so that a loop costs no thread starts
-// (about 50 us each: the stabilizer runs two loops a pass, thousands of
-// passes). One loop at a time; a loop started while one runs (from another
-// thread, or nested in one) starts threads of its own instead.
+// (the stabilizer runs two loops a pass, thousands of passes). One loop at a
+// time; a loop started while one runs (from another thread, or nested in one)
+// starts threads of its own instead.
 class Pool {
  public:
   ~Pool() {
@@ -73,8 +73,8 @@ class Pool {
     loop.work();
     // The helpers finish about when this thread does, and the next loop
     // comes soon (the stabilizer runs two a pass): both sides yield a little
-    // before they sleep, as a sleep and wake-up cost tens of microseconds on
-    // a virtual machine (tree tile, 1434 passes of 0.8 ms: 8 % faster).
+    // before they sleep, as a sleep and wake-up on a virtual machine costs a
+    // noticeable share of a short loop.
     for (int spin = 0; spin < kSpins && working_.load(std::memory_order_acquire) != 0; ++spin) {
       std::this_thread::yield();
     }

@@ -10,16 +10,14 @@
 // Those blocks are mapped here in small pages (MADV_NOHUGEPAGE), not taken
 // from calloc: the heap has transparent huge pages (core/heap.h), and the
 // kernel clears a huge page whole, 2 MiB, at the first write anywhere in
-// it, which undoes the sparse writing (medians on a 2-core VM: courtyard
-// 3.59 -> 2.96 s, peak 495 -> 297 MiB; SheenChair at 1 cm 3.43 -> 3.04 s,
-// 490 -> 325 MiB).
+// it, which undoes the sparse writing (and raises the peak memory).
 // Smaller blocks come from calloc, whose huge pages serve the small jobs
 // (their arrays are few and mostly written).
 //
 // A mapped page that is read before it is written maps the kernel's shared
 // zero page, and its first write then copies that and flushes the TLBs of
-// the other cores running the process's threads: on a 2-core VM, reading
-// then writing 24 MiB of fresh pages took 55-66 ms, writing them 10-13 ms.
+// the other cores running the process's threads, several times what
+// writing a fresh page first costs.
 // Where a stage knows which pages it will write, populate() faults them in
 // for writing first, a run of pages per call.
 #include <algorithm>

@@ -5,7 +5,7 @@
 // is missing; all rendering goes to framebuffer objects.
 //
 // libEGL is opened at run time, on first use (open_library), as libOSMesa
-// is: the program starts without it (about 0.5 ms less per start, twice
+// is: a program start that needs no GL does not pay for loading it (twice
 // with the huge-page re-execution). The snow command's probe for a hardware
 // device asks EGL only where the machine has a GPU device node, and runs
 // beside the scene's load.
@@ -295,7 +295,7 @@ std::unique_ptr<Context> create_egl_device_context(const ContextOptions& options
 std::optional<bool> egl_lists_hardware_device() {
   // A hardware device has a device node: under /dev/dri (Mesa's drivers,
   // virtual GPUs) or NVIDIA's /dev/nvidiactl. Without either, EGL lists none,
-  // and asking it would load libEGL and Mesa's vendor library (4.4-7 ms).
+  // and asking it would load libEGL and Mesa's vendor library for nothing.
   std::error_code error;
   if (!std::filesystem::exists("/dev/dri", error) &&
       !std::filesystem::exists("/dev/nvidiactl", error)) {
@@ -308,8 +308,8 @@ std::optional<bool> egl_lists_hardware_device() {
     return std::nullopt;  // no libEGL
   }
   // Where EGL cannot list its devices, NVIDIA's driver node still tells:
-  // its EGL renders on the GPU (an H100 machine whose libglvnd listed no
-  // devices started the driver for every scene, 0.1 s; tools/RESULTS.md).
+  // its EGL renders on the GPU (where libglvnd lists no devices, asking
+  // would start the driver for every scene).
   const std::optional<bool> unlisted =
       std::filesystem::exists("/dev/nvidiactl", error) ? std::optional<bool>(true) : std::nullopt;
   const char* client = api->query_string(EGL_NO_DISPLAY, EGL_EXTENSIONS);

@@ -1,6 +1,7 @@
-// Snow mesh export (DESIGN.md, "Outputs"). glTF files follow the Khronos
-// glTF 2.0 specification (images in buffer views: section 3.8.2 "Images");
-// OBJ and PLY are written by obj_writer.cpp and ply_writer.cpp.
+// Snow mesh export, the pipeline's last stage (mesh/export.h;
+// docs/ARCHITECTURE.md). glTF files follow the Khronos glTF 2.0
+// specification (images in buffer views: section 3.8.2 "Images"); OBJ and
+// PLY are written by obj_writer.cpp and ply_writer.cpp.
 #include "mesh/export.h"
 
 #include <tiny_gltf.h>

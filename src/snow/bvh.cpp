@@ -21,9 +21,8 @@ constexpr uint32_t kLeafSize = 4;
 // kLoopChunk, and splits them by a stable partition: the tree depends on the
 // triangles alone, not on the number of cores. Below, a single thread's
 // loops serve (each level's halves are built side by side) and the split is
-// std::partition. The 1M-triangle terrain at 2048, built beside the peel on
-// an H100 machine's 16 cores: 0.17-0.25 s before, 0.11-0.26 s after (median
-// 0.14 s, three machines); as fast as before on 2 cores (0.34 s).
+// std::partition. This speeds up large scenes on many cores and costs
+// nothing on 2 (tools/RESULTS.md).
 constexpr uint32_t kLargeNode = 1u << 17;
 constexpr size_t kLoopChunk = size_t(1) << 14;
 
@@ -85,8 +84,7 @@ Bvh::Bvh(const std::vector<glm::vec3>& corners, Build how) {
     // Codes of the centroids on a grid of 1024^3 cubes over their bounds,
     // sorted by three passes of radix sort (stable: equal codes keep the
     // input's order), keyed code << 32 | triangle. The loops run on all
-    // cores in ranges of kLoopChunk: the 1M terrain's whole build (at 128
-    // texels) 90-100 -> 66-74 ms on 2 cores, 78-110 -> 37-51 ms on 16.
+    // cores in ranges of kLoopChunk.
     const auto centroid = [&](size_t t) {
       return (corners[3 * t] + corners[3 * t + 1] + corners[3 * t + 2]) / 3.0f;
     };
@@ -155,9 +153,8 @@ Bvh::Bvh(const std::vector<glm::vec3>& corners, Build how) {
         for (int c = 0; c < 3; ++c) corners_[3 * k + c] = corners[3 * size_t(order_[k]) + c];
       }
     });
-    // Serial: on ToyCar (109k triangles) 2 ms, the 1M terrain 22 ms; built
-    // in halves on 2 threads (as build() does) 2.5-3.5 and 24-27 ms, the
-    // right halves' splices copying and faulting in more than they save.
+    // Serial: built in halves on 2 threads (as build() does) it was slower,
+    // the right halves' splices copying and faulting in more than they save.
     build_morton(0, n, codes);
     return;
   }
@@ -174,9 +171,8 @@ Bvh::Bvh(const std::vector<glm::vec3>& corners, Build how) {
   });
   // The halves of a split are built beside each other while they hold about
   // 16k triangles or more, at most one level past one task per thread: each
-  // level's splices copy and fault in its right halves' nodes. 1M terrain,
-  // 2 threads: 0.42 s serial, 0.34 / 0.26 / 0.28 / 0.30 s with 1 / 2 / 3 / 4
-  // levels; SheenChair (40k) 0.017-0.023 -> 0.013-0.018 s with 1.
+  // level's splices copy and fault in its right halves' nodes, so more
+  // levels than that cost more than they save.
   int max_levels = 1;
   while ((1u << (max_levels - 1)) < default_threads()) ++max_levels;
   int parallel_levels = 0;
@@ -274,9 +270,8 @@ void Bvh::build(uint32_t first, uint32_t count, Prim* prims, Prim* scratch, std:
   }
   // The split: of the planes between kBins bins of the centroids along each
   // axis, the one of least surface area heuristic cost (binned SAH, Wald
-  // 2007). Against the median of the longest axis it replaced, the 1M
-  // terrain at 2048 (2 cores): build 0.20-0.22 -> 0.27-0.33 s, but sky cull
-  // 0.71-0.75 -> 0.43-0.45 s and CPU casts 0.86-0.91 -> 0.51-0.54 s.
+  // 2007). Against a median split of the longest axis its build is slower,
+  // but its tree's walks (sky cull, CPU casts) are faster by more.
   constexpr int kBins = 16;
   struct Bin {
     glm::vec3 lo{std::numeric_limits<float>::max()}, hi{-std::numeric_limits<float>::max()};

@@ -1,8 +1,10 @@
 #pragma once
 // The one rule that relates snow in neighbouring columns, shared by the
 // stabilizer (CPU reference and GPU, mirrored in shaders/column.glsl) and by
-// patch finding in polygonize: "neighbours are found by height, not by layer
-// index" (DESIGN.md, snow amount maps; height spans after Onoue and Nishita).
+// patch finding in polygonize: neighbours are found by height, not by layer
+// index, as a surface continuous in the world (a floor running under a
+// table) can be layer 0 in one column and layer 2 in the next (height spans
+// after Onoue and Nishita).
 //
 // A column (i, j) holds up to L surfaces from the top down. Layer l's gap is
 // the free space from its surface (ground) up to its ceiling (the surface

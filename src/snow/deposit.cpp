@@ -62,8 +62,7 @@ class MinHeap {
       if (first >= n) break;
       const size_t end = std::min(first + 4, n);
       // The least child, chosen without branching on the comparisons: they
-      // are unpredictable, and mispredicting them was most of a pop's time
-      // (pouring on the Kenney tiles at 0.3 m: 17-64 -> 14-52 ms).
+      // are unpredictable, and mispredicting them was most of a pop's time.
       size_t least = first;
       T least_value = a_[first];
       for (size_t c = first + 1; c < end; ++c) {
@@ -85,10 +84,9 @@ class MinHeap {
 /// Maps of at least kBandedRows rows pour their terminals by bands of rows,
 /// kPourBands of them (deposit_piles): the even bands first, then the odd
 /// ones, the bands of each phase on all cores. Two bands of a phase lie a
-/// band apart, an eighth of the map: the courtyard's piles span up to 59
-/// rows of its 1024 and 122 of its 2048 (with bands of 64 rows at 2048, the
-/// first phase's bands met). Smaller maps pour in texel order: the Kenney
-/// tiles' piles span up to 68 of their 110-118 rows.
+/// band apart, an eighth of the map, more than the piles of the measured
+/// scenes span (narrower bands met; tools/RESULTS.md). Smaller maps pour in
+/// texel order, as a pile there can span most of the rows.
 constexpr uint32_t kBandedRows = 512;
 constexpr uint32_t kPourBands = 8;
 
@@ -175,8 +173,8 @@ class Pourer {
   /// cone's surface lies in the same gap of each neighbour column as the
   /// snow top. Then the second growth finds the same neighbours, so it takes
   /// the same texels in the same order at the same path costs and ends at
-  /// the same apex. So it is skipped (Kenney tiles with 0.3 m: 42-94 % of
-  /// the piles, the courtyard 92 %; their growths ~10 % less CPU time).
+  /// the same apex. So it is skipped (for most piles of the measured
+  /// scenes).
   bool grows_alike(double apex) const;
 
   struct Column {
@@ -517,8 +515,8 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
   // Where two bands would touch the same column, or the piles would exceed
   // the budget, all their writes are undone and the phase is poured
   // serially: either way the result is that of the order above, on any
-  // number of threads. (Courtyard, 2 cores: pouring 222 -> 161 ms at 1024
-  // texels, 1.47 -> 1.00 s at 2048; the claims cost a tenth more per pile.)
+  // number of threads. (The claims cost a little per pile, which the
+  // parallel pouring repays on large maps even on 2 cores.)
   const unsigned workers = threads > 0 ? threads : default_threads();
   std::unique_ptr<PhaseClaims> claims;
   std::vector<std::unique_ptr<Pourer>> pourers;

@@ -1,30 +1,27 @@
 #pragma once
-// Routed snow laid as piles (DESIGN.md "Stabilizer"). The routing sends the
-// snow that cannot stay where it lies down a chain of receivers to a
-// terminal, one texel, in one go: all the snow sliding off a roof's side
-// arrives at a few texels at the foot of the wall, metres deep (20 m of
-// depth on a 9.5 mm texel on building-small-a with 0.3 m of snow). Spread
-// by relaxation passes alone, such a spike takes well over a thousand passes
-// to settle. Here each terminal's snow is poured instead: it forms a cone at
-// the repose angle around the terminal, over the snow already lying there,
-// whose volume is what arrived. The cone is a warm start that the
-// relaxation then finishes, so it only has to be close: heights along the
-// cheapest paths of repose slopes (Dijkstra from the terminal, each step
-// costing distance * tan(repose) of the texel it leaves, as in the
+// Routed snow laid as piles (a step of the stabilizer, snow/stabilize.h). The
+// routing sends the snow that cannot stay where it lies down a chain of
+// receivers to a terminal, one texel, in one go: all the snow sliding off a
+// roof's side arrives at a few texels at the foot of the wall, metres deep
+// where a few decimetres fell. Spread by relaxation passes alone, such a spike
+// takes thousands of passes to settle. Here each terminal's snow is poured
+// instead: it forms a cone at the repose angle around the terminal, over the
+// snow already lying there, whose volume is what arrived. The cone is a warm
+// start that the relaxation then finishes, so it only has to be close: heights
+// along the cheapest paths of repose slopes (Dijkstra from the terminal, each
+// step costing distance * tan(repose) of the texel it leaves, as in the
 // relaxation's rule), grown in order of the height at which the rising cone
-// first covers a texel, twice: at the snow tops, then at the cone heights
-// the first growth found (which gaps the surface lies in depends on its
-// height). Under a ceiling (a table, an eave, a tree's tiers) a texel takes
-// snow only up to kCeilingClearance under it: the cone fills the gap there
-// and spreads on. A terminal under a ceiling keeps what fits under it, as
-// before, for the relaxation to spread; only what would be pressed above
-// the ceiling is poured (snow sliding off a tree's tiers lands in the low
-// gap under them, metres deep on one texel: Kenney grass-trees, 0.3 m,
-// 3008 -> 118 passes with draining). Texels that snow
-// would slide off into the void take none, a pile covers at most 2^20
-// texels, and the piles of one call at most 8 times the maps' layer texels
-// (the terminals after that keep their snow, as before). Mass is exact:
-// what the cone does not place stays on the terminal.
+// first covers a texel, twice: at the snow tops, then at the cone heights the
+// first growth found (which gaps the surface lies in depends on its height).
+// Under a ceiling (a table, an eave, a tree's tiers) a texel takes snow only up
+// to kCeilingClearance under it: the cone fills the gap there and spreads on. A
+// terminal under a ceiling keeps what fits under it, as before, for the
+// relaxation to spread; only what would be pressed above the ceiling is poured
+// (snow sliding off a tree's tiers lands in the low gap under them, metres deep
+// on one texel). Texels that snow would slide off into the void take none, a
+// pile covers at most 2^20 texels, and the piles of one call at most 8 times
+// the maps' layer texels (the terminals after that keep their snow, as before).
+// Mass is exact: what the cone does not place stays on the terminal.
 //
 // Both stabilizers run this on the CPU after their routing (the GPU reads
 // the depth and the scattered sums back and uploads the result), in the
@@ -33,8 +30,8 @@
 // bands of rows: the terminals of the even bands first, then those of the
 // odd ones, each band's in texel order. Two bands of a phase lie a band
 // apart, so their piles rarely meet, and they are poured on all cores,
-// with the same result (the serial pouring was a fifth of the courtyard's
-// run at 2048 texels).
+// with the same result (pouring serially is a large share of a large map's
+// run).
 #include <cstddef>
 #include <cstdint>
 #include <vector>

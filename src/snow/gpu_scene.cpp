@@ -14,8 +14,7 @@ namespace snow {
 void weld_vertices(const std::vector<glm::vec3>& corners, std::vector<glm::vec3>& vertices,
                    std::vector<uint32_t>& indices) {
   // Sorted as records (position, corner), not as corner numbers compared
-  // through the positions: the sort then reads memory in order (3M corners:
-  // 0.67 -> 0.2 s).
+  // through the positions: the sort then reads memory in order.
   struct Corner {
     glm::vec3 p;
     uint32_t index;

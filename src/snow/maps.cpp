@@ -12,10 +12,8 @@ constexpr size_t kFillChunk = size_t(1) << 16;
 
 // Sizes the arrays to n layer texels and marks those from `first` on as
 // holding no surface, on all cores. The pages are fresh, so the writing is
-// mostly the kernel's faulting them in: on one core it was 0.13 of the CPU
-// peel's 0.35 s for the 1M-triangle terrain at 2048 texels on 2 cores, and
-// kept that peel at 0.17-0.21 s on an H100 machine's 16 (0.10-0.13 s on
-// all cores).
+// mostly the kernel's faulting them in, which on one core would be a large
+// share of the CPU peel on a large map.
 void resize_cleared(SnowMaps& maps, size_t first, size_t n) {
   maps.ground.resize(n);
   maps.ceiling.resize(n);

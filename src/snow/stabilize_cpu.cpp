@@ -1,5 +1,5 @@
-// The stabilizer passes on the CPU (DESIGN.md "Stabilizer"; angle of
-// repose relaxation after Fearing 2000, section 5; steep routing as
+// The stabilizer passes on the CPU (the stage's contract: snow/stabilize.h;
+// angle of repose relaxation after Fearing 2000, section 5; steep routing as
 // steepest-descent flow routing over a terrain). Every per-texel function
 // here mirrors one fragment shader of shaders/stabilize_*.frag statement by
 // statement, so that the GPU and the CPU agree to the bit.
@@ -163,10 +163,8 @@ void CpuStabilizer::touch(int t, const Tile& box) {
   // An outflow of stride s reads the columns within s (Chebyshev distance)
   // of its own, so only tiles that near the changed columns are dirty for
   // it. Snow creeping inside a tile then leaves its neighbours clean for
-  // single steps, where touch(t) made all eight dirty. grass-trees-tall
-  // (snowmodel_bench_stabilize --coverage on): tiles computed 42 -> 35 %,
-  // relaxation 0.17 -> 0.16 s; building-small-d 36 -> 29 %, 0.21-0.22 ->
-  // 0.20 s; the same passes, bit for bit.
+  // single steps, where touch(t) made all eight dirty: fewer tiles
+  // computed, the same passes, bit for bit.
   for (int level = 0; level < levels_; ++level) {
     const int stride = 1 << level;
     add_near(dirty_[level], t, reach(stride), [&](int u) {
@@ -225,8 +223,8 @@ void CpuStabilizer::add_snow(const std::vector<float>& amount, float scale) {
     // At the first snowfall, the pages of depths this adds to, and of the
     // gates of those texels, are faulted in first, a run of them per call:
     // a page's first read maps the shared zero page, and its first write
-    // then copies it and flushes the other cores' TLBs, five times what a
-    // first write costs (24 MiB on a 2-core VM: 55-66 against 10-13 ms).
+    // then copies it and flushes the other cores' TLBs, several times what a
+    // first write costs (core/zeroed.h).
     // Later snowfalls (steps, the live preview's frames) mostly land there.
     constexpr size_t kPage = 4096 / sizeof(float);
     size_t run = end;  // start of the open run of pages to fault in
@@ -654,8 +652,7 @@ float CpuStabilizer::erode_texel(int l, int i, int j) const {
 // belong to tiles of other colours: the tiles of one colour run in parallel
 // with the same result as one after another. Each tile is swept until it is
 // stable, so a change crosses several tiles in one round, where a GPU pass
-// moves it one texel (courtyard at 1024 on 2 cores: 132 passes -> 24
-// rounds, routing 0.71-0.94 -> 0.62-0.66 s, of which erosion now 0.12 s).
+// moves it one texel: far fewer rounds than the GPU's passes.
 // A tile is computed again only when a neighbour tile changed since (with
 // active tiles off: every tile every round).
 bool CpuStabilizer::erode_tile(int t) {
@@ -782,8 +779,8 @@ int CpuStabilizer::route(double* routed_volume, bool drain) {
               // A receiver that sheds into the void (a neighbour lands in
               // it at the receiver's free top) keeps nothing that arrives:
               // the next pass sends it all off the edge. So the path ends
-              // in the void here (snow creeping off tile edges: fountain
-              // 145 -> 48 passes).
+              // in the void here (snow creeping off tile edges then settles
+              // in far fewer passes).
               const size_t col = p % (size_t(width_) * size_t(height_));
               const int pi = int(col % size_t(width_)), pj = int(col / size_t(width_));
               const glm::vec4 pc = cells_[p];

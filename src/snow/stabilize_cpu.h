@@ -52,8 +52,8 @@ class CpuStabilizer {
   /// route_seconds is the routing's wall time; tile_share, with
   /// settings.count_tiles, the share of tiles times layers computed.
   StabilizeResult iterate(int passes);
-  /// As Stabilizer::set_volume_sums (the batch job: 6M layer texels of the
-  /// courtyard summed three times per 64 passes took 0.1 s of CPU time).
+  /// As Stabilizer::set_volume_sums (the batch job sums once at the end: a
+  /// sum reads every layer texel, and iterate() runs many times a run).
   void set_volume_sums(bool on) { volume_sums_ = on; }
   StabilizeResult run() { return iterate(settings_.max_iterations); }
 
@@ -144,8 +144,7 @@ class CpuStabilizer {
   /// Pours the snow pressed above its ceilings (pour_pressed_snow with the
   /// settings' tolerance), looking only at the tiles whose depth changed
   /// since the last call: the same piles as looking at every texel. The
-  /// courtyard has 1.28M texels under a ceiling; its 16 looks took 48-50
-  /// ms, now 20-21 ms, most of it the first (listing them, looking at all).
+  /// first call lists every texel under a ceiling and looks at all of them.
   size_t pour_pressed();
   double snow_volume() const;
   size_t index(int l, int i, int j) const {

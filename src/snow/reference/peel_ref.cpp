@@ -42,10 +42,10 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
 
   // The triangles whose boxes of texel centres are not empty (a triangle
   // seen edge-on, or between two centres, has none: most of a detailed
-  // model's on a coarse map, ToyCar's 109k on 16 x 16 texels), with their
-  // boxes, in index order, on all cores. Only those are stored: two arrays
-  // over every triangle (these boxes, and each triangle's normal and object,
-  // now worked out for the hits kept alone) were half of ToyCar's peel, in
+  // model's on a coarse map), with their boxes, in index order, on all
+  // cores. Only those are stored: two arrays over every triangle (these
+  // boxes, and each triangle's normal and object, now worked out for the
+  // hits kept alone) would cost a detailed model's peel much of its time, in
   // fresh pages.
   struct Box {
     int i0, i1, j0, j1;
@@ -186,7 +186,7 @@ SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, int layers, float 
   });
 
   // Only the layers some column fills are allocated (allocating all and
-  // dropping the empty ones cost the Kenney tiles 10 ms of fresh memory).
+  // dropping the empty ones would fault in fresh memory for nothing).
   int used = 1;
   for (const Band& band : bands) used = std::max(used, band.used);
   SnowMaps maps;
