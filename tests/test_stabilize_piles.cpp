@@ -1,0 +1,723 @@
+// Where the stabilizer puts the snow (src/snow/stabilize.h,
+// src/snow/deposit.h): routed snow poured as piles, snow creeping off an
+// edge drained, snow pressed above its ceiling poured out, and the rest the
+// snow reaches on analytic shapes (a table, a low shelf, a bowl, lean-to
+// roofs) and builder scenes (a house, a table, stairs), on the CPU
+// reference and on the GPU.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <functional>
+#include <tuple>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "scene/builder.h"
+#include "snow/deposit.h"
+#include "snow/maps.h"
+#include "snow/stabilize.h"
+#include "snow/stabilize_cpu.h"
+#include "support/stabilize_maps.h"
+
+namespace snow::test {
+namespace {
+
+// --- Analytic columns --------------------------------------------------------
+
+// A lean-to roof of `pitch_deg` over x in [x0, x1] (eave at x1, height
+// eave_y there, rising towards x0), a one-sided plane, over a floor at y = 0.
+ColumnFn lean_to_roof(float x0, float x1, float z0, float z1, float eave_y, float pitch_deg) {
+  const float t = std::tan(pitch_deg * kDeg);
+  const glm::vec3 n(std::sin(pitch_deg * kDeg), std::cos(pitch_deg * kDeg), 0.0f);
+  return [=](float x, float z) {
+    std::vector<Surface> s;
+    if (x >= x0 && x < x1 && z >= z0 && z < z1) s.push_back({eave_y + (x1 - x) * t, n});
+    s.push_back({0.0f, kUp});
+    return s;
+  };
+}
+
+// A table: a closed slab (top up-facing, underside down-facing) over a floor.
+ColumnFn table(float cx, float cz, float half, float top_y, float thickness) {
+  return [=](float x, float z) {
+    std::vector<Surface> s;
+    if (std::abs(x - cx) < half && std::abs(z - cz) < half) {
+      s.push_back({top_y, kUp});
+      s.push_back({top_y - thickness, kDown});
+    }
+    s.push_back({0.0f, kUp});
+    return s;
+  };
+}
+
+// --- Piles (CPU reference) ---------------------------------------------------
+
+// A spike of routed snow on a snowy floor under the open sky, poured as a pile:
+// the volume is exact, the pile is a cone at rest (no neighbour above
+// another by more than distance * tan(repose)), and the relaxation that
+// follows has little left to do, where it takes many passes to flatten the
+// spike.
+TEST(StabilizeReference, RoutedSnowIsPouredAsAConeAtRest) {
+  const float texel = 0.05f;
+  const int side = 41, mid = 20;
+  const SnowMaps maps = make_maps(side, side, texel, 2, [](float, float) {
+    return std::vector<Surface>{{0.0f, kUp}};
+  });
+  StabilizeSettings settings;
+  settings.repose_jitter_deg = 0.0f;  // tan = 1: the cone's heights are known
+  const std::vector<glm::vec4> cells = stabilize_cells(maps, settings);
+  const float lying = 0.3f;
+  std::vector<float> depth = snow_on_top(maps, lying), arrive(cells.size(), 0.0f);
+  const std::vector<float> before = depth;
+  const size_t centre = maps.index(0, mid, mid);
+  const float volume = 2.0f;  // metres of depth on one texel: 40 texels high
+  arrive[centre] = volume;
+  ASSERT_EQ(
+      deposit_piles(cells.data(), depth.data(), arrive.data(), DepositGrid{side, side, 2, texel}),
+      1u);
+  double added = 0.0;
+  for (size_t k = 0; k < depth.size(); ++k) added += double(depth[k]) - double(before[k]);
+  EXPECT_NEAR(added, double(volume), 1e-5);
+  std::printf("pile: %.3f m at the apex (a spike: %.3f m), %.3f m one texel out\n",
+              depth[centre] - lying, volume, depth[maps.index(0, mid + 1, mid)] - lying);
+  EXPECT_LT(depth[centre] - lying, 0.2f * volume);
+  EXPECT_GT(depth[maps.index(0, mid + 3, mid)], lying);
+  EXPECT_NEAR(depth[maps.index(0, mid + 3, mid)], depth[maps.index(0, mid - 3, mid)], 1e-6f);
+  EXPECT_NEAR(depth[maps.index(0, mid, mid + 3)], depth[maps.index(0, mid - 3, mid)], 1e-6f);
+  for (int j = 0; j < side; ++j) {
+    for (int i = 0; i + 1 < side; ++i) {
+      EXPECT_LE(std::abs(depth[maps.index(0, i, j)] - depth[maps.index(0, i + 1, j)]),
+                texel * 1.0f + 1e-5f)
+          << i << ", " << j;
+    }
+  }
+  // The whole stabilizer on the spike, with the routed snow poured or left
+  // on its terminal.
+  std::vector<float> poured = before, left = before;
+  poured[centre] += volume;
+  left[centre] += volume;
+  const StabilizeResult with = stabilize_cpu(maps, poured, settings);
+  settings.deposit_piles = false;
+  const StabilizeResult without = stabilize_cpu(maps, left, settings);
+  std::printf("relaxation: %d passes with the pile poured, %d without\n", with.iterations,
+              without.iterations);
+  EXPECT_TRUE(with.converged);
+  EXPECT_LT(with.iterations, without.iterations);
+}
+
+// Under a ceiling, what fits stays on the terminal; what would be pressed
+// above the ceiling is poured as a pile that fills the gap up to the
+// ceiling around it (snow sliding off a tree's tiers into the low gap under
+// them: metres of depth on one texel, squeezed out over a thousand passes).
+TEST(StabilizeReference, RoutedSnowUnderACeilingFillsTheGap) {
+  const SnowMaps maps = shelf_maps();  // 0.1 m gap under the shelf
+  const std::vector<glm::vec4> cells = stabilize_cells(maps, StabilizeSettings{});
+  std::vector<float> depth(cells.size(), 0.0f), arrive(cells.size(), 0.0f);
+  const size_t under = maps.index(2, 24, 24);  // the floor under the shelf's middle
+  ASSERT_TRUE(maps.has_surface(2, 24, 24));
+  ASSERT_NEAR(maps.ceiling[under] - maps.ground[under], 0.1f, 1e-6f);
+  arrive[under] = 2.0f;
+  deposit_piles(cells.data(), depth.data(), arrive.data(), DepositGrid{48, 48, 4, 0.05f});
+  double sum = 0.0;
+  int covered = 0;
+  for (size_t k = 0; k < depth.size(); ++k) {
+    sum += depth[k];
+    if (depth[k] == 0.0f) continue;
+    ++covered;
+    EXPECT_LE(maps.ground[k] + depth[k], maps.ceiling[k] - kCeilingClearance + 1e-6f) << k;
+  }
+  EXPECT_NEAR(sum, 2.0, 1e-5);
+  EXPECT_GE(covered, 20);  // 2 m of depth in a 0.1 m gap
+  EXPECT_NEAR(depth[under], 0.1f - kCeilingClearance, 1e-6f);
+}
+
+// Maps of 512 rows and more pour their piles by bands of rows, the bands of
+// a phase on several threads: the same bits as on one thread, where the
+// bands' piles stay apart (poured in parallel) and where two of them meet
+// (the phase undone and poured again serially), and the volume is exact.
+TEST(StabilizeReference, PilesPouredByBandsAreTheSameOnAnyThreads) {
+  const int width = 24, height = 512;  // bands of 64 rows
+  const float texel = 0.05f;
+  const SnowMaps maps = make_maps(width, height, texel, 2, [](float, float) {
+    return std::vector<Surface>{{0.0f, kUp}};
+  });
+  const std::vector<glm::vec4> cells = stabilize_cells(maps, StabilizeSettings{});
+  const std::vector<float> lying = snow_on_top(maps, 0.1f);
+  const DepositGrid grid{width, height, 2, texel};
+  struct Pile {
+    int i, j;
+    float metres;
+  };
+  const auto pour = [&](const std::vector<Pile>& piles, unsigned threads, DepositStats& stats) {
+    std::vector<float> depth = lying, arrive(depth.size(), 0.0f);
+    std::vector<uint32_t> terminals;
+    for (const Pile& p : piles) {
+      const size_t k = maps.index(0, p.i, p.j);
+      arrive[k] = p.metres;
+      terminals.push_back(uint32_t(k));
+    }
+    EXPECT_EQ(
+        deposit_piles(cells.data(), depth.data(), arrive.data(), terminals, grid, threads, &stats),
+        piles.size());
+    double added = 0.0;
+    for (size_t k = 0; k < depth.size(); ++k) added += double(depth[k]) - double(lying[k]);
+    double poured = 0.0;
+    for (const Pile& p : piles) poured += p.metres;
+    EXPECT_NEAR(added, poured, 1e-4 * poured);
+    return depth;
+  };
+  // Three piles in the middle rows of each band, about 7 texels in radius,
+  // overlapping (their order matters).
+  std::vector<Pile> apart;
+  for (int band = 0; band < 8; ++band) {
+    apart.push_back({7, 64 * band + 30, 20.0f});
+    apart.push_back({12, 64 * band + 32, 10.0f});
+    apart.push_back({17, 64 * band + 34, 20.0f});
+  }
+  // Two piles of 10 m^3 each at the near edges of bands 0 and 2: both spread
+  // over band 1, between them. Band 0's small piles come first, so they are
+  // poured (and must be undone) before its large pile can meet band 2's.
+  const std::vector<Pile> meeting = {
+      {12, 10, 5.0f}, {12, 20, 5.0f}, {12, 60, 4000.0f}, {12, 132, 4000.0f}, {12, 290, 5.0f}};
+  for (const auto& [name, piles, parallel] :
+       {std::make_tuple("apart", apart, true), std::make_tuple("meeting", meeting, false)}) {
+    SCOPED_TRACE(name);
+    DepositStats one, many;
+    const std::vector<float> serial = pour(piles, 1, one);
+    const std::vector<float> banded = pour(piles, 4, many);
+    EXPECT_EQ(one.piles_in_parallel, 0u);
+    EXPECT_EQ(many.piles_in_parallel, parallel ? piles.size() : 0u);
+    ASSERT_EQ(serial.size(), banded.size());
+    EXPECT_EQ(std::memcmp(serial.data(), banded.data(), serial.size() * sizeof(float)), 0);
+  }
+}
+
+// A 0.2 m box on a plate of side * 1 cm (0.48 m by default), the void
+// beyond: snow routed off the box piles at its walls and spreads out to the
+// plate's edge, where it creeps off.
+SnowMaps box_on_plate_maps(int side = 48) {
+  const float texel = 0.01f, half = 0.12f, mid = 0.24f;
+  return make_maps(side, side, texel, 2, [=](float x, float z) {
+    std::vector<Surface> s;
+    if (std::abs(x - mid) < half && std::abs(z - mid) < half) s.push_back({0.2f, kUp});
+    s.push_back({0.0f, kUp});
+    return s;
+  });
+}
+
+TEST(StabilizeReference, SnowCreepingOffAnEdgeIsDrained) {
+  const SnowMaps maps = box_on_plate_maps();
+  const std::vector<float> start = snow_on_top(maps, 0.1f);
+  const double fell = snow_volume(maps, start);
+  std::vector<float> relaxed = start, drained = start;
+  StabilizeSettings settings;
+  settings.drain_edges = false;
+  const StabilizeResult r0 = stabilize_cpu(maps, relaxed, settings);
+  settings.drain_edges = true;
+  const StabilizeResult r1 = stabilize_cpu(maps, drained, settings);
+  std::printf("creeping off an edge: %d passes relaxed, %d with %d drains; %.6f against %.6f m^3\n",
+              r0.iterations, r1.iterations, r1.drains, r0.volume, r1.volume);
+  EXPECT_TRUE(r0.converged);
+  EXPECT_TRUE(r1.converged);
+  EXPECT_EQ(r0.drains, 0);
+  EXPECT_GE(r1.drains, 1);
+  EXPECT_LT(3 * r1.iterations, r0.iterations);  // 426 against 82 when written
+  EXPECT_NEAR(r1.volume + r1.lost_volume, fell, 1e-9);
+  EXPECT_NEAR(r1.volume, r0.volume, 1e-3 * r0.volume);
+  EXPECT_LE(largest_excess(maps, drained, settings, 1e-4f), 2e-4f);
+  float difference = 0.0f;
+  for (size_t k = 0; k < drained.size(); ++k) {
+    difference = std::max(difference, std::abs(drained[k] - relaxed[k]));
+  }
+  EXPECT_LT(difference, 1e-3f);  // a tenth of a texel
+}
+
+// A cellar: a 1.6 m square slab 0.1 m over the floor, the gap under it
+// filled with 0.12 m of snow (2 cm pressed above its ceiling) and 0.09 m
+// around it. The routing sends out only the edge's pressed snow (inside,
+// the heights it may keep are level); the relaxation squeezes the rest out
+// one texel per pass, a pressure that diffuses across the slab.
+SnowMaps cellar_maps() { return slab_maps(0.4f, 2.0f); }
+
+std::vector<float> cellar_snow(const SnowMaps& maps) {
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  for (size_t k = 0; k < depth.size(); ++k) {
+    if (!std::isnan(maps.ground[k]) && maps.ground[k] == 0.0f) {
+      depth[k] = maps.ceiling[k] < 1.0f ? 0.12f : 0.09f;
+    }
+  }
+  return depth;
+}
+
+// Snow pressed above its ceiling is poured out as piles once the relaxation
+// creeps: it settles, none stays above its ceiling, and mass is exact.
+TEST(StabilizeReference, PressedSnowIsPouredOut) {
+  const SnowMaps maps = cellar_maps();
+  std::vector<float> depth = cellar_snow(maps);
+  const double before = snow_volume(maps, depth);
+  StabilizeSettings settings;
+  settings.max_iterations = 2000;
+  const StabilizeResult r = stabilize_cpu(maps, depth, settings);
+  std::printf("cellar: %d passes, %d pours, converged %d\n", r.iterations, r.pours,
+              int(r.converged));
+  EXPECT_TRUE(r.converged);
+  EXPECT_GE(r.pours, 1);
+  EXPECT_LT(r.iterations, 1000);  // 480 passes; squeezed out by the passes alone: 1884
+  float highest_over = -1.0f;
+  for (size_t k = 0; k < depth.size(); ++k) {
+    if (!std::isnan(maps.ground[k]) && maps.ceiling[k] < 1.0f) {
+      highest_over = std::max(highest_over, maps.ground[k] + depth[k] - maps.ceiling[k]);
+    }
+  }
+  EXPECT_LE(highest_over, settings.tolerance);
+  EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);
+}
+
+// --- Shapes (CPU reference) --------------------------------------------------
+
+TEST(StabilizeReference, TableEdgesRoundOff) {
+  // A 1 m table top, 0.75 m high, 0.05 m thick, in a 3.2 m room; 0.3 m of snow
+  // on every top surface.
+  const float texel = 0.05f;
+  const SnowMaps maps = make_maps(64, 64, texel, 4, table(1.6f, 1.6f, 0.5f, 0.75f, 0.05f));
+  std::vector<float> depth = snow_on_top(maps, 0.3f);
+  StabilizeSettings settings;
+  const StabilizeResult r = stabilize_cpu(maps, depth, settings);
+  ASSERT_TRUE(r.converged);
+  // Along the row through the table's centre.
+  const int j = 32;
+  auto top_of = [&](int i) { return depth[maps.index(0, i, j)]; };
+  const int edge = 22;  // first texel on the table (x = 1.1..1.15)
+  ASSERT_TRUE(maps.ground[maps.index(0, edge, j)] > 0.5f);
+  ASSERT_FALSE(maps.ground[maps.index(0, edge - 1, j)] > 0.5f);
+  // The edge texel keeps little, the middle keeps the full depth, and the
+  // profile rises at most at the repose angle (+ jitter) from the edge.
+  EXPECT_LT(top_of(edge), 0.06f);
+  EXPECT_NEAR(top_of(32), 0.3f, 1e-3f);
+  for (int i = edge; i < 32; ++i) {
+    EXPECT_LE(top_of(i), (float(i - edge) + 0.5f) * texel * std::tan(48.0f * kDeg) + 2e-4f) << i;
+  }
+  // Under the table: nothing from the top. The floor snow round the table
+  // slumps in at the repose angle from the shadow's edge (0.3 m of snow: at
+  // most 0.3 / tan(42 deg) + 1 texel), the rest stays bare.
+  const float reach = 0.3f / std::tan(42.0f * kDeg) + texel;
+  double under = 0.0;
+  for (int jj = 0; jj < 64; ++jj) {
+    for (int i = 0; i < 64; ++i) {
+      if (!maps.has_surface(2, i, jj)) continue;
+      const glm::vec2 c = maps.grid.center(i, jj);
+      const float inside = 0.5f - std::max(std::abs(c.x - 1.6f), std::abs(c.y - 1.6f));
+      if (inside > reach) under += depth[maps.index(2, i, jj)];
+    }
+  }
+  EXPECT_EQ(under, 0.0);
+  EXPECT_GT(depth[maps.index(0, edge - 1, j)], 0.3f);
+  EXPECT_NEAR(top_of(edge - 6), 0.3f, 0.02f);  // the floor further out is untouched
+}
+
+TEST(StabilizeReference, LowCeilingCapsDepth) {
+  // A shelf whose underside is 0.1 m above the floor, with 0.3 m of snow
+  // forced under it.
+  const SnowMaps maps = shelf_maps();
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  for (size_t k = 0; k < depth.size(); ++k) {
+    if (!std::isnan(maps.ground[k]) && maps.ground[k] == 0.0f) depth[k] = 0.3f;
+  }
+  const double before = snow_volume(maps, depth);
+  const StabilizeResult r = stabilize_cpu(maps, depth, StabilizeSettings{});
+  ASSERT_TRUE(r.converged);
+  float deepest_under = 0.0f;
+  for (int j = 0; j < 48; ++j) {
+    for (int i = 0; i < 48; ++i) {
+      if (maps.has_surface(2, i, j))
+        deepest_under = std::max(deepest_under, depth[maps.index(2, i, j)]);
+    }
+  }
+  EXPECT_LE(deepest_under, 0.1f + 1e-4f);
+  EXPECT_GT(deepest_under, 0.05f);
+  EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);
+}
+
+TEST(StabilizeReference, BowlFillsFromTheBottom) {
+  // A conical bowl with 60 degree walls, 1 m in radius at its rim (1.73 m
+  // deep), sunk in a floor; 0.3 m of snow on every top surface.
+  const float cx = 1.6f, rim_r = 1.0f, t60 = std::tan(60.0f * kDeg);
+  const SnowMaps maps = make_maps(64, 64, 0.05f, 4, [&](float x, float z) {
+    const float r = std::hypot(x - cx, z - cx);
+    if (r >= rim_r) return std::vector<Surface>{{0.0f, kUp}};
+    const glm::vec3 n(-(x - cx) / std::max(r, 1e-6f) * t60, 1.0f,
+                      -(z - cx) / std::max(r, 1e-6f) * t60);
+    return std::vector<Surface>{{(r - rim_r) * t60, n}};
+  });
+  std::vector<float> depth = snow_on_top(maps, 0.3f);
+  const double before = snow_volume(maps, depth);
+  const StabilizeResult r = stabilize_cpu(maps, depth, StabilizeSettings{});
+  ASSERT_TRUE(r.converged);
+  EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);
+  // The snow that fell into the bowl (pi r^2 0.3 m, 0.94 m^3) collects at
+  // the bottom: the deepest snow is there, far deeper than what fell, and
+  // the walls above the fill are bare.
+  const int c = 32;
+  float deepest = 0.0f, fill_top = -10.0f;
+  double in_bowl = 0.0;
+  for (int j = 0; j < 64; ++j) {
+    for (int i = 0; i < 64; ++i) {
+      const size_t k = maps.index(0, i, j);
+      const float rr = glm::length(maps.grid.center(i, j) - glm::vec2(cx));
+      if (rr >= rim_r) continue;
+      in_bowl += depth[k];
+      if (depth[k] > deepest) deepest = depth[k];
+      if (depth[k] > 1e-3f) fill_top = std::max(fill_top, maps.ground[k] + depth[k]);
+    }
+  }
+  in_bowl *= 0.05 * 0.05;
+  float bare_above = 0.0f;
+  for (int j = 0; j < 64; ++j) {
+    for (int i = 0; i < 64; ++i) {
+      const size_t k = maps.index(0, i, j);
+      const float rr = glm::length(maps.grid.center(i, j) - glm::vec2(cx));
+      if (rr < rim_r - 0.15f && maps.ground[k] > fill_top - 0.05f * t60 && rr > 0.0f) {
+        bare_above = std::max(bare_above, depth[k]);
+      }
+    }
+  }
+  std::printf(
+      "bowl: %d passes (+%d routing), %.3f m^3 in the bowl, deepest %.3f m at the "
+      "centre %.3f m, fill top %.3f m\n",
+      r.iterations, r.route_passes, in_bowl, deepest, depth[maps.index(0, c, c)], fill_top);
+  EXPECT_GT(in_bowl, 0.85);
+  EXPECT_NEAR(depth[maps.index(0, c, c)], deepest, 0.05f);
+  EXPECT_GT(deepest, 0.6f);
+  EXPECT_LT(bare_above, 0.01f);
+}
+
+TEST(StabilizeReference, LeanToRoofs) {
+  // One-sided lean-to roofs (no thickness) over a floor, eave at x = 3 m.
+  for (float pitch : {60.0f, 30.0f}) {
+    const SnowMaps maps =
+        make_maps(96, 48, 0.05f, 4, lean_to_roof(0.5f, 3.0f, 0.6f, 1.8f, 1.5f, pitch));
+    std::vector<float> depth = snow_on_top(maps, 0.3f);
+    auto on_roof = [&](int l, int i, int j) {
+      return l == 0 && maps.ground[maps.index(0, i, j)] > 0.5f;
+    };
+    const double roof_before = sum_where(maps, depth, on_roof);
+    const StabilizeResult r = stabilize_cpu(maps, depth, StabilizeSettings{});
+    const double roof_after = sum_where(maps, depth, on_roof);
+    std::printf("%.0f deg lean-to: %d passes (+%d routing), roof %.3f -> %.4f m^3\n", pitch,
+                r.iterations, r.route_passes, roof_before, roof_after);
+    EXPECT_TRUE(r.converged);
+    if (pitch > 45.0f) {
+      EXPECT_LT(roof_after, 0.01 * roof_before);
+    } else {
+      EXPECT_GT(roof_after, 0.4 * roof_before);  // a narrow roof: its edges round off
+    }
+    // No snow passed through the thin roof into the space under it: under the
+    // roof, snow only slumps in from the open sides, the back and the eave
+    // (each at most about 1 m here).
+    const double through = sum_where(maps, depth, [&](int l, int i, int j) {
+      const glm::vec2 c = maps.grid.center(i, j);
+      return l == 1 && c.x > 1.0f && c.x < 2.0f && c.y > 1.0f && c.y < 1.4f;
+    });
+    EXPECT_EQ(through, 0.0);
+  }
+}
+
+// --- Piles: GPU against the CPU reference ------------------------------------
+
+// The GPU stabilizer pours the same piles (on the CPU, from its readback):
+// a spike on a snowy floor, routing and pouring only, bit for bit.
+TEST(StabilizeGpu, PilesMatchReference) {
+  REQUIRE_GL();
+  const int side = 33, mid = 16;
+  const SnowMaps maps = make_maps(side, side, 0.05f, 2, [](float x, float) {
+    return std::vector<Surface>{{0.02f * x, kUp}};  // a gentle slope
+  });
+  std::vector<float> cpu = snow_on_top(maps, 0.2f);
+  cpu[maps.index(0, mid, mid)] += 1.5f;
+  std::vector<float> gpu = cpu;
+  StabilizeSettings settings;
+  settings.max_iterations = 0;
+  const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
+  const StabilizeResult rg = stabilize(maps, gpu, settings);
+  EXPECT_GT(rc.routed_volume, 0.0);
+  EXPECT_NEAR(rg.routed_volume, rc.routed_volume, 1e-6);
+  EXPECT_LT(*std::max_element(cpu.begin(), cpu.end()), 0.2f + 0.3f);  // poured, no spike
+  EXPECT_EQ(gpu, cpu);
+}
+
+TEST(StabilizeGpu, DrainingMatchesReference) {
+  REQUIRE_GL();
+  // A plate large enough that much of it rests (tiles the passes skip) when
+  // a drain runs: the routing uses the outflow textures as scratch, so the
+  // next passes must compute every tile again.
+  const SnowMaps maps = box_on_plate_maps(96);
+  std::vector<float> cpu = snow_on_top(maps, 0.1f), gpu = cpu;
+  const StabilizeSettings settings;
+  const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
+  const StabilizeResult rg = stabilize(maps, gpu, settings);
+  EXPECT_GE(rc.drains, 1);
+  EXPECT_EQ(rg.drains, rc.drains);
+  EXPECT_EQ(rg.iterations, rc.iterations);
+  EXPECT_EQ(gpu, cpu);
+}
+
+TEST(StabilizeGpu, PressedSnowPoursMatchReference) {
+  REQUIRE_GL();
+  const SnowMaps maps = cellar_maps();
+  std::vector<float> cpu = cellar_snow(maps), gpu = cpu;
+  StabilizeSettings settings;
+  settings.max_iterations = 2000;
+  const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
+  const StabilizeResult rg = stabilize(maps, gpu, settings);
+  EXPECT_GE(rc.pours, 1);
+  EXPECT_EQ(rg.pours, rc.pours);
+  EXPECT_EQ(rg.iterations, rc.iterations);
+  EXPECT_EQ(gpu, cpu);
+}
+
+// --- Builder scenes (reference peel, GPU stabilizer) -------------------------
+
+// Snow top (ground + depth) of the highest layer with snow in column (i, j)
+// whose ground is below `below`, or NaN.
+float snow_top_below(const SnowMaps& maps, const std::vector<float>& depth, int i, int j,
+                     float below) {
+  for (int l = 0; l < maps.layers && maps.has_surface(l, i, j); ++l) {
+    const size_t k = maps.index(l, i, j);
+    if (maps.ground[k] < below) return maps.ground[k] + depth[k];
+  }
+  return NAN;
+}
+
+struct HouseRun {
+  SnowMaps maps;
+  std::vector<float> before, after;
+  StabilizeResult result;
+  int roof = -1, floor = -1;
+};
+
+HouseRun run_house(const HouseDims& dims, int side) {
+  HouseRun run;
+  const Scene scene = make_house_scene(dims);
+  run.maps = scene_maps(scene, side);
+  run.roof = find_object(scene, "HouseRoof");
+  run.floor = find_object(scene, "Floor");
+  run.before = snow_on_top(run.maps, 0.3f);
+  run.after = run.before;
+  run.result = stabilize(run.maps, run.after, StabilizeSettings{});
+  return run;
+}
+
+HouseRun run_house(float pitch, int side) {
+  HouseDims dims;
+  dims.roof_pitch_deg = pitch;
+  return run_house(dims, side);
+}
+
+double object_volume(const SnowMaps& maps, const std::vector<float>& depth, int object,
+                     const std::function<bool(glm::vec2)>& where = nullptr) {
+  return sum_where(maps, depth, [&](int l, int i, int j) {
+    const size_t k = maps.index(l, i, j);
+    return maps.object[k] == object && (!where || where(maps.grid.center(i, j)));
+  });
+}
+
+TEST(StabilizeScenes, SteepRoofShedsToTheEaves) {
+  REQUIRE_GL();
+  const HouseRun run = run_house(60.0f, 128);
+  const SnowMaps& maps = run.maps;
+  const HouseDims dims;
+  const float texel = maps.grid.texel;
+  auto outside = [&](glm::vec2 c) {
+    return std::abs(c.x) > dims.width / 2 || std::abs(c.y) > dims.depth / 2;
+  };
+  auto inside = [&](glm::vec2 c) {
+    return std::abs(c.x) < dims.width / 2 - dims.wall_thickness &&
+           std::abs(c.y) < dims.depth / 2 - dims.wall_thickness;
+  };
+  const double roof_before = object_volume(maps, run.before, run.roof);
+  const double roof_after = object_volume(maps, run.after, run.roof);
+  const double ground_gain = object_volume(maps, run.after, run.floor, outside) -
+                             object_volume(maps, run.before, run.floor, outside) +
+                             run.result.lost_volume;  // only the floor's far edges lose snow
+  double in_house = 0.0;
+  for (int l = 1; l < maps.layers; ++l) {
+    in_house += sum_where(maps, run.after, [&](int ll, int i, int j) {
+      return ll == l && inside(maps.grid.center(i, j));
+    });
+  }
+  std::printf(
+      "60 deg house: %d passes (+%d routing, %.2f m^3 routed), residual %.1e; roof %.3f -> "
+      "%.4f m^3, ground outside +%.3f m^3, inside %.4f m^3\n",
+      run.result.iterations, run.result.route_passes, run.result.routed_volume, run.result.residual,
+      roof_before, roof_after, ground_gain, in_house);
+  EXPECT_TRUE(run.result.converged);
+  EXPECT_LT(roof_after, 0.05 * roof_before);
+  EXPECT_GE(ground_gain, 0.95 * roof_before);
+  EXPECT_EQ(in_house, 0.0);
+  // The piles along both eaves crest within 3 texels of the drip line, along
+  // the middle third of the house.
+  const float drip = dims.depth / 2 + dims.eaves_overhang;
+  int worst = 0;
+  for (int i = 0; i < maps.grid.width; ++i) {
+    const float x = maps.grid.center(i, 0).x;
+    if (std::abs(x) > dims.width / 6) continue;
+    for (float side : {-1.0f, 1.0f}) {
+      float best = -1.0f, best_z = 0.0f;
+      for (int j = 0; j < maps.grid.height; ++j) {
+        const float z = maps.grid.center(i, j).y;
+        if (side * z < dims.depth / 2 || side * z > drip + 2.0f) continue;
+        const float top = snow_top_below(maps, run.after, i, j, 0.5f);
+        if (top > best + 1e-4f) {
+          best = top;
+          best_z = z;
+        }
+      }
+      worst = std::max(worst, int(std::lround(std::abs(side * best_z - drip) / texel)));
+    }
+  }
+  std::printf("pile crest: at most %d texels from the drip line\n", worst);
+  EXPECT_LE(worst, 3);
+}
+
+// Share of a gable roof's snow (depth s, pitch a) that the repose rule
+// (angle t) keeps: along each eave the snow rounds off over s / (tan t -
+// tan a), along each gable end over s / tan t, each losing a triangle.
+double repose_retention(const HouseDims& d, float s, float repose_deg) {
+  const double t = std::tan(repose_deg * kDeg), a = std::tan(d.roof_pitch_deg * kDeg);
+  const double length = d.width + 2 * d.eaves_overhang, run = d.depth / 2 + d.eaves_overhang;
+  const double eaves = 2 * length * 0.5 * s * (s / (t - a));
+  const double gables = 4 * run * 0.5 * s * (s / t);
+  return 1.0 - (eaves + gables) / (2 * length * run * s);
+}
+
+TEST(StabilizeScenes, GentleRoofKeepsItsSnow) {
+  REQUIRE_GL();
+  // The repose rule rounds the snow off along the eaves and gable ends; the
+  // rest of a 30 degree roof (below the 45 degree repose angle) keeps it.
+  // On the default house (2.5 m of run) that is 81 % in theory; on a large
+  // house (7.5 m of run) 93 %.
+  HouseDims large;
+  large.roof_pitch_deg = 30.0f;
+  large.width = 16.0f;
+  large.depth = 14.0f;
+  large.floor_size = 24.0f;
+  HouseDims small;
+  small.roof_pitch_deg = 30.0f;
+  for (const HouseDims& dims : {small, large}) {
+    const HouseRun run = run_house(dims, dims.width > 10 ? 256 : 128);
+    const double roof_before = object_volume(run.maps, run.before, run.roof);
+    const double roof_after = object_volume(run.maps, run.after, run.roof);
+    const double keeps = roof_after / roof_before, theory = repose_retention(dims, 0.3f, 45.0f);
+    std::printf(
+        "30 deg house %.0f x %.0f m, texel %.3f m: %d passes (+%d routing), roof keeps "
+        "%.1f %% (repose theory %.1f %%)\n",
+        dims.width, dims.depth, run.maps.grid.texel, run.result.iterations, run.result.route_passes,
+        100.0 * keeps, 100.0 * theory);
+    EXPECT_TRUE(run.result.converged);
+    // The discrete edge texels lose all their snow: up to a texel more along
+    // the eaves and along the gable ends.
+    const double texel = run.maps.grid.texel;
+    EXPECT_GE(keeps, theory - texel / (dims.depth / 2 + dims.eaves_overhang) -
+                         2 * texel / (dims.width + 2 * dims.eaves_overhang));
+    EXPECT_LE(keeps, theory + 0.02);
+    if (dims.width > 10) {
+      EXPECT_GE(keeps, 0.9);
+    }
+  }
+}
+
+TEST(StabilizeScenes, TableSnowRoundsOffOntoTheFloor) {
+  REQUIRE_GL();
+  const Scene scene = make_table_scene();  // 1 m top at 0.75 m, 4 m floor
+  const SnowMaps maps = scene_maps(scene, 128);
+  const int top = find_object(scene, "TableTop"), floor = find_object(scene, "Floor");
+  std::vector<float> depth = snow_on_top(maps, 0.3f);
+  const std::vector<float> before = depth;
+  const StabilizeResult r = stabilize(maps, depth, StabilizeSettings{});
+  ASSERT_TRUE(r.converged);
+  const float texel = maps.grid.texel;
+  auto near_table = [&](glm::vec2 c) {  // outside and under its edges
+    return std::max(std::abs(c.x), std::abs(c.y)) < 0.5f + 0.6f;
+  };
+  auto under_table = [&](glm::vec2 c) {  // beyond the slump of the floor snow
+    return std::max(std::abs(c.x), std::abs(c.y)) < 0.5f - 0.3f / std::tan(42.0f * kDeg) - texel;
+  };
+  const double top_lost = object_volume(maps, before, top) - object_volume(maps, depth, top);
+  const double floor_gain = object_volume(maps, depth, floor, near_table) -
+                            object_volume(maps, before, floor, near_table);
+  const double under = object_volume(maps, depth, floor, under_table);
+  float deepest_under = 0.0f;
+  for (int j = 0; j < maps.grid.height; ++j) {
+    for (int i = 0; i < maps.grid.width; ++i) {
+      for (int l = 1; l < maps.layers && maps.has_surface(l, i, j); ++l) {
+        const size_t k = maps.index(l, i, j);
+        if (maps.object[k] == floor && under_table(maps.grid.center(i, j))) {
+          deepest_under = std::max(deepest_under, depth[k]);
+        }
+      }
+    }
+  }
+  std::printf(
+      "table: %d passes (+%d routing), top gives %.4f m^3, floor next to it gains %.4f "
+      "m^3, under %.5f m^3 (at most %.4f m deep)\n",
+      r.iterations, r.route_passes, top_lost, floor_gain, under, deepest_under);
+  EXPECT_GT(top_lost, 0.0);
+  EXPECT_GT(floor_gain, 0.9 * top_lost);
+  // Beyond the slump of the floor snow, the floor under the table stays all
+  // but bare: the snow shed by the top piles up at the edge and spreads in
+  // at the repose angle too, a few centimetres further at the corners.
+  EXPECT_LT(deepest_under, 0.05f);
+  EXPECT_LT(under, 0.01 * top_lost);
+  // The top keeps its snow in the middle, and the edges are rounded.
+  const int ci = maps.grid.width / 2;
+  int edge = ci;
+  while (maps.object[maps.index(0, edge - 1, ci)] == top) --edge;
+  EXPECT_NEAR(depth[maps.index(0, ci, ci)], 0.3f, 1e-3f);
+  EXPECT_LT(depth[maps.index(0, edge, ci)], 0.5f * 0.3f);
+}
+
+TEST(StabilizeScenes, StairTreadsHoldSnow) {
+  REQUIRE_GL();
+  const StairsDims dims;  // 6 steps, tread 0.3 m, riser 0.18 m, rising along +z
+  const Scene scene = make_stairs_scene(dims);
+  const SnowMaps maps = scene_maps(scene, 128);
+  const int stairs = find_object(scene, "Stairs");
+  std::vector<float> depth = snow_on_top(maps, 0.3f);
+  const double before = snow_volume(maps, depth);
+  const StabilizeResult r = stabilize(maps, depth, StabilizeSettings{});
+  std::printf("stairs: %d passes (+%d routing)\n", r.iterations, r.route_passes);
+  ASSERT_TRUE(r.converged);
+  EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);
+  // Along the middle of the flight: every tread keeps snow at its back, the
+  // snow surface still steps up at every riser, nothing lies inside.
+  const int i = maps.grid.width / 2;
+  const float z0 = -dims.steps * dims.tread / 2;
+  float last_top = -1.0f;
+  // The top tread ends in a drop to the floor at its back: its middle.
+  for (int step = 0; step < dims.steps; ++step) {
+    const float back = z0 + (step + (step + 1 < dims.steps ? 0.8f : 0.5f)) * dims.tread;
+    int j = 0;
+    while (maps.grid.center(i, j).y < back) ++j;
+    const size_t k = maps.index(0, i, j);
+    ASSERT_EQ(maps.object[k], stairs);
+    const float top = maps.ground[k] + depth[k];
+    std::printf("tread %d: ground %.2f m, snow %.3f m\n", step, maps.ground[k], depth[k]);
+    EXPECT_GT(depth[k], step + 1 < dims.steps ? 0.2f : 0.05f);
+    if (step + 1 < dims.steps) {
+      EXPECT_GT(top, last_top + 0.5f * dims.riser);
+    }
+    last_top = top;
+  }
+  const double inside = sum_where(maps, depth, [&](int l, int ii, int jj) {
+    return l > 0 && maps.object[maps.index(l, ii, jj)] == stairs;
+  });
+  EXPECT_EQ(inside, 0.0);
+}
+
+}  // namespace
+}  // namespace snow::test
