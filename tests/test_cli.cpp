@@ -101,19 +101,45 @@ TEST(Cli, InfoPrintsSceneSummary) {
   // Where the stabilizer runs by default: the batch job's on the CPU, the
   // preview's on llvmpipe too.
   const bool software = r.output.find("llvmpipe") != std::string::npos;
-  EXPECT_NE(
-      r.output.find(software ? "Stabilizer (--stabilizer auto): CPU passes (the preview: CPU"
-                             : "Stabilizer (--stabilizer auto): CPU passes (the preview: GPU"),
-      std::string::npos)
-      << r.output;
-  EXPECT_NE(r.output.find(software ? "Peel (--peel-device auto): the CPU, unless"
-                                   : "Peel (--peel-device auto): the GPU's passes"),
+  EXPECT_NE(r.output.find(software ? "plan: stabilizer: CPU passes (the preview: CPU passes)"
+                                   : "plan: stabilizer: CPU passes (the preview: GPU passes)"),
             std::string::npos)
       << r.output;
-  EXPECT_NE(r.output.find(software ? "shadow maps or rays on the CPU, or GL's shadow maps"
+  EXPECT_NE(r.output.find(software ? "plan: peel: a vertical ray per texel on the CPU, unless"
+                                   : "plan: peel: a vertical ray per texel on the CPU for a small"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("plan: maps of 1024 texels on the longer side"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find(software ? "shadow maps or rays on the CPU cores, or GL's shadow maps"
                                    : "rays on the GPU where they cost less"),
             std::string::npos)
       << r.output;
+}
+
+// The developer knobs (backends, speed-ups) stay out of --help; --help-all
+// lists them, and they work either way.
+TEST(Cli, HelpHidesDeveloperOptionsAndHelpAllListsThem) {
+  for (const char* command : {"snow", "preview"}) {
+    const RunResult help = run(std::string(command) + " --help");
+    ASSERT_EQ(help.code, 0) << help.output;
+    EXPECT_NE(help.output.find("--depth"), std::string::npos) << help.output;
+    EXPECT_NE(help.output.find("--help-all"), std::string::npos) << help.output;
+    const RunResult all = run(std::string(command) + " --help-all");
+    ASSERT_EQ(all.code, 0) << all.output;
+    for (const char* flag : {"--peel-device", "--coverage-method", "--stabilizer", "--route-steep",
+                             "--drain-edges", "--deposit-piles", "--adaptive-stride"}) {
+      EXPECT_EQ(help.output.find(flag), std::string::npos) << command << " --help: " << flag;
+      EXPECT_NE(all.output.find(flag), std::string::npos) << command << " --help-all: " << flag;
+    }
+  }
+  const fs::path dir = temp_dir("developer");
+  const RunResult hidden = run("snow " + q(kCourtyard) +
+                               " --max-side 32 --directions 4 --stabilizer cpu --route-steep false"
+                               " --snow-output " + q((dir / "snow.obj").string()));
+  EXPECT_EQ(hidden.code, 0) << hidden.output;
+  EXPECT_TRUE(fs::exists(dir / "snow.obj"));
+  fs::remove_all(dir);
 }
 
 TEST(Cli, InfoSaysWhetherTheHeapHasHugePages) {

@@ -92,7 +92,9 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
   ps.max_side = side;
   ps.layers = o.layers;
   // As snowmodel does, so that the timings compare.
-  snow::fit_huge_pages(0, snow::make_grid(scene.bounds, ps).texels());
+  if (snow::plan::huge_pages_off(snow::plan::probe_machine({}), 0,
+                                 snow::make_grid(scene.bounds, ps).texels()))
+    snow::turn_off_huge_pages();
   snow::SnowMaps maps;
   r.peel = 1e30;
   for (int k = 0; k < o.repeat; ++k) {

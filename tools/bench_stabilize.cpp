@@ -127,7 +127,9 @@ int main(int argc, char** argv) {
     PeelSettings peel;
     peel.max_side = side;
     peel.layers = layers;
-    fit_huge_pages(0, make_grid(scene.bounds, peel).texels());  // as snowmodel does
+    // As snowmodel does.
+    if (plan::huge_pages_off(plan::probe_machine({}), 0, make_grid(scene.bounds, peel).texels()))
+      turn_off_huge_pages();
     auto t0 = std::chrono::steady_clock::now();
     const SnowMaps maps = peel_layers(scene, peel);
     const double peel_s = seconds_since(t0);

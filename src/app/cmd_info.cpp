@@ -1,11 +1,33 @@
-// `snowmodel info [SCENE] [--json]`: the GL context in use, and a scene summary.
+// `snowmodel info [SCENE] [--json]`: the GL context in use, the run plan
+// (where each stage runs, and why) and a scene summary.
 #include <cstdio>
 
 #include "app/commands.h"
+#include "app/settings.h"
 #include "core/heap.h"
+#include "core/log.h"
+#include "plan/plan.h"
 #include "scene/load_gltf.h"
+#include "snow/peel.h"
 
 namespace snow::app {
+namespace {
+
+/// The plan `snowmodel snow SCENE` would make with its defaults (every
+/// stage's line; the maps' only with a scene).
+void print_plan(const plan::MachineInfo& machine, const Scene* scene, uint64_t input_bytes) {
+  PipelineSettings settings;
+  settings.peel.max_side = 0;  // as `snow` has it: automatic
+  const plan::Settings wanted = plan_settings(settings);
+  plan::SceneStats stats;
+  const bool maps = scene && !scene->bounds.empty() && scene->triangle_count() > 0;
+  if (maps) stats = scene_stats(*scene, settings.peel, wanted, input_bytes);
+  const plan::RunPlan run = plan::plan_run(stats, machine, wanted, false);
+  const std::vector<std::string> lines = plan::describe(run);
+  for (size_t i = maps ? 0 : 1; i < lines.size(); ++i) std::printf("%s\n", lines[i].c_str());
+}
+
+}  // namespace
 
 void register_info(CLI::App& app, const GlobalOptions& global) {
   struct Options {
@@ -14,35 +36,34 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
     bool no_gl = false;
   };
   auto options = std::make_shared<Options>();
-  CLI::App* cmd =
-      app.add_subcommand("info", "Print the OpenGL context in use and a summary of a scene");
+  CLI::App* cmd = app.add_subcommand(
+      "info", "Print the OpenGL context in use, the run plan and a summary of a scene");
   cmd->add_option("scene", options->scene, "glTF 2.0 scene (.gltf or .glb)");
   cmd->add_flag("--json", options->json, "Print the scene summary as JSON");
   cmd->add_flag("--no-gl", options->no_gl, "Do not create an OpenGL context");
   cmd->callback([options, &global] {
+    gl::ContextOptions context_options;
+    context_options.backend = gl::parse_backend(global.gl_backend);
+    plan::MachineInfo machine = plan::probe_machine(context_options);
+    std::unique_ptr<gl::Context> context;
     if (!options->no_gl && !options->json) {
-      auto context = make_headless_context(global);
+      context = make_headless_context(global);
       std::printf("OpenGL: %s (%s)\n", context->description().c_str(),
                   gl::to_string(context->backend()).c_str());
-      const bool software = gl::renderer_is_software();
-      std::printf("Stabilizer (--stabilizer auto): CPU passes (the preview: %s)\n",
-                  software ? "CPU passes, the GL renderer is software" : "GPU passes");
-      std::printf("Peel (--peel-device auto): %s\n",
-                  software ? "the CPU, unless the triangles stack deep"
-                           : "the GPU's passes (the CPU for a small scene in `snow`, which then "
-                             "may never start the driver)");
-      std::printf("Coverage (--coverage-method auto): %s\n",
-                  software ? "shadow maps or rays on the CPU, or GL's shadow maps, whichever costs "
-                             "less"
-                           : "shadow maps, or rays on the GPU where they cost less (the CPU where "
-                             "`snow` has not started the driver and the CPU takes under 0.05 s)");
+      machine.software = plan::current_renderer_is_software();
+    } else if (!options->json) {
+      machine.software = plan::probe_renderer(context_options);
     }
     if (!options->json) {
       std::printf("Huge pages for the heap: %s\n", huge_pages_status().c_str());
       std::printf("mmap threshold: %s\n", mmap_threshold_status().c_str());
     }
-    if (options->scene.empty()) return;
+    if (options->scene.empty()) {
+      if (!options->json) print_plan(machine, nullptr, 0);
+      return;
+    }
     const Scene scene = load_scene(options->scene);
+    if (!options->json) print_plan(machine, &scene, gltf_input_bytes(options->scene));
     std::printf("%s\n", options->json ? scene_summary_json(scene).c_str()
                                       : scene_summary_text(scene).c_str());
   });

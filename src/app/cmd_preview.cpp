@@ -71,7 +71,7 @@ void run_preview(PreviewOptions o) {
 
 }  // namespace
 
-void register_preview(CLI::App& app, const GlobalOptions& /*global*/) {
+void register_preview(CLI::App& app, const GlobalOptions& global) {
   auto o = std::make_shared<PreviewOptions>();
   o->settings.peel.max_side = 512;       // interactive default; --max-side overrides
   o->settings.coverage.directions = 32;  // recomputed on every change of the fall settings
@@ -125,7 +125,8 @@ void register_preview(CLI::App& app, const GlobalOptions& /*global*/) {
       ->capture_default_str();
   cmd->add_flag("--paused", v.paused, "Start paused (space resumes)");
   cmd->add_flag("!--no-panel", v.panel, "Hide the settings panel (H shows it)");
-  add_settings_options(*cmd, o->settings);
+  add_settings_options(*cmd, o->settings, global.help_all);
+  cmd->add_flag("--help-all", "Print this help with the developer options (backends, speed-ups)");
   cmd->callback([o] { run_preview(*o); });
 }
 

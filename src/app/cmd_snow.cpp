@@ -28,6 +28,7 @@
 #include "render/preview.h"
 #include "scene/builder.h"
 #include "scene/load_gltf.h"
+#include "plan/plan.h"
 #include "snow/stabilize.h"
 
 namespace snow::app {
@@ -81,86 +82,39 @@ void warn_if_imprecise(const Scene& scene, float fall_depth) {
   log_warn(line);
 }
 
-/// Fresh snow deeper than this many texels is slow to stabilize: piles
-/// about as wide as the snow is deep settle in passes growing with the
-/// square of that width (building-small-a, 0.3 m of snow: 32 texels deep
-/// 16-21 s; 295 deep on 1024 texels, not done while we waited).
-constexpr float kDeepTexels = 64.0f;
-/// The depth in texels the automatic map side and the warning aim at.
-constexpr float kAimTexels = 32.0f;
-
-/// The map side (at least 16) that makes `fall_depth` kAimTexels texels deep
-/// on a grid whose longer side has `side` texels of `texel` metres.
-int side_for_depth(int side, float texel, float fall_depth) {
-  return std::max(16, int(float(side) * kAimTexels * texel / fall_depth));
-}
-
-/// --max-side 0 (automatic, the default): PeelSettings' 1024 texels, or
-/// where the fresh snow would lie more than kDeepTexels deep on those, the
-/// side that makes it kAimTexels deep (said in an info line; a given
-/// --max-side or --texel is kept, and warn_if_deep_in_texels warns instead).
-void choose_automatic_side(PeelSettings& peel, const Bounds& bounds, float fall_depth) {
-  if (peel.texel > 0.0f || peel.max_side != 0) return;
-  peel.max_side = PeelSettings{}.max_side;
-  const MapGrid grid = make_grid(bounds, peel);
-  if (!(fall_depth / grid.texel > kDeepTexels)) return;
-  const int side = std::max(grid.width, grid.height);
-  peel.max_side = side_for_depth(side, grid.texel, fall_depth);
-  char line[300];
-  std::snprintf(line, sizeof line,
-                "maps: automatic side %d texels, so the %.3g m of snow lies %.0f texels deep (%.0f "
-                "on %d; --max-side or --texel sets the resolution)",
-                peel.max_side, double(fall_depth), double(kAimTexels),
-                double(fall_depth / grid.texel), side);
-  log_info(line);
-}
-
-/// Warns when the fresh snow is more than kDeepTexels texels deep (such runs
-/// take very long); suggests the map side that makes it kAimTexels deep.
+/// Warns when the fresh snow is more than plan::kDeepTexels texels deep
+/// (such runs take very long); suggests the map side that makes it
+/// plan::kAimTexels deep.
 void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth) {
   const float texels = fall_depth / maps.grid.texel;
-  if (!(texels > kDeepTexels)) return;
+  if (!(texels > plan::kDeepTexels)) return;
   const int side = std::max(maps.grid.width, maps.grid.height);
-  const int suggested = side_for_depth(side, maps.grid.texel, fall_depth);
+  const int suggested = plan::side_for_depth(side, maps.grid.texel, fall_depth);
   char line[300];
   std::snprintf(line, sizeof line,
                 "the snow is %.0f texels deep (%.3g m on %.3g m texels): stabilizing may take very "
                 "long; --max-side %d (or --texel %.3g) makes it %.0f texels deep",
                 double(texels), double(fall_depth), double(maps.grid.texel), suggested,
-                double(fall_depth / kAimTexels), double(kAimTexels));
+                double(fall_depth / plan::kAimTexels), double(plan::kAimTexels));
   log_warn(line);
 }
 
-/// fit_huge_pages (core/heap.h), saying so when it turns them off.
-void fit_heap(uint64_t input_bytes, size_t columns) {
-  if (fit_huge_pages(input_bytes, columns)) {
+/// Turns the heap's huge pages off where the plan says so (core/heap.h),
+/// saying so when it does.
+void fit_heap(bool off) {
+  if (off && turn_off_huge_pages()) {
     log_debug(
         "heap: transparent huge pages off from here on: a large job on a machine that hands "
         "free memory back to its host (core/heap.h)");
   }
 }
 
-/// Inputs this large (bytes) load for long enough to hide a GPU driver's
-/// start (0.09-0.17 s on an H100; its loads ran at about 0.5 GB/s).
-constexpr uint64_t kWarmUpInputBytes = uint64_t(16) << 20;
-
-/// Creating the first llvmpipe context loads and relocates the driver (about
-/// 0.1 s). A throwaway context made on another thread while the scene loads
-/// does that ahead: EGL displays stay initialized for the process, so the
-/// first stage's own context then takes milliseconds (SheenChair, whose glTF
-/// loads in 0.07 s: 0.45-0.52 -> 0.39-0.42 s). Any GL trouble is reported
-/// when a stage makes its context. Wait for the future before any GL call
-/// (its destructor also waits). None for GLFW, which must start on the main
-/// thread, nor where GL is known to render in software (`software`): there
-/// small scenes need no GL at all, and the other thread would take a core
-/// from their CPU passes. Nor on a GPU for inputs under kWarmUpInputBytes
-/// (`input_bytes`, gltf_input_bytes): their load hides little of the driver's start, their
-/// passes may all run on the CPU before it (peels_on_cpu,
-/// choose_coverage_method), and the process would wait for the warm-up.
-std::future<void> warm_up_gl(const GlobalOptions& global, gl::Backend backend,
-                             std::optional<bool> software, uint64_t input_bytes) {
-  if (backend == gl::Backend::Glfw || software == true) return {};
-  if (software == false && input_bytes < kWarmUpInputBytes) return {};
+/// A throwaway context made on another thread while the scene loads
+/// (plan::warm_up_gl): EGL displays stay initialized for the process, so
+/// the first stage's own context then comes cheaply. Any GL trouble is
+/// reported when a stage makes its context. Wait for the future before any
+/// GL call (its destructor also waits).
+std::future<void> warm_up_gl(const GlobalOptions& global) {
   return std::async(std::launch::async, [&global] {
     const QuietThread quiet;
     try {
@@ -389,34 +343,34 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   check_stabilize_settings(s.stabilize);  // before minutes of peeling and shadows
   fall_directions(s.coverage);            // checks the coverage settings
 
-  // Where the automatic backend is known to render in software, each GL
-  // stage makes its context only when a pass needs it (gl::OnDemandContext):
-  // small scenes then run on the CPU alone and never load the driver. A
-  // backend named by --gl-backend or SNOWMODEL_GL_BACKEND is always started
-  // (and a missing one reported).
+  // The machine's facts: the GL probe (which may load libEGL and Mesa's
+  // vendor library) runs beside the load, and starts the warm-up the plan
+  // allows. (warm_gl is declared first: the probe's future waits for its
+  // task, which sets warm_gl, before warm_gl goes.)
   gl::ContextOptions context_options;
   context_options.backend = gl::parse_backend(global.gl_backend);
-  const gl::Backend backend = gl::requested_backend(context_options);
-  // Where the machine has a GPU device node, the probe lists EGL's devices,
-  // which loads libEGL and Mesa's vendor library (about 5 ms): so it runs
-  // beside the load, and starts the warm-up it allows. (Declared after
-  // warm_gl: its destructor waits for the task, which sets warm_gl, before
-  // warm_gl goes.)
+  plan::MachineInfo machine = plan::probe_machine(context_options);
   const uint64_t input_bytes = gltf_input_bytes(o.input);
   std::future<void> warm_gl;
+  bool warming = false;
   std::future<std::optional<bool>> probed = std::async(std::launch::async, [&] {
-    const std::optional<bool> software =
-        backend == gl::Backend::Auto ? gl::probe_software(context_options) : std::nullopt;
-    warm_gl = warm_up_gl(global, backend, software, input_bytes);
-    return software;
+    plan::MachineInfo probe = machine;
+    probe.software = plan::probe_renderer(context_options);
+    warming = plan::warm_up_gl(probe, input_bytes);
+    if (warming) warm_gl = warm_up_gl(global);
+    return probe.software;
   });
-  // Textures, normals and UVs only show in the preview (ToyCar's textures:
-  // 0.03 s to decode).
+  // Textures, normals and UVs only show in the preview.
   s.load.load_images = s.load.shading = !o.preview.empty();
-  fit_heap(input_bytes, 0);
+  fit_heap(plan::huge_pages_off(machine, input_bytes, 0));
   Scene scene;
   stage("load", [&] { scene = load_scene(o.input, s.load); });
-  const std::optional<bool> software = probed.get();
+  machine.software = probed.get();
+  // Where only a context can tell the renderer, every stage makes its
+  // context up front (the peel's tells it); where GL is known to render in
+  // software, a stage makes its context only when a pass needs it
+  // (gl::OnDemandContext): small scenes then never load the driver.
+  const bool renderer_probed = machine.software.has_value();
   // The scene plus snow is written from the input as tinygltf reads it: read
   // on another thread while the snow is computed.
   const bool combined = !o.output.empty() && !o.snow_only &&
@@ -433,50 +387,54 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   const std::vector<uint8_t> receives = receiving_objects(snow_scene, s.no_snow_on);
   warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
   warn_if_imprecise(snow_scene, s.accumulate.fall_depth);
-  choose_automatic_side(s.peel, snow_scene.bounds, s.accumulate.fall_depth);
-  const size_t columns = make_grid(snow_scene.bounds, s.peel).texels();
-  fit_heap(input_bytes, columns);
+
+  const plan::Settings wanted = plan_settings(s);
+  const plan::SceneStats stats = scene_stats(snow_scene, s.peel, wanted, input_bytes);
+  plan::RunPlan run = plan::plan_run(stats, machine, wanted, warming);
+  if (!run.maps.note.empty()) log_info(run.maps.note);
+  for (const std::string& line : plan::describe(run)) log_debug(line);
+  s.peel.max_side = run.maps.max_side;
+  fit_heap(run.huge_pages_off);
 
   // Each GL stage runs in a context of its own, dropped when it is done:
-  // Mesa keeps much of what a stage deleted allocated in the context (llvmpipe:
-  // 900 MiB after the stabilizer on a 1M-triangle terrain at 2048 texels), and
+  // Mesa keeps much of what a stage deleted allocated in the context, and
   // the stages after it would run on top of that.
   bool described = false;
+  bool gl_used = warming;  // a context was made in this process
   auto gl_context = [&] {
     if (warm_gl.valid()) warm_gl.wait();
     auto context = make_headless_context(global);
     if (!described) log_info("OpenGL: " + context->description());
-    described = true;
+    described = gl_used = true;
     return context;
   };
   auto stage_context = [&] {
-    auto context = std::make_unique<gl::OnDemandContext>(gl_context, software.value_or(false));
-    if (!software.has_value()) context->make();  // only a context can tell what renders
+    auto context = std::make_unique<gl::OnDemandContext>(gl_context, run.gl.software);
+    if (!renderer_probed) context->make();
     return context;
   };
-  // The coverage's BVH needs the scene alone. On a GPU, whose peel leaves
-  // the CPU cores idle, it is built on another thread meanwhile (on an
-  // H100 the 1M-triangle terrain's BVH took 0.19 s and its peel 0.24 s);
-  // in software the CPU peel takes every core. Its kind is judged from the
-  // grid's texels, as the maps' surfaces are not known yet (the coverage is
-  // the same either way).
+  // The coverage's BVH needs the scene alone: where the plan says so, it is
+  // built on another thread while the peel runs.
   std::future<CoverageBvh> bvh_ahead;
   const auto build_bvh_ahead = [&] {
     bvh_ahead = std::async(std::launch::async, [&] {
       return build_coverage_bvh(snow_scene,
-                                coverage_bvh_build(snow_scene.triangle_count(), columns));
+                                run.bvh_morton ? Bvh::Build::Morton : Bvh::Build::Sah);
     });
   };
-  if (software == false) build_bvh_ahead();
+  if (run.bvh_ahead) build_bvh_ahead();
   SnowMaps maps;
+  plan::GlFacts gl_after_peel;
   stage("peel", [&] {
     const auto context = stage_context();
-    // Where the probe could not tell (GLFW; EGL without a device list and
-    // no NVIDIA driver node), the peel's context, made already, tells: an
-    // H100 machine probed so, before the probe took /dev/nvidiactl, built
-    // the 1M terrain's BVH (0.13-0.16 s) after its peel, 1.72 -> 1.59 s.
-    if (!software.has_value() && !gl::renderer_is_software()) build_bvh_ahead();
-    maps = peel_layers(snow_scene, s.peel);
+    if (!renderer_probed) {  // the peel's context tells the renderer: plan again
+      machine.software = plan::current_renderer_is_software();
+      run = plan::plan_run(stats, machine, wanted, true);
+      for (const std::string& line : plan::describe(run)) log_debug(line);
+      if (run.bvh_ahead) build_bvh_ahead();
+    }
+    maps = peel_layers(snow_scene, s.peel, run.gl);
+    gl_after_peel = {run.gl.software, run.gl.started || context->made()};
   });
   log_info("maps: " + std::to_string(maps.grid.width) + " x " + std::to_string(maps.grid.height) +
            " texels of " + std::to_string(maps.grid.texel) + " m, " + std::to_string(maps.layers) +
@@ -495,7 +453,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
       }
     }
     snow = accumulate(snow_scene, maps, s.coverage, s.stabilize, s.accumulate, receives,
-                      bvh ? &*bvh : nullptr);
+                      bvh ? &*bvh : nullptr, gl_after_peel);
   });
   warn_if_unsettled(snow, s.stabilize);
   warn_if_sheltered(snow_scene, maps, snow.coverage);
@@ -566,7 +524,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
       : snow.coverage_method == CoverageMethod::CpuShadowMaps ? "shadow maps on the CPU"
                                                               : "shadow maps",
       snow.iterations, snow.stabilized_on_cpu ? "CPU" : "GPU",
-      gl::context_made() ? "" : "; OpenGL not started");
+      gl_used ? "" : "; OpenGL not started");
   log_info(summary);
 }
 
@@ -596,7 +554,8 @@ void register_snow(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--maps", o->maps_dir,
                   "Write height, coverage and depth maps (EXR, PNG, manifest.json) here");
   cmd->add_option("--preview", o->preview, "Write a before/after preview PNG (3/4 and top views)");
-  add_settings_options(*cmd, o->settings);
+  add_settings_options(*cmd, o->settings, global.help_all);
+  cmd->add_flag("--help-all", "Print this help with the developer options (backends, speed-ups)");
   cmd->callback([o, &global] { run_snow(*o, global); });
 }
 

@@ -1,5 +1,6 @@
 // snowmodel: physically plausible fallen snow for glTF scenes.
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <new>
 
@@ -26,6 +27,14 @@ int main(int argc, char** argv) {
   cli.require_subcommand(1);
 
   app::GlobalOptions global;
+  // --help-all is --help with the developer options (hidden from --help)
+  // listed: it is known before the options are registered.
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--help-all") == 0) {
+      global.help_all = true;
+      argv[i] = const_cast<char*>("--help");
+    }
+  }
   cli.add_flag("-q,--quiet", global.quiet, "Print errors only")->configurable(false);
   cli.add_flag("-v,--verbose", global.verbose, "Print debug messages");
   cli.add_option("--gl-backend", global.gl_backend,

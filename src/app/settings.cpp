@@ -56,6 +56,17 @@ bool parse_vec2(const std::string& text, glm::vec2& out) {
 
 }  // namespace
 
+plan::Settings plan_settings(const PipelineSettings& settings) {
+  plan::Settings out;
+  out.fall_depth = settings.accumulate.fall_depth;
+  out.texel = settings.peel.texel;
+  out.max_side = settings.peel.max_side;
+  out.peel_device = settings.peel.device;
+  out.coverage_method = settings.coverage.method;
+  out.stabilizer = settings.stabilize.device;
+  return out;
+}
+
 json settings_to_json(const PipelineSettings& settings) {
   json out = json::object();
   PipelineSettings copy = settings;
@@ -107,12 +118,26 @@ void load_settings_file(const std::string& path, PipelineSettings& settings) {
   }
 }
 
-void add_settings_options(CLI::App& cmd, PipelineSettings& settings) {
+bool is_developer_setting(const std::string& key) {
+  static const char* const kDeveloper[] = {
+      "maps.merge_distance", "maps.device",      "coverage.batch",    "coverage.bias",
+      "coverage.method",     "snow.min_move",    "snow.max_stride",   "snow.adaptive_stride",
+      "snow.device",         "snow.route_steep", "snow.deposit_piles", "snow.drain_edges",
+      "mesh.piece_triangles"};
+  for (const char* k : kDeveloper) {
+    if (key == k) return true;
+  }
+  return false;
+}
+
+void add_settings_options(CLI::App& cmd, PipelineSettings& settings, bool show_developer) {
   visit_settings(
       [&](const char* key, const char* flag, const char* help, auto& field) {
         using T = std::decay_t<decltype(field)>;
         const std::string group = split_key(key).first;
-        const std::string section = group == "maps"       ? "Maps"
+        const std::string section = is_developer_setting(key)
+                                        ? (show_developer ? "Developer (backends and speed-ups)" : "")
+                                    : group == "maps"     ? "Maps"
                                     : group == "coverage" ? "Coverage"
                                     : group == "snow"     ? "Snowfall and sliding"
                                     : group == "mesh"     ? "Meshes"

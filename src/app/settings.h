@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "mesh/polygonize.h"
+#include "plan/plan.h"
 #include "scene/load_gltf.h"
 #include "snow/accumulate.h"
 #include "snow/coverage.h"
@@ -47,8 +48,7 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Surfaces closer than this in metres count as one layer", s.peel.merge_distance);
   v("maps.device", "--peel-device",
     "Where the maps are peeled: gpu (depth passes), cpu (a vertical ray per texel) or auto (the "
-    "CPU where GL runs in software, such as llvmpipe, unless the triangles stack deep, and on a "
-    "GPU for small scenes before its driver has started)",
+    "planner's choice, as `snowmodel info` prints it)",
     s.peel.device);
   v("maps.memory_budget_gib", "--memory-budget",
     "Memory budget in GiB; larger runs stop before allocating", s.memory_budget_gib);
@@ -69,9 +69,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("coverage.bias", "--shadow-bias", "Shadow depth bias in metres (negative = automatic)",
     s.coverage.bias);
   v("coverage.method", "--coverage-method",
-    "How lines of fall are tested: shadow-maps, cpu-shadow-maps (the same drawn and counted on "
-    "the CPU cores), rays (each cast exactly on the GPU, no shadow maps), cpu-rays (the same on "
-    "the CPU cores) or auto (the cheapest for the scene and the renderer)",
+    "How lines of fall are tested: shadow-maps, cpu-shadow-maps (the same on the CPU cores), rays "
+    "(each cast exactly on the GPU), cpu-rays (the same on the CPU cores) or auto (the planner's "
+    "choice: the cheapest for the scene and the renderer); same results",
     s.coverage.method);
   // Accumulation and stabilizer.
   v("snow.depth", "--depth", "Fresh snow that falls, metres", s.accumulate.fall_depth);
@@ -98,8 +98,8 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Start with single steps, longer moves only where the snow creeps (true/false)",
     s.stabilize.adaptive_stride);
   v("snow.device", "--stabilizer",
-    "Where the stabilizer runs: auto (the CPU; the preview: the CPU on a software rasterizer "
-    "such as llvmpipe, else the GPU), gpu or cpu; same results",
+    "Where the stabilizer runs: gpu, cpu or auto (the planner's choice, as `snowmodel info` "
+    "prints it); same results",
     s.stabilize.device);
   v("snow.route_steep", "--route-steep",
     "Route snow off supports steeper than repose in one go (true/false)", s.stabilize.route_steep);
@@ -135,6 +135,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Name glob of objects that neither receive nor shelter (repeatable)", s.ignore);
 }
 
+/// What the planner needs of `settings` (plan::plan_run).
+plan::Settings plan_settings(const PipelineSettings& settings);
+
 /// The settings as JSON, grouped by the part before the dot of each key.
 nlohmann::json settings_to_json(const PipelineSettings& settings);
 
@@ -147,8 +150,14 @@ void settings_from_json(const nlohmann::json& json, PipelineSettings& settings);
 /// Reads a JSON settings file into `settings`; InputError/IOError naming it.
 void load_settings_file(const std::string& path, PipelineSettings& settings);
 
+/// Whether the setting `key` is a developer knob: a backend or speed-up
+/// that exists to compare or benchmark (the planner picks them), hidden
+/// from --help and listed by --help-all.
+bool is_developer_setting(const std::string& key);
+
 /// Adds one CLI option per setting to `cmd`, bound to `settings`; their
 /// values are assigned after --config is applied, so flags win over it.
-void add_settings_options(CLI::App& cmd, PipelineSettings& settings);
+/// Developer settings go to a hidden group unless `show_developer`.
+void add_settings_options(CLI::App& cmd, PipelineSettings& settings, bool show_developer);
 
 }  // namespace snow::app

@@ -22,7 +22,7 @@ bool threshold_set = false;
 // by tune_heap or the launcher, which set the marker), not the user's
 // (AddressSanitizer's allocator ignores it: no huge pages then).
 bool huge_pages_ours = false;
-// Whether fit_huge_pages turned them off.
+// Whether turn_off_huge_pages turned them off.
 bool huge_pages_fitted = false;
 
 constexpr bool kGlibcHasTunable = SNOW_GLIBC_HAS_HUGE_PAGE_TUNABLE;
@@ -138,11 +138,8 @@ bool free_pages_reported(const char* devices) {
   return reported;
 }
 
-bool fit_huge_pages(uint64_t input_bytes, size_t columns) {
-  const bool large = columns >= kLargeJobColumns || input_bytes >= kLargeJobInputBytes;
-  if (huge_pages_fitted || !huge_pages_ours || !large || !free_pages_reported()) {
-    return false;
-  }
+bool turn_off_huge_pages() {
+  if (huge_pages_fitted || !huge_pages_ours) return false;
   huge_pages_fitted = prctl(PR_SET_THP_DISABLE, 1, 0, 0, 0) == 0;
   return huge_pages_fitted;
 }

@@ -148,7 +148,8 @@ std::optional<bool> probe_software(const ContextOptions& options) {
 bool renderer_is_software() {
   if (t_on_demand && !t_on_demand->made()) return t_on_demand->software();
   const std::string renderer = gl_string(GL_RENDERER);
-  for (const char* name : {"llvmpipe", "softpipe", "swrast", "Software Rasterizer"}) {
+  for (const char* name :
+       {"llvmpipe", "softpipe", "swrast", "Software Rasterizer", "SwiftShader"}) {
     if (renderer.find(name) != std::string::npos) return true;
   }
   return false;

@@ -11,6 +11,7 @@
 #include "core/log.h"
 #include "gl/gl.h"
 #include "snow/accumulate.h"
+#include "plan/machine.h"
 #include "snow/stabilize_cpu.h"
 
 namespace snow::live {
@@ -93,7 +94,7 @@ void LiveSim::peel() {
 
 void LiveSim::make_stabilizer(const SnowMaps& maps, const std::vector<float>* depth) {
   const StabilizeSettings& s = settings_.stabilize;
-  if (snow::stabilizes_on_cpu(s, StabilizerUse::Live)) {
+  if (snow::stabilizes_on_cpu(s, StabilizerUse::Live, plan::current_gl())) {
     auto cpu = std::make_unique<CpuStabilizer>(maps, s);
     cpu->set_depth(depth ? *depth : std::vector<float>(maps.ground.size(), 0.0f));
     gl::Texture texture = gl::create_texture_2d_array(GL_R32F, maps.grid.width, maps.grid.height,

@@ -23,6 +23,7 @@
 #include "live/orbit.h"
 #include "mesh/export.h"
 #include "mesh/write_maps.h"
+#include "plan/rules.h"
 #include "render/image.h"
 #include "render/preview.h"
 
@@ -133,7 +134,7 @@ class Viewer {
   SnowViewSettings view_settings_;
   int stride_ = 1;          // texels between drawn snow grid vertices, in use
   int stride_setting_ = 0;  // the panel's (0 = automatic)
-  bool software_ = false;   // a software renderer (llvmpipe): automatic stride draws less
+  plan::GlFacts gl_;        // the window's renderer, for the planner's automatic stride
   uint64_t maps_version_ = 0, coverage_version_ = 0;
   bool paused_ = false, step_once_ = false, panel_ = true;
   bool want_screenshot_ = false, want_frame_ = false;
@@ -151,7 +152,7 @@ void Viewer::sync_view() {
   if (sim_->maps_version() != maps_version_) {
     stride_ = stride_setting_ > 0 ? stride_setting_
                                   : auto_stride(sim_->maps().grid.width, sim_->maps().grid.height,
-                                                software_ ? 256 : 768);
+                                                plan::preview_grid_side(gl_));
     snow_->set_maps(sim_->maps(), stride_);
     maps_version_ = sim_->maps_version();
     coverage_version_ = 0;
@@ -347,8 +348,7 @@ ViewerReport Viewer::run() {
   auto context = gl::create_context(context_options);
   const std::string description = context->description();
   log_info("OpenGL: " + description);
-  for (const char* name : {"llvmpipe", "softpipe", "swrast", "SwiftShader"})
-    software_ = software_ || description.find(name) != std::string::npos;
+  gl_ = plan::current_gl();
   GLFWwindow* window = static_cast<GLFWwindow*>(context->native_window());
   glfwSetWindowUserPointer(window, &input_);
   glfwSetScrollCallback(window, on_scroll);

@@ -70,7 +70,8 @@ void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
 
 SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSettings& coverage,
                       const StabilizeSettings& stabilize, const AccumulateSettings& settings,
-                      const std::vector<uint8_t>& receives, CoverageBvh* bvh) {
+                      const std::vector<uint8_t>& receives, CoverageBvh* bvh,
+                      std::optional<plan::GlFacts> gl) {
   if (!std::isfinite(settings.fall_depth) || settings.fall_depth < 0 ||
       settings.fall_depth > 1000) {
     throw InputError("snow depth must be between 0 and 1000 m, got " +
@@ -91,6 +92,7 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   } else {
     shadows.emplace(scene, &maps);
   }
+  if (gl) shadows->set_gl(*gl);
   result.coverage = shadows->compute(maps, coverage);
   result.coverage_method = shadows->timings().method;
   mask_coverage(maps, receives, result.coverage);
@@ -101,7 +103,7 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   if (!(settings.snow_on_snow_every > 0 && settings.steps > settings.snow_on_snow_every)) {
     shadows.reset();
   }
-  const bool on_cpu = result.stabilized_on_cpu = stabilizes_on_cpu(stabilize);
+  const bool on_cpu = result.stabilized_on_cpu = stabilizes_on_cpu(stabilize, StabilizerUse::Batch, gl);
   // The steps over either stabilizer (same passes, same results).
   auto run_steps = [&](auto& stabilizer) {
     const float per_step = settings.fall_depth / float(settings.steps);

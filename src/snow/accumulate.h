@@ -1,9 +1,10 @@
 #pragma once
 // Snowfall over time: each step adds fresh snow in proportion to the
-// coverage and stabilizes it (DESIGN.md, "snowfall" and "Stabilizer").
+// coverage and stabilizes it (docs/ARCHITECTURE.md, "Pipeline and data" and "Stabilizer").
 // With snow on snow, the lying snow is drawn into the shadow maps every few
 // steps, so drifts shade what lies behind them (Fearing 2000, section 4).
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "scene/scene.h"
@@ -48,9 +49,12 @@ void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
 /// still rests there). Reports progress. Needs a current GL context, or a
 /// gl::OnDemandContext that the passes make when they use GL. `bvh`, if
 /// given, is the coverage's BVH built ahead over `scene` (build_coverage_bvh;
-/// taken from). Throws InputError for bad settings, GLError for GL trouble.
+/// taken from). `gl`: what GL renders on and whether it has started, as the
+/// caller's plan knows it (CoverageRenderer::set_gl, stabilizes_on_cpu).
+/// Throws InputError for bad settings, GLError for GL trouble.
 SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSettings& coverage,
                       const StabilizeSettings& stabilize, const AccumulateSettings& settings,
-                      const std::vector<uint8_t>& receives = {}, CoverageBvh* bvh = nullptr);
+                      const std::vector<uint8_t>& receives = {}, CoverageBvh* bvh = nullptr,
+                      std::optional<plan::GlFacts> gl = std::nullopt);
 
 }  // namespace snow

@@ -16,6 +16,7 @@
 #include <limits>
 #include <new>
 #include <numeric>
+#include <optional>
 #include <string>
 
 #include <glm/gtc/packing.hpp>
@@ -42,55 +43,6 @@ constexpr float kNoSnowSurface = -3.0e38f;  // "no surface" in the snow-surface 
 constexpr int kLocalSize = 64;              // coverage.comp's local_size_x
 constexpr int kMaxShadowSide = 16384;       // texels, also capped by GL_MAX_TEXTURE_SIZE
 constexpr int kMaxBatch = 32;               // shadow maps per batch (a 32-bit direction mask)
-// Costs of choose_coverage_method, in triangles drawn into one shadow map.
-// On llvmpipe, 2-core EPYC, 2026-11-26: a drawn triangle 80 ns (ToyCar,
-// 109k triangles x 64 maps: 0.55 s); a shadow texel 2 ns (courtyard at
-// 1024: 64 maps of 1049 x 1050 in 0.13 s); a ray in the GPU's exact pass
-// 0.5-1.3 us (building-small-a 2.2M rays: 1.2 s; SheenChair 0.5M: 0.65 s),
-// on the CPU's 2 cores 95-240 ns (terrains of 10k and 100k triangles at 512
-// texels, 1.9M and 2.2M rays: 0.18 and 0.27 s; SheenChair 0.54M: 0.13 s).
-// Counting a receiver on the shadow maps (the classification, and the
-// exact casts of the uncertain pairs), per direction: on llvmpipe 9-28 ns
-// (100 ns on ToyCar, a quarter of whose receivers are uncertain), on the
-// CPU's 2 cores 1.0-1.9 times less (median 1.3: fewer uncertain pairs, cast
-// at CPU rays' cost). Coverage after the sky cull, llvmpipe / CPU, whole
-// runs in turns, 2026-11-26: building-garage and grass-trees-tall at 1024
-// (2.8M and 2.1M receivers) 1.6-2.1 / 1.5-1.6 s and 1.8-2.0 / 1.3-1.7 s,
-// the courtyard (1.4M) 1.0-1.1 / 0.8-1.0 s, SheenChair at 1024 (1.0M)
-// 2.0-2.2 / 1.3-1.4 s, building-small-a at 512 (0.76M) 0.63-0.65 /
-// 0.63-0.64 s, ToyCar at 1024 (0.36M) 2.7-3.5 / 1.6 s. And llvmpipe spends
-// about 0.9 ms per direction on its passes however small the maps
-// (road-straight-lightposts at 364 texels, 32k receivers: 0.14 s against
-// 0.06 s on the CPU). A triangle drawn into a CPU shadow map: 25 ns to set
-// up (SheenChair at 91 texels, 40k triangles on maps of 96 x 73: 0.08 s,
-// against 0.13 s for its 0.5M rays).
-// Measured again on a 2-core Xeon VM, 2026-11-27, after the CPU maps had
-// learnt to settle runs of receivers, to draw only the triangles near
-// them and to skip receivers under a solid (tools/RESULTS.md, "After
-// session 35"): a CPU map's texels cost what llvmpipe's do (grass, pavement
-// and road-corner at 0.05 m, maps of 1M texels: 0.14-0.23 s, not 0.26 s
-// for their texels alone), counting a receiver 1.6-2.2 times less than on
-// llvmpipe (median 1.8; 11 cases), and a CPU ray grows with the scene:
-// 0.3-0.7 units for Kenney tiles and the courtyard (20-956 triangles), 1.1
-// for SheenChair (40k), 2.0-2.4 for ToyCar and a terrain (100k).
-constexpr double kCostUnitSeconds = 80e-9;  // a drawn triangle on llvmpipe, 2 cores
-constexpr double kShadowTexelCost = 1.0 / 40.0;
-constexpr double kGpuRayCost = 16.0;
-constexpr double kCpuRayCost = 2.0;  // from 2^16 triangles up; see cpu_ray_cost
-constexpr double kGpuCountCost = 0.28;
-constexpr double kGpuPassCost = 11000.0;
-constexpr double kCpuCountCost = 0.155;  // kGpuCountCost / 1.8
-constexpr double kCpuTriangleCost = 0.3;
-// CPU shadow maps in flight at once take at most this much memory (a map each).
-constexpr double kCpuShadowBytes = 256.0 * 1024 * 1024;
-
-/// A CPU ray walks the BVH down its depth, log2 of the triangles:
-/// kCpuRayCost from 2^16 triangles up, proportionally less below (grass at
-/// 0.05 m, 30 triangles: 0.4 units measured, 0.6 estimated).
-double cpu_ray_cost(double triangles) {
-  return kCpuRayCost * std::clamp(std::log2(std::max(triangles, 2.0)) / 16.0, 0.0625, 1.0);
-}
-
 /// splitmix64 (Steele, Lea and Flood 2014): tiny, fast, same stream everywhere.
 class SplitMix64 {
  public:
@@ -477,55 +429,7 @@ class SnowBound {
 }  // namespace
 
 int shadow_batch(const CoverageSettings& settings, double shadow_texels) {
-  // Automatic: as many shadow maps as fit in 64 MiB, 8 at least. Where the
-  // maps are small, fewer batches save per-pass costs (coverage of ToyCar at
-  // 91 x 91 texels: 0.53-0.61 -> 0.50-0.55 s, SheenChair 0.31-0.37 ->
-  // 0.29-0.34 s; same result), and large maps keep the memory of 8.
-  constexpr double kAutoBytes = 64.0 * 1024 * 1024;
-  const double fit = kAutoBytes / (4.0 * std::max(shadow_texels, 1.0));  // DEPTH32F
-  const int batch =
-      settings.batch > 0 ? settings.batch : int(std::clamp(fit, 8.0, double(kMaxBatch)));
-  return std::max(1, std::min(batch, settings.directions));
-}
-
-CoverageMethod choose_coverage_method(const CoverageSettings& settings, const CoverageWork& w) {
-  if (settings.method == "shadow-maps") return CoverageMethod::ShadowMaps;
-  if (settings.method == "rays") return CoverageMethod::GpuRays;
-  if (settings.method == "cpu-rays") return CoverageMethod::CpuRays;
-  if (settings.method == "cpu-shadow-maps") return CoverageMethod::CpuShadowMaps;
-  // Per direction: shadow maps draw the triangles, clear and sample the
-  // maps' texels and count the receivers; rays cost per receiver (a snow
-  // surface adds a walk of each snowy layer's heightfield to a GPU ray).
-  // The CPU methods are not chosen with a snow surface: they would build a
-  // BVH of its triangles, two per snowy texel.
-  const double receivers = double(w.receivers);
-  const double texels = w.shadow_texels * kShadowTexelCost;
-  const double shadow =
-      w.triangles + texels + receivers * kGpuCountCost + (w.software ? kGpuPassCost : 0.0);
-  const double gpu_rays = receivers * kGpuRayCost * (w.snow ? 2.0 : 1.0);
-  const double gpu = std::min(shadow, gpu_rays);
-  if ((w.software || w.gl_cold) && !w.snow) {
-    // CPU shadow maps take a map per core; beyond kCpuShadowBytes fewer cores.
-    const unsigned threads = w.threads > 0 ? w.threads : default_threads();
-    const bool maps_fit = 4.0 * w.shadow_texels * threads <= kCpuShadowBytes;
-    const double cpu_shadow = (w.drawn >= 0.0 ? w.drawn : w.triangles) * kCpuTriangleCost + texels +
-                              receivers * kCpuCountCost;
-    const double cpu_rays = receivers * cpu_ray_cost(w.triangles);
-    const bool rays = cpu_rays <= cpu_shadow || !maps_fit;
-    if (w.software) {
-      if (rays && cpu_rays < gpu) return CoverageMethod::CpuRays;
-      if (maps_fit && cpu_shadow < gpu) return CoverageMethod::CpuShadowMaps;
-    } else {
-      // The costs are measured on 2 cores; a GPU's passes cost next to
-      // nothing beside its driver's start.
-      const double seconds =
-          (rays ? cpu_rays : cpu_shadow) * settings.directions * kCostUnitSeconds * 2.0 / threads;
-      if (seconds <= kCpuSecondsBeforeGl) {
-        return rays ? CoverageMethod::CpuRays : CoverageMethod::CpuShadowMaps;
-      }
-    }
-  }
-  return gpu_rays < shadow ? CoverageMethod::GpuRays : CoverageMethod::ShadowMaps;
+  return plan::choose_shadow_batch(settings.batch, settings.directions, shadow_texels, kMaxBatch);
 }
 
 glm::vec3 mean_fall_direction(const CoverageSettings& s) {
@@ -1219,15 +1123,9 @@ struct GpuSide {
   }
 };
 
-// The BVH for a scene of `triangles` whose coverage is computed on `maps`.
-// Its walks scale with the receivers, its build with the triangles: where
-// the triangles outnumber the receivers (the layer texels with a surface)
-// 16 to 1, the Morton order's build saves more than its longer walks cost.
-// ToyCar (109k triangles, 16 x 16 texels x 3 layers): build 0.075-0.083 ->
-// 0.013-0.015 s, coverage 0.01 s either way. Where the receivers are many,
-// the binned SAH's tree pays: building-small-a coverage 0.05 s against 0.06
-// s, SheenChair (40k triangles, 91 x 64 texels x 8 layers) level; the 1M
-// terrain at 2048 saves 0.2 s of build and loses 0.1-0.16 s of coverage.
+// The BVH for a scene of `triangles` whose coverage is computed on `maps`
+// (plan::coverage_bvh_morton: its walks scale with the receivers, its build
+// with the triangles).
 Bvh::Build bvh_build_for(size_t triangles, const SnowMaps* maps) {
   if (!maps) return Bvh::Build::Sah;
   const size_t receivers = size_t(std::count_if(maps->ground.begin(), maps->ground.end(),
@@ -1238,7 +1136,7 @@ Bvh::Build bvh_build_for(size_t triangles, const SnowMaps* maps) {
 }  // namespace
 
 Bvh::Build coverage_bvh_build(size_t triangles, size_t receivers) {
-  return triangles > 16 * receivers ? Bvh::Build::Morton : Bvh::Build::Sah;
+  return plan::coverage_bvh_morton(triangles, receivers) ? Bvh::Build::Morton : Bvh::Build::Sah;
 }
 
 CoverageBvh build_coverage_bvh(const Scene& scene, Bvh::Build build) {
@@ -1263,15 +1161,13 @@ struct CoverageRenderer::Impl {
   }
 
   // The GL side, made on first use. The shadow passes draw the triangles in
-  // leaf order through an index buffer. llvmpipe runs the vertex shader once
-  // per index, so in software the corners are welded first (a third of the
-  // shader runs); a GPU shades the 3 corners of each triangle faster than
-  // the CPU welds them (1M triangles: 0.6 s on one core).
+  // leaf order through an index buffer, their corners welded first where
+  // the plan says so (plan::weld_shadow_vertices).
   GpuSide& gpu() {
     if (!gpu_side) {
       std::vector<glm::vec3> welded;
       std::vector<uint32_t> indices;
-      const bool weld = gl::renderer_is_software();
+      const bool weld = plan::weld_shadow_vertices(gl_now);
       if (weld) {
         weld_vertices(bvh.corners(), welded, indices);
       } else {
@@ -1290,6 +1186,8 @@ struct CoverageRenderer::Impl {
   std::unique_ptr<GpuSide> gpu_side;
   Timings timings;
   glm::ivec2 shadow_size{0};  // of the last compute's shadow maps (0 without)
+  std::optional<plan::GlFacts> gl;  // as given by set_gl; else plan::current_gl() per compute
+  plan::GlFacts gl_now;              // the facts of the compute running
   bool profiling = false;
   bool run_bounds = true;  // CPU shadow maps: runs of receivers settled at once, and only
                            // the triangles they read drawn
@@ -1410,9 +1308,9 @@ struct CoverageRenderer::Impl {
     const glm::ivec2 size = frames.front().size;
     const double map_bytes = 4.0 * double(size.x) * double(size.y);
     const size_t workers =
-        size_t(std::clamp(kCpuShadowBytes / map_bytes, 1.0,
+        size_t(std::clamp(plan::kCpuShadowBytes / map_bytes, 1.0,
                           double(std::min<size_t>(default_threads(), dirs.size()))));
-    const bool hints = 2.0 * map_bytes * double(workers) <= kCpuShadowBytes;
+    const bool hints = 2.0 * map_bytes * double(workers) <= plan::kCpuShadowBytes;
     std::vector<std::vector<float>> height(workers);
     std::vector<std::vector<uint32_t>> drawn(workers);  // triangle per texel
     std::vector<std::vector<uint16_t>> lit(workers);
@@ -1550,6 +1448,7 @@ CoverageRenderer::~CoverageRenderer() = default;
 
 const CoverageRenderer::Timings& CoverageRenderer::timings() const { return impl_->timings; }
 void CoverageRenderer::set_profiling(bool on) { impl_->profiling = on; }
+void CoverageRenderer::set_gl(const plan::GlFacts& gl) { impl_->gl = gl; }
 void CoverageRenderer::set_run_bounds(bool on) { impl_->run_bounds = on; }
 glm::ivec2 CoverageRenderer::shadow_map_size() const { return impl_->shadow_size; }
 Bvh::Build CoverageRenderer::bvh_build() const { return impl_->build; }
@@ -1730,8 +1629,9 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
   work.triangles = double(im.triangles);
   for (const glm::ivec4& q : snowy_quads) work.triangles += 2.0 * (q.y - q.x) * (q.w - q.z);
   work.snow = !snowy_layers.empty();
-  work.software = gl::renderer_is_software();
-  work.gl_cold = !work.software && !gl::context_made();
+  im.gl_now = im.gl ? *im.gl : plan::current_gl();
+  work.software = im.gl_now.software;
+  work.gl_cold = !im.gl_now.software && !im.gl_now.started;
   CoverageMethod method = CoverageMethod::ShadowMaps;
 
   // Receivers open to the sky along every direction are lit without GPU work.

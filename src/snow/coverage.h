@@ -39,6 +39,8 @@
 
 #include <glm/glm.hpp>
 
+#include "plan/machine.h"
+#include "plan/rules.h"
 #include "scene/scene.h"
 #include "snow/bvh.h"
 #include "snow/maps.h"
@@ -64,60 +66,15 @@ struct CoverageSettings {
                                 // cheapest (choose_coverage_method)
 };
 
-/// How a coverage pass tests the lines of fall (settings.method).
-enum class CoverageMethod {
-  ShadowMaps,     // a depth map per direction; exact GPU ray casts only near silhouettes
-  GpuRays,        // every (receiver, direction) pair cast exactly by the GPU's compute pass
-  CpuRays,        // the same casts on all CPU cores (snow::Bvh::occluded)
-  CpuShadowMaps,  // the shadow maps drawn, classified and cast on the CPU cores (runs of
-                  // receivers settled at once; only triangles near them drawn)
-};
+using plan::CoverageMethod;
+using plan::CoverageWork;
 
-/// What a coverage pass costs each way, in triangles drawn into one shadow
-/// map (per direction). The inputs come from the pass: `triangles` drawn
-/// per shadow map (the scene, plus the snow surface's), the shadow map's
-/// texels, the receivers left after the sky cull, whether a snow surface
-/// is drawn, whether the GL renderer is a software rasterizer, and for a
-/// GPU, whether no GL context has been made in the process yet (its driver
-/// still to load).
-struct CoverageWork {
-  double triangles = 0;
-  double shadow_texels = 0;
-  size_t receivers = 0;
-  bool snow = false;
-  bool software = false;
-  bool gl_cold = false;
-  unsigned threads = 0;  // CPU cores the CPU methods run on (0: default_threads())
-  double drawn = -1.0;   // triangles a CPU shadow map draws, those far from the receivers
-                         // left out (< 0: every triangle)
-};
-
-/// On a GPU whose driver has not started (CoverageWork::gl_cold), "auto"
-/// takes a CPU method where it is estimated to take at most this long
-/// (seconds): the first GL context of a process took 0.09-0.17 s on an
-/// H100 (tools/RESULTS.md), so a small scene then needs no GL at all.
-constexpr double kCpuSecondsBeforeGl = 0.05;
-
-/// The method settings.method asks for: "shadow-maps", "cpu-shadow-maps",
-/// "rays" (GpuRays), "cpu-rays", or "auto": the cheapest by the costs
-/// measured on llvmpipe (tools/RESULTS.md). A shadow map draws every
-/// triangle however small the map (80 ns each on llvmpipe), a ray walks the
-/// BVH (75-100 ns on a CPU core in scenes of 10k-100k triangles, a third of
-/// that in a few hundred; 0.5-1.3 us in llvmpipe's compute pass). So
-/// small, dense models (a 109k-triangle toy car mapped at 16 x 16 texels: 84
-/// receivers left) and terrains (most receivers culled) cast rays, and
-/// scenes mapped finer than their triangles (a 440-triangle building at 110
-/// texels: 35k receivers) draw shadow maps. Where GL runs in software, both
-/// are done on the CPU cores when that costs less (llvmpipe's passes cost
-/// about 1 ms per direction however small the maps), or on a GPU whose
-/// driver has not started, when they take at most kCpuSecondsBeforeGl;
-/// never with a snow surface (its triangles would need a BVH of their
-/// own), nor where a shadow map per core would take more than 256 MiB. A
-/// CPU shadow map draws only the triangles near the receivers left
-/// (CoverageWork::drawn), so terrains whose receivers left lie by a few
-/// objects draw CPU shadow maps too (the 1M-triangle terrain at 2048: about
-/// 95k near its 126k receivers, coverage 1.51 -> 1.10 s on 2 cores).
-CoverageMethod choose_coverage_method(const CoverageSettings& settings, const CoverageWork& work);
+/// The method settings.method asks for, or for "auto" the cheapest for
+/// `work` (plan::choose_coverage_method, where the costs live).
+inline CoverageMethod choose_coverage_method(const CoverageSettings& settings,
+                                             const CoverageWork& work) {
+  return plan::choose_coverage_method(settings.method, settings.directions, work);
+}
 
 /// Shadow maps per batch for maps of `shadow_texels` texels: settings.batch,
 /// or automatic where it is 0; at most settings.directions.
@@ -232,6 +189,10 @@ class CoverageRenderer {
   };
   const Timings& timings() const;
   void set_profiling(bool on);
+  /// What GL renders on and whether it has started, as the caller's plan
+  /// knows it (the method choice and the shadow passes depend on it).
+  /// Without it, each compute asks plan::current_gl().
+  void set_gl(const plan::GlFacts& gl);
   /// CPU shadow maps: settle runs of neighbouring receivers at once where
   /// their texels bound them, and draw only the triangles near texels that
   /// receivers read (the default); or classify every receiver alone on

@@ -21,6 +21,7 @@
 #include "gl/gl.h"
 #include "gl/objects.h"
 #include "gl/program.h"
+#include "plan/rules.h"
 #include "shaders/bindings.h"
 #include "snow/gpu_scene.h"
 #include "snow/reference/peel_ref.h"
@@ -68,7 +69,8 @@ constexpr double kCoveragePerLayerTexel = 16 + 4 + 8 + 8;  // receivers, counts,
 constexpr double kPerTriangle = 140;        // GPU copies, BVH nodes and build scratch
 constexpr double kLaterPerLayerTexel = 48;  // stabilizer, depth, polygonize scratch
 
-SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSettings& settings);
+SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
+                      std::optional<plan::GlFacts> gl);
 
 void validate_peel_settings(const PeelSettings& s) {
   if (s.layers < 1 || s.layers > 64) {
@@ -158,6 +160,25 @@ MapGrid make_grid(const Bounds& bounds, const PeelSettings& settings) {
   return grid;
 }
 
+plan::SceneStats scene_stats(const Scene& scene, const PeelSettings& settings,
+                             const plan::Settings& wanted, uint64_t input_bytes) {
+  plan::SceneStats stats;
+  stats.input_bytes = input_bytes;
+  stats.triangles = scene.triangle_count();
+  PeelSettings asked = settings;
+  if (asked.texel <= 0.0f && asked.max_side == 0) asked.max_side = plan::kAutoMaxSide;
+  MapGrid grid = make_grid(scene.bounds, asked);
+  stats.asked_grid_side = std::max(grid.width, grid.height);
+  stats.asked_grid_texel = grid.texel;
+  const plan::MapPlan maps = plan::plan_maps(wanted, stats.asked_grid_side, grid.texel);
+  if (maps.max_side != asked.max_side) {
+    asked.max_side = maps.max_side;
+    grid = make_grid(scene.bounds, asked);
+  }
+  stats.grid_columns = grid.texels();
+  return stats;
+}
+
 uint64_t estimate_memory(const MapGrid& grid, int layers, const CoverageSettings& coverage,
                          float scene_height, uint64_t triangles) {
   const double texels = double(std::max(grid.width, 0)) * double(std::max(grid.height, 0));
@@ -194,24 +215,25 @@ void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings
                    " budget; use a coarser texel size, e.g. --texel " + format_metres(suggest));
 }
 
-bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& settings) {
+bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
+                  std::optional<plan::GlFacts> gl) {
   validate_peel_settings(settings);
-  if (settings.device != "auto") return settings.device == "cpu";
-  if (gl::renderer_is_software()) {
-    const size_t cap = std::max(kCpuPeelHits, 4 * grid.texels() * size_t(settings.layers));
-    return box_texels(scene, grid, cap) <= cap;
-  }
-  return !gl::context_made() &&
-         box_texels(scene, grid, kCpuPeelHitsBeforeGl) <= kCpuPeelHitsBeforeGl;
+  if (settings.device == "auto" && !gl) gl = plan::current_gl();
+  const plan::PeelChoice choice = plan::choose_peel(
+      settings.device, gl.value_or(plan::GlFacts{}), grid.texels() * size_t(settings.layers));
+  if (choice.always_cpu || choice.cpu_box_texels == 0) return choice.always_cpu;
+  return box_texels(scene, grid, choice.cpu_box_texels) <= choice.cpu_box_texels;
 }
 
-SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings) {
-  return peel_layers(scene, make_grid(scene.bounds, settings), settings);
+SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings,
+                     std::optional<plan::GlFacts> gl) {
+  return peel_layers(scene, make_grid(scene.bounds, settings), settings, gl);
 }
 
-SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings& settings) {
+SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
+                     std::optional<plan::GlFacts> gl) {
   try {
-    return peel_checked(scene, grid, settings);
+    return peel_checked(scene, grid, settings, gl);
   } catch (const std::bad_alloc&) {
     throw InputError("peel: out of memory for maps of " + std::to_string(grid.width) + " x " +
                      std::to_string(grid.height) + " texels x " + std::to_string(settings.layers) +
@@ -243,7 +265,8 @@ float exact_height(const Scene& scene, const MapGrid& grid, size_t t, uint32_t t
   return float(std::clamp(y, std::min({a.y, b.y, c.y}), std::max({a.y, b.y, c.y})));
 }
 
-SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSettings& settings) {
+SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
+                      std::optional<plan::GlFacts> gl) {
   validate_peel_settings(settings);
   if (grid.width < 1 || grid.height < 1 || !(grid.texel > 0.0f)) {
     throw InputError("peel: empty map grid");
@@ -251,7 +274,7 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
   const float scene_height = scene.bounds.empty() ? 0.0f : scene.bounds.size().y;
   check_memory_budget(grid, settings.layers, CoverageSettings{}, settings.memory_budget,
                       scene_height, scene.triangle_count());
-  if (peels_on_cpu(scene, grid, settings)) {
+  if (peels_on_cpu(scene, grid, settings, gl)) {
     log_debug("peel: a vertical ray per texel on the CPU");
     Progress progress("peel", 1);
     SnowMaps maps = reference::peel_layers(scene, grid, settings.layers, settings.merge_distance);

@@ -3,8 +3,10 @@
 // 2006, section 3; height spans after Onoue and Nishita 2004). The result is
 // the SnowMaps contract of snow/maps.h.
 #include <cstdint>
+#include <optional>
 #include <string>
 
+#include "plan/plan.h"
 #include "scene/scene.h"
 #include "snow/coverage.h"
 #include "snow/maps.h"
@@ -23,39 +25,15 @@ struct PeelSettings {
   uint64_t memory_budget = 4ull << 30;  // bytes; peel_layers throws InputError before
                                         // allocating when estimate_memory exceeds it
   // "gpu" (depth passes), "cpu" (a vertical ray per texel:
-  // snow::reference::peel_layers) or "auto": the CPU where GL runs in
-  // software, unless the triangles stack deep, and for small scenes before
-  // the GPU's driver has started (peels_on_cpu), else the GPU.
+  // snow::reference::peel_layers) or "auto" (plan::choose_peel).
   std::string device = "auto";
 };
 
-/// The CPU peel keeps every hit of a texel's ray before sorting (20 bytes
-/// each while it groups them); "auto" takes it only where the triangles' xz
-/// boxes, which hold every hit, hold at most this many texel centres or at
-/// most 4 per layer texel of the maps (80 bytes, less than the later stages
-/// take per layer texel: estimate_memory). A scene of many large stacked
-/// triangles keeps the GPU's passes, which hold one surface per texel at a
-/// time.
-constexpr size_t kCpuPeelHits = size_t(1) << 22;
-
-/// On a GPU, "auto" takes the CPU peel only before any GL context is made in
-/// the process, where the triangles' boxes hold at most this many texel
-/// centres: the first context loads the driver (0.09-0.17 s on an H100,
-/// tools/RESULTS.md), more than the CPU peel of such a scene takes on one
-/// core (the Kenney tiles at their automatic 110-120 texels: under 0.01 s),
-/// and a small scene then may need no GL at all.
-constexpr size_t kCpuPeelHitsBeforeGl = size_t(1) << 19;
-
-/// Whether peel_layers peels on the CPU: settings.device "cpu", or "auto"
-/// where GL runs in software and the triangles' boxes hold at most
-/// kCpuPeelHits texel centres or 4 per layer texel, or where it runs on a
-/// GPU, no context is made yet (gl::context_made) and they hold at most
-/// kCpuPeelHitsBeforeGl. In software the CPU peel is faster at every size
-/// measured: SheenChair at 91 x 64 texels 2 ms against 90 ms, a Kenney
-/// building at 512 texels 0.05 against 0.24 s, the courtyard at 1024
-/// 0.09-0.11 against 0.29-0.32 s, the 1M terrain at 2048 0.38 against 2.5 s
-/// (2-core EPYC, llvmpipe, 2026-11-26).
-bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& settings);
+/// Whether peel_layers peels on the CPU: plan::choose_peel for
+/// settings.device and `gl` (plan::current_gl() where not given), the
+/// texel centres in the triangles' xz boxes counted against its bound.
+bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
+                  std::optional<plan::GlFacts> gl = std::nullopt);
 
 /// The map grid over the scene's horizontal (x, z) bounds plus the margin,
 /// centred on them. With settings.texel > 0 the texel is that size; with 0
@@ -65,6 +43,13 @@ bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& s
 /// over 2^30 texels). Large but representable grids pass: the memory check is
 /// check_memory_budget's job.
 MapGrid make_grid(const Bounds& scene_bounds, const PeelSettings& settings);
+
+/// The planner's facts about `scene` (plan::SceneStats): its triangles, the
+/// grid at the side `settings` asks for (plan::kAutoMaxSide where texel and
+/// max_side are 0) and the texel columns of the grid at the side
+/// plan::plan_maps picks for `wanted`. Throws what make_grid throws.
+plan::SceneStats scene_stats(const Scene& scene, const PeelSettings& settings,
+                             const plan::Settings& wanted, uint64_t input_bytes);
 
 /// Bytes that the maps pipeline needs for `grid` with `layers` layers, CPU
 /// and GPU memory together (on a software rasterizer both are host memory):
@@ -104,10 +89,14 @@ void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings
 /// nor compute layers no column reaches; the layers a scene does not fill
 /// take no memory. Throws InputError (grid, budget, a side over GL_MAX_TEXTURE_SIZE)
 /// or GLError (GL_OUT_OF_MEMORY, shaders).
-SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings);
+/// `gl`: what GL renders on and whether it has started, as the caller's
+/// plan knows it (peels_on_cpu).
+SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings,
+                     std::optional<plan::GlFacts> gl = std::nullopt);
 
 /// Same on a given grid (settings.texel, max_side and margin are ignored).
-SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings& settings);
+SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
+                     std::optional<plan::GlFacts> gl = std::nullopt);
 
 /// Benchmark helper: renders the whole scene `passes` times from straight
 /// above into a depth-only target of width x height texels (no peeling test,

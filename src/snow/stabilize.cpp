@@ -1118,9 +1118,10 @@ const MapGrid& Stabilizer::grid() const { return impl_->grid; }
 int Stabilizer::layers() const { return impl_->layers; }
 const StabilizeSettings& Stabilizer::settings() const { return impl_->settings; }
 
-bool stabilizes_on_cpu(const StabilizeSettings& settings, StabilizerUse use) {
-  if (settings.device != "auto") return settings.device == "cpu";
-  return use == StabilizerUse::Batch || gl::renderer_is_software();
+bool stabilizes_on_cpu(const StabilizeSettings& settings, StabilizerUse use,
+                       std::optional<plan::GlFacts> gl) {
+  if (settings.device == "auto" && use == StabilizerUse::Live && !gl) gl = plan::current_gl();
+  return plan::stabilizer_on_cpu(settings.device, use, gl.value_or(plan::GlFacts{}));
 }
 
 StabilizeResult stabilize(const SnowMaps& maps, std::vector<float>& depth,

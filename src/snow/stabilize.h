@@ -57,12 +57,14 @@
 // unless settings.device asks for the GPU (stabilizes_on_cpu).
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
 
 #include "core/zeroed.h"
+#include "plan/rules.h"
 #include "snow/maps.h"
 
 namespace snow {
@@ -267,18 +269,14 @@ constexpr size_t kSumChunk = size_t(1) << 16;
 /// surface times texel^2, in double (parts of kSumChunk texels).
 double snow_volume(const SnowMaps& maps, const std::vector<float>& depth);
 
-/// Who runs the stabilizer: the batch job (passes to convergence, depth read
-/// once) or the live preview (a few passes a frame, depth drawn every frame).
-enum class StabilizerUse { Batch, Live };
+using plan::StabilizerUse;
 
-/// Where settings.device puts the passes: true for the CPU ("cpu"), false
-/// for the GPU ("gpu"). "auto" takes the CPU for the batch job everywhere:
-/// its passes beat the GPU's on an H100 with 16 cores too, and skip the
-/// textures' set-up (tools/RESULTS.md, "On a GPU"). The live preview takes
-/// the CPU where the GL renderer is software, else the GPU, whose depth
-/// texture is drawn without an upload per frame; it then needs a current GL
-/// context, or a gl::OnDemandContext.
-bool stabilizes_on_cpu(const StabilizeSettings& settings, StabilizerUse use = StabilizerUse::Batch);
+/// Where settings.device puts the passes: true for the CPU
+/// (plan::stabilizer_on_cpu; `gl`: plan::current_gl() where not given and
+/// needed). The GPU's passes need a current GL context, or a
+/// gl::OnDemandContext.
+bool stabilizes_on_cpu(const StabilizeSettings& settings, StabilizerUse use = StabilizerUse::Batch,
+                       std::optional<plan::GlFacts> gl = std::nullopt);
 
 /// Stabilizes `depth` (metres per layer texel, maps' layout; NaN, negative
 /// or depth on texels without a surface is treated as 0 and cleared) in

@@ -1,0 +1,158 @@
+#pragma once
+// The planner's rules: every automatic choice of the pipeline, with its
+// constants named and their units stated. Choices that depend only on the
+// scene and the machine are made up front by plan_run (plan/plan.h); those
+// that depend on what a stage finds (the coverage's receivers left after
+// its sky cull, the triangles' boxes over the peel's grid) are made by the
+// functions here, which the stages call with those figures. The constants
+// were fitted on the scenes and machines named in tools/RESULTS.md
+// ("Planner constants"); refit them there, not in the stages.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "plan/machine.h"
+
+namespace snow::plan {
+
+// --- Peel: the GPU's depth passes or a vertical ray per texel on the CPU ---
+
+/// The CPU peel keeps every hit of a texel's ray before sorting (20 bytes
+/// each while it groups them). Where GL renders in software, "auto" takes
+/// it where the triangles' xz boxes hold at most this many texel centres,
+/// or at most kCpuPeelHitsPerLayerTexel per layer texel of the maps (80
+/// bytes, less than the later stages take per layer texel). A scene of many
+/// large stacked triangles keeps the GPU's passes, which hold one surface
+/// per texel at a time.
+constexpr size_t kCpuPeelHits = size_t(1) << 22;  // texel centres in triangles' boxes
+constexpr size_t kCpuPeelHitsPerLayerTexel = 4;
+/// On a GPU whose driver has not started, "auto" takes the CPU peel where
+/// the boxes hold at most this many texel centres: the CPU peel of such a
+/// scene is cheaper than loading the driver, and a small scene then may
+/// need no GL at all.
+constexpr size_t kCpuPeelHitsBeforeGl = size_t(1) << 19;  // texel centres
+
+/// Where the peel runs: always on one device, or on the CPU where the
+/// triangles' boxes hold at most `cpu_box_texels` texel centres.
+struct PeelChoice {
+  bool always_cpu = false;
+  size_t cpu_box_texels = 0;  // 0 with always_cpu false: always the GPU
+};
+
+/// The peel's choice for `device` ("auto", "cpu" or "gpu") on maps of
+/// `layer_texels` texels x layers.
+PeelChoice choose_peel(const std::string& device, const GlFacts& gl, size_t layer_texels);
+
+// --- Coverage: shadow maps or rays, on the GPU or the CPU cores ---
+
+/// How a coverage pass tests the lines of fall (CoverageSettings::method).
+enum class CoverageMethod {
+  ShadowMaps,     // a depth map per direction; exact GPU ray casts only near silhouettes
+  GpuRays,        // every (receiver, direction) pair cast exactly by the GPU's compute pass
+  CpuRays,        // the same casts on all CPU cores (snow::Bvh::occluded)
+  CpuShadowMaps,  // the shadow maps drawn, classified and cast on the CPU cores (runs of
+                  // receivers settled at once; only triangles near them drawn)
+};
+
+/// What a coverage pass costs each way, in triangles drawn into one shadow
+/// map (per direction). The inputs come from the pass: `triangles` drawn
+/// per shadow map (the scene, plus the snow surface's), the shadow map's
+/// texels, the receivers left after the sky cull, whether a snow surface
+/// is drawn, whether the GL renderer is a software rasterizer, and for a
+/// GPU, whether no GL context has been made in the process yet (its driver
+/// still to load).
+struct CoverageWork {
+  double triangles = 0;
+  double shadow_texels = 0;
+  size_t receivers = 0;
+  bool snow = false;
+  bool software = false;
+  bool gl_cold = false;
+  unsigned threads = 0;  // CPU cores the CPU methods run on (0: default_threads())
+  double drawn = -1.0;   // triangles a CPU shadow map draws, those far from the receivers
+                         // left out (< 0: every triangle)
+};
+
+/// Costs of choose_coverage_method, in units of one triangle drawn into one
+/// shadow map by llvmpipe (kCostUnitSeconds on the 2-core machine they
+/// were measured on).
+constexpr double kCostUnitSeconds = 80e-9;    // s, a triangle drawn by llvmpipe, 2 cores
+constexpr double kShadowTexelCost = 1.0 / 40.0;  // clearing and sampling one shadow texel
+constexpr double kGpuRayCost = 16.0;          // one ray in the GPU's exact pass
+constexpr double kCpuRayCost = 2.0;           // one CPU ray from 2^16 triangles up (cpu_ray_cost)
+constexpr double kGpuCountCost = 0.28;        // classifying a receiver on a GPU shadow map
+constexpr double kGpuPassCost = 11000.0;      // llvmpipe's fixed cost per direction
+constexpr double kCpuCountCost = 0.155;       // classifying a receiver on a CPU shadow map
+constexpr double kCpuTriangleCost = 0.3;      // a triangle drawn into a CPU shadow map
+/// CPU shadow maps in flight at once take at most this much memory (a map each).
+constexpr double kCpuShadowBytes = 256.0 * 1024 * 1024;  // bytes
+/// On a GPU whose driver has not started (CoverageWork::gl_cold), "auto"
+/// takes a CPU method where it is estimated to take at most this long: a
+/// small scene then needs no GL at all.
+constexpr double kCpuSecondsBeforeGl = 0.05;  // s
+
+/// A CPU ray walks the BVH down its depth, log2 of the triangles:
+/// kCpuRayCost from 2^16 triangles up, proportionally less below.
+double cpu_ray_cost(double triangles);
+
+/// The method `method` asks for: "shadow-maps", "cpu-shadow-maps", "rays"
+/// (GpuRays), "cpu-rays", or "auto": the cheapest by the costs above for
+/// K = `directions`. A shadow map draws every triangle however small the
+/// map, a ray walks the BVH: so small, dense models and terrains (most
+/// receivers culled) cast rays, and scenes mapped finer than their
+/// triangles draw shadow maps. Where GL runs in software, both are done on
+/// the CPU cores when that costs less, or on a GPU whose driver has not
+/// started, when they take at most kCpuSecondsBeforeGl; never with a snow
+/// surface (its triangles would need a BVH of their own), nor where a
+/// shadow map per core would take more than kCpuShadowBytes. A CPU shadow
+/// map draws only the triangles near the receivers left
+/// (CoverageWork::drawn).
+CoverageMethod choose_coverage_method(const std::string& method, int directions,
+                                      const CoverageWork& work);
+
+/// Automatic shadow maps per GPU batch: as many as fit in
+/// kAutoShadowBatchBytes, at least kMinAutoShadowBatch (fewer batches save
+/// per-pass costs where the maps are small).
+constexpr double kAutoShadowBatchBytes = 64.0 * 1024 * 1024;  // bytes of DEPTH32F maps
+constexpr int kMinAutoShadowBatch = 8;                        // shadow maps
+
+/// Shadow maps per batch: `requested` (> 0), or automatic for 0; between 1
+/// and min(`max_batch`, `directions`).
+int choose_shadow_batch(int requested, int directions, double shadow_texels, int max_batch);
+
+/// The coverage's BVH: Morton order where the triangles outnumber the
+/// maps' layer texels with a surface more than kMortonTrianglesPerReceiver
+/// times (its rays are few, its build is cheap), else binned SAH splits.
+/// Either gives the same coverage.
+constexpr size_t kMortonTrianglesPerReceiver = 16;
+bool coverage_bvh_morton(size_t triangles, size_t receivers);
+
+/// GL's shadow passes draw through an index buffer. llvmpipe runs the
+/// vertex shader once per index, so in software the corners are welded
+/// first; a GPU shades the three corners of each triangle faster than the
+/// CPU welds them.
+bool weld_shadow_vertices(const GlFacts& gl);
+
+// --- Stabilizer ---
+
+/// Who runs the stabilizer: the batch job (passes to convergence, depth read
+/// once) or the live preview (a few passes a frame, depth drawn every frame).
+enum class StabilizerUse { Batch, Live };
+
+/// Where `device` ("auto", "cpu" or "gpu") puts the stabilizer's passes:
+/// true for the CPU. "auto" takes the CPU for the batch job everywhere (its
+/// passes beat the GPU's fragment passes, and skip the textures' set-up);
+/// the live preview takes the CPU where the GL renderer is software, else
+/// the GPU, whose depth texture is drawn without an upload per frame.
+bool stabilizer_on_cpu(const std::string& device, StabilizerUse use, const GlFacts& gl);
+
+// --- Live preview ---
+
+/// The live preview's automatic --snow-stride draws its snow grid with at
+/// most this many vertices per map side, fewer where the renderer is
+/// software (the grid's triangles are the frame's largest cost there).
+constexpr int kPreviewGridSide = 768;          // vertices
+constexpr int kPreviewGridSideSoftware = 256;  // vertices
+int preview_grid_side(const GlFacts& gl);
+
+}  // namespace snow::plan
