@@ -15,7 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "mesh/mesh.h"
+#include "core/trimesh.h"
 
 namespace snow {
 

@@ -6,7 +6,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "mesh/mesh.h"
+#include "core/trimesh.h"
 #include "scene/scene.h"
 #include "snow/maps.h"
 

@@ -10,7 +10,7 @@
 
 #include <glm/glm.hpp>
 
-#include "mesh/mesh.h"
+#include "core/trimesh.h"
 #include "render/camera.h"
 #include "render/image.h"
 #include "scene/scene.h"

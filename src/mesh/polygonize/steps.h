@@ -19,7 +19,7 @@
 #include <glm/glm.hpp>
 
 #include "core/parallel.h"
-#include "mesh/mesh.h"
+#include "core/trimesh.h"
 #include "snow/maps.h"
 
 namespace snow::poly {
