@@ -1,7 +1,7 @@
 #pragma once
-// Writing snow meshes for DCC tools and engines (DESIGN.md, "Outputs"):
-// snow-only GLB/glTF, OBJ (+ .mtl) and binary PLY, and the input scene plus
-// snow in one glTF. Every file is written under a temporary name and renamed
+// Writing snow meshes for DCC tools and engines: snow-only GLB/glTF, OBJ
+// (+ .mtl) and binary PLY, and the input scene plus snow in one glTF. Every
+// file is written under a temporary name and renamed
 // (snow::write_file_atomically), so a failure leaves no half-written file.
 #include <filesystem>
 #include <memory>
@@ -63,8 +63,8 @@ void write_combined_gltf(const std::filesystem::path& input_scene,
                          const std::vector<SnowPatch>& patches, const std::filesystem::path& out);
 
 /// The input scene of write_combined_gltf, read and parsed ahead of the
-/// write (the batch job reads it while the snow is computed: tinygltf takes
-/// 0.1-0.25 s on a 1M-triangle scene). Its warnings are logged by the write.
+/// write (the batch job reads it while the snow is computed, so parsing a
+/// large input overlaps the simulation). Its warnings are logged by the write.
 struct CombinedInput;
 struct CombinedInputDeleter {
   void operator()(CombinedInput* input) const;

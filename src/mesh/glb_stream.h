@@ -5,8 +5,7 @@
 // image files, its JSON is read and kept as written, the snow merged in,
 // and the buffer's and the images' bytes copied into the new BIN chunk by
 // the kernel (copy_file_range), never into memory. tinygltf's path reads
-// the buffer, copies it into its model and again to embed the images
-// (ToyCar's 5.8 MB: 1,500 fresh pages, 6 ms of a 42 ms run).
+// the buffer, copies it into its model and again to embed the images.
 #include <cstdint>
 #include <filesystem>
 #include <optional>

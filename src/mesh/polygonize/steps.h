@@ -3,15 +3,18 @@
 // the data each step hands to the next and the step functions. OpenMesh
 // stays out of this header (see omesh.h).
 //
-//   find_patches (patches.cpp)    snowy layer texels -> PatchTexels per patch
-//   build_field, smooth_field     a patch -> PatchField (thickness and ground
-//     (fields.cpp)                on texel centres)
-//   triangulate_top,              PatchField -> TopMesh (top surface, outline,
-//     smooth_outline (top.cpp)    own bottom triangles)
-//   build_decimated_solid         TopMesh -> Solid (closed and decimated),
-//     (solid.cpp), build_decimated_in_pieces (pieces.cpp)
-//   to_trimesh (solid.cpp)        Solid -> TriMesh
-//   polygonize (polygonize.cpp)   the driver: patches in parallel, naming
+//   patches.cpp     find_patches: snowy layer texels into PatchTexels, one
+//                   per patch
+//   fields.cpp      build_field, smooth_field: a patch's PatchField
+//                   (thickness and ground on texel centres)
+//   top.cpp         triangulate_top, smooth_outline: the TopMesh (top
+//                   surface, outline, the bottom's own triangles)
+//   solid.cpp       build_decimated_solid: the closed, decimated Solid;
+//                   to_trimesh: the Solid as a TriMesh
+//   pieces.cpp      build_decimated_in_pieces: the same for a large top, in
+//                   pieces on all cores
+//   decimate.cpp    OpenMesh's edge-collapse decimation (omesh.h)
+//   polygonize.cpp  polygonize(): the driver, patches meshed in parallel
 #include <cstddef>
 #include <cstdint>
 #include <vector>
