@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "mesh/mesh.h"
+#include "core/trimesh.h"
 #include "mesh/polygonize.h"
 
 namespace snow {

@@ -5,8 +5,7 @@
 // image files, its JSON is read and kept as written, the snow merged in,
 // and the buffer's and the images' bytes copied into the new BIN chunk by
 // the kernel (copy_file_range), never into memory. tinygltf's path reads
-// the buffer, copies it into its model and again to embed the images, each
-// copy in fresh pages.
+// the buffer, copies it into its model and again to embed the images.
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -15,7 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "mesh/mesh.h"
+#include "core/trimesh.h"
 
 namespace snow {
 

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "mesh/mesh.h"
+#include "core/trimesh.h"
 
 namespace tinygltf {
 class Model;

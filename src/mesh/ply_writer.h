@@ -3,7 +3,7 @@
 #include <filesystem>
 #include <vector>
 
-#include "mesh/mesh.h"
+#include "core/trimesh.h"
 
 namespace snow {
 

@@ -1,11 +1,12 @@
 #pragma once
 // Polygonize: fallen snow (SnowMaps + per-layer-texel depth) as closed,
-// UV-mapped, decimated triangle meshes, one per connected snow patch
-// (DESIGN.md, "Polygonize").
+// UV-mapped, decimated triangle meshes, one per connected snow patch. The
+// steps (patches, fields, top triangulation, solids, decimation) live in
+// src/mesh/polygonize/, their overview in polygonize/polygonize.cpp.
 #include <cstddef>
 #include <vector>
 
-#include "mesh/mesh.h"
+#include "core/trimesh.h"
 #include "scene/scene.h"
 #include "snow/maps.h"
 
@@ -42,11 +43,8 @@ struct PolygonizeSettings {
   /// decimation is decimated in pieces of about this many, side by side
   /// along x, on all cores; the seams between pieces keep their full-grid
   /// vertices. 0: never split. Same patch, same pieces on any machine.
-  /// 25k: the 1M-triangle terrain's ground at 2048 texels (182k triangles)
-  /// goes in 8 pieces, enough for a many-core machine; decimating pieces of
-  /// 25k rather than 100k also halved the time on 2 cores, for 1.9 % more
-  /// triangles out (10k: 5 %, little faster). 12.5k: 14 pieces, 1.7 % more
-  /// triangles, as fast on 2 cores (--piece-triangles).
+  /// Smaller pieces decimate faster and spread over more cores, for a few
+  /// per cent more triangles out (--piece-triangles).
   size_t piece_triangles = 25000;
 };
 
@@ -83,9 +81,8 @@ struct SnowPatch {
 /// deterministic order (by their first texel in layer, row, column order).
 /// Patches under `min_patch_area` are dropped (logged at debug level).
 /// Cost: linear in the patches' bounding boxes plus the decimation of what
-/// the adaptive triangulation leaves (a 2048^2-texel patch of rolling snow:
-/// about 15 s and 300 MB on one core). Reports progress; throws InputError
-/// on inconsistent maps.
+/// the adaptive triangulation leaves, which dominates on large patches of
+/// uneven snow. Reports progress; throws InputError on inconsistent maps.
 std::vector<SnowPatch> polygonize(const SnowMaps& maps, const std::vector<float>& depth,
                                   const Scene& scene, PolygonizeSettings settings);
 

@@ -10,7 +10,7 @@
 
 #include <glm/glm.hpp>
 
-#include "mesh/mesh.h"
+#include "core/trimesh.h"
 #include "render/camera.h"
 #include "render/image.h"
 #include "scene/scene.h"
@@ -29,7 +29,8 @@ struct PreviewSettings {
                        0.90f};  // sRGB colour (0..1) where nothing is drawn; darker than lit snow
   // MSAA samples per pixel, clamped to GL_MAX_SAMPLES; 1 = off; 0 = auto: 4,
   // but 1 on a software renderer (llvmpipe) for more than
-  // kSoftwareMsaaTriangleLimit triangles, where 4x MSAA costs about 4x time.
+  // kSoftwareMsaaTriangleLimit triangles, where each sample costs as much
+  // as a pixel.
   int samples = 0;
   float fov = 35.0f;        // vertical field of view of ThreeQuarter, degrees
   float azimuth = 45.0f;    // ThreeQuarter camera: degrees from south (+Z) towards east (+X)

@@ -17,7 +17,7 @@
 
 #include <glm/glm.hpp>
 
-#include "mesh/mesh.h"
+#include "core/trimesh.h"
 #include "scene/scene.h"
 
 namespace snow {

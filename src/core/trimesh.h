@@ -1,6 +1,8 @@
 #pragma once
-// Plain indexed triangle mesh handed between polygonize, exporters and the
-// asset generator. World space, metres, +Y up, counter-clockwise front faces.
+// Plain indexed triangle mesh handed between the scene builder, polygonize,
+// the exporters, the preview renderer and the asset generator. World space,
+// metres, +Y up, counter-clockwise front faces. It depends on glm only, so
+// every library can use it.
 #include <cstdint>
 #include <string>
 #include <vector>

@@ -1,0 +1,160 @@
+// Per-patch fields on texel centres: the snow thickness s and the ground
+// height g over the patch's window, with the ground extrapolated one sample
+// beyond the patch so the outline (where s falls to min_thickness) can be
+// interpolated, and the mass-conserving smoothing of the snow surface g + s.
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "core/parallel.h"
+#include "mesh/polygonize/steps.h"
+
+namespace snow::poly {
+
+PatchField build_field(const SnowMaps& maps, const LayerArray<float>& depth,
+                       const PatchTexels& patch) {
+  PatchField f;
+  // Each step below writes each sample once and reads only what the steps
+  // before wrote, so it runs on all cores in chunks with the serial result.
+  auto each_texel = [&](unsigned threads, const auto& fn) {
+    parallel_for_ranges(
+        patch.texels.size(), kFieldChunk,
+        [&](size_t begin, size_t end) {
+          TexelRows rows(maps);
+          for (size_t t = begin; t < end; ++t) fn(patch.texels[t], rows(patch.texels[t]), t);
+        },
+        threads);
+  };
+  // The bounding box of each chunk of texels, then of all.
+  struct Box {
+    int i0, j0, i1, j1;
+  };
+  std::vector<Box> boxes((patch.texels.size() + kFieldChunk - 1) / kFieldChunk,
+                         Box{maps.grid.width, maps.grid.height, -1, -1});
+  each_texel(threads_for(patch.texels.size()), [&](size_t, const TexelCoord& c, size_t t) {
+    Box& b = boxes[t / kFieldChunk];
+    b = {std::min(b.i0, c.i), std::min(b.j0, c.j), std::max(b.i1, c.i), std::max(b.j1, c.j)};
+  });
+  Box box{maps.grid.width, maps.grid.height, -1, -1};
+  for (const Box& b : boxes) {
+    box = {std::min(box.i0, b.i0), std::min(box.j0, b.j0), std::max(box.i1, b.i1),
+           std::max(box.j1, b.j1)};
+  }
+  f.i0 = box.i0 - 1;
+  f.j0 = box.j0 - 1;
+  f.w = box.i1 - f.i0 + 2;
+  f.h = box.j1 - f.j0 + 2;
+  const size_t count = size_t(f.w) * size_t(f.h);
+  f.member.resize(count);
+  f.s.resize(count);
+  f.g.resize(count);
+  f.gx.resize(count);
+  f.gz.resize(count);
+  const unsigned threads = threads_for(count);
+  parallel_for(
+      size_t(f.h),
+      [&](size_t row) {
+        const size_t a = row * size_t(f.w), b = a + size_t(f.w);
+        std::fill(f.member.begin() + a, f.member.begin() + b, uint8_t(0));
+        std::fill(f.s.begin() + a, f.s.begin() + b, 0.0f);
+        std::fill(f.g.begin() + a, f.g.begin() + b, kNoSurface);
+        std::fill(f.gx.begin() + a, f.gx.begin() + b, 0.0f);
+        std::fill(f.gz.begin() + a, f.gz.begin() + b, 0.0f);
+      },
+      threads);
+  each_texel(threads, [&](size_t k, const TexelCoord& c, size_t) {
+    const size_t a = f.at(c.i - f.i0, c.j - f.j0);
+    f.member[a] = 1;
+    f.s[a] = depth[k];
+    f.g[a] = maps.ground[k];
+  });
+  // Ground slope of members: from the surface normal where it is not too
+  // steep, else from differences with member neighbours.
+  const float texel = maps.grid.texel;
+  const float kMaxSlope = 4.0f;
+  each_texel(threads, [&](size_t k, const TexelCoord& c, size_t) {
+    const int wi = c.i - f.i0, wj = c.j - f.j0;
+    const size_t a = f.at(wi, wj);
+    const glm::vec3 n = maps.normal[k];
+    float sx = 0.0f, sz = 0.0f;
+    if (std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z) &&
+        std::abs(n.y) > 0.25f * glm::length(n)) {
+      sx = -n.x / n.y;
+      sz = -n.z / n.y;
+    } else {
+      auto diff = [&](int di, int dj) {
+        const size_t p = f.at(wi + di, wj + dj);
+        const size_t m = f.at(wi - di, wj - dj);
+        if (f.member[p] && f.member[m]) return (f.g[p] - f.g[m]) / (2.0f * texel);
+        if (f.member[p]) return (f.g[p] - f.g[a]) / texel;
+        if (f.member[m]) return (f.g[a] - f.g[m]) / texel;
+        return 0.0f;
+      };
+      sx = diff(1, 0);
+      sz = diff(0, 1);
+    }
+    f.gx[a] = std::clamp(sx, -kMaxSlope, kMaxSlope);
+    f.gz[a] = std::clamp(sz, -kMaxSlope, kMaxSlope);
+  });
+  // Ground of non-member samples next to members: the members' ground planes
+  // extrapolated to the sample, averaged.
+  each_sample(f, threads, [&](int wi, int wj, size_t a) {
+    if (f.member[a]) return;
+    double sum = 0.0;
+    int n = 0;
+    for (int dj = -1; dj <= 1; ++dj) {
+      for (int di = -1; di <= 1; ++di) {
+        const int ni = wi + di, nj = wj + dj;
+        if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) continue;
+        const size_t b = f.at(ni, nj);
+        if (!f.member[b]) continue;
+        sum += f.g[b] - (f.gx[b] * float(di) + f.gz[b] * float(dj)) * texel;
+        ++n;
+      }
+    }
+    if (n > 0) f.g[a] = float(sum / n);
+  });
+  return f;
+}
+
+// Each sample gathers its four fluxes, on all cores, in the order a serial
+// sweep over the rows would add them: from the member above, from the one
+// to the left, then its own to the right and down.
+void smooth_field(PatchField& f, int iterations, float min_thickness) {
+  const float kRate = 0.125f;
+  // The flux from member a to member b.
+  auto flux = [&](size_t a, size_t b) {
+    const float flow = kRate * ((f.g[a] + f.s[a]) - (f.g[b] + f.s[b]));  // a -> b
+    return std::clamp(flow, -0.25f * std::max(f.s[b] - min_thickness, 0.0f),
+                      0.25f * std::max(f.s[a] - min_thickness, 0.0f));
+  };
+  // The pairs a serial sweep visits: a sample with a right and a lower
+  // neighbour in the window sends to both, if both are members.
+  auto sends = [&](int i, int j) { return i < f.w - 1 && j < f.h - 1; };
+  LayerArray<float> next(f.s.size());  // each sample written in each iteration
+  for (int it = 0; it < iterations; ++it) {
+    each_sample(f, threads_for(f.s.size()), [&](int wi, int wj, size_t a) {
+      float delta = 0.0f;
+      if (f.member[a]) {
+        if (wj > 0 && sends(wi, wj - 1) && f.member[f.at(wi, wj - 1)]) {
+          delta += flux(f.at(wi, wj - 1), a);
+        }
+        if (wi > 0 && sends(wi - 1, wj) && f.member[f.at(wi - 1, wj)]) {
+          delta += flux(f.at(wi - 1, wj), a);
+        }
+        if (sends(wi, wj)) {
+          if (f.member[f.at(wi + 1, wj)]) delta -= flux(a, f.at(wi + 1, wj));
+          if (f.member[f.at(wi, wj + 1)]) delta -= flux(a, f.at(wi, wj + 1));
+        }
+      }
+      next[a] = f.s[a] + delta;
+    });
+    f.s.swap(next);
+  }
+}
+
+}  // namespace snow::poly
