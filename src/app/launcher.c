@@ -4,10 +4,9 @@
  * The core would otherwise re-execute itself to get the tunable
  * (snow::tune_heap, core/heap.h), since glibc reads tunables only at
  * program start. That start loads and relocates the core's libraries
- * (libstdc++, OpenMesh, tinygltf, GLFW and X11's), 10 ms of its 13.7 ms
- * here; this program links libc alone and starts in about 3 ms
- * (snowmodel --version 27 -> 17 ms, ToyCar 0.081 -> 0.066-0.069 s;
- * tools/RESULTS.md, after session 25). It applies the core's rules
+ * (libstdc++, OpenMesh, tinygltf, GLFW and X11's), most of its start-up
+ * time; this program links libc alone and starts in a fraction of it
+ * (tools/RESULTS.md, "Memory and page faults"). It applies the core's rules
  * (core/heap_env.h: a value the user set is kept, nothing is added where
  * glibc ignores tunables or after a re-execution) and sets the marker, so
  * that the core does not re-execute. The arguments go through unchanged. */

@@ -81,7 +81,7 @@ std::optional<bool> probe_software(const ContextOptions& options = {});
 
 /// A context made when a pass first needs GL (require_context), for runs
 /// whose passes may all go to the CPU (small maps where GL renders in
-/// software): those never load the driver (llvmpipe: 0.09 s). Installed on
+/// software): those never load the driver. Installed on
 /// the constructing thread, one at a time; `make` creates the context (and
 /// makes it current), `software` answers renderer_is_software() until then.
 /// The context, if made, is destroyed with this object.

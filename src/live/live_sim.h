@@ -3,9 +3,8 @@
 // CoverageRenderer, Stabilizer or CpuStabilizer) with their state kept
 // between frames. Each frame adds fresh snow in proportion to the coverage
 // and runs a few stabilizer passes, so snow piles up, slides off roofs and
-// drops to the ground while the viewer draws it (DESIGN.md, "live
-// accumulation preview"; the physics is the batch job's, Tokoi 2006 and
-// Fearing 2000).
+// drops to the ground while the viewer draws it (the physics is the batch
+// job's: docs/ARCHITECTURE.md; Tokoi 2006 and Fearing 2000).
 #include <cstdint>
 #include <memory>
 #include <vector>

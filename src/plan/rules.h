@@ -6,7 +6,7 @@
 // its sky cull, the triangles' boxes over the peel's grid) are made by the
 // functions here, which the stages call with those figures. The constants
 // were fitted on the scenes and machines named in tools/RESULTS.md
-// ("Planner constants"); refit them there, not in the stages.
+// ("Constants of the automatic choices"); refit them there, not in the stages.
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -74,9 +74,10 @@ struct CoverageWork {
 };
 
 /// Costs of choose_coverage_method, in units of one triangle drawn into one
-/// shadow map by llvmpipe (kCostUnitSeconds on the 2-core machine they
-/// were measured on).
-constexpr double kCostUnitSeconds = 80e-9;    // s, a triangle drawn by llvmpipe, 2 cores
+/// shadow map by a software rasterizer; kCostUnitSeconds is that unit on
+/// the machine the costs were fitted on (tools/RESULTS.md, "Constants of
+/// the automatic choices").
+constexpr double kCostUnitSeconds = 80e-9;    // s, the cost unit
 constexpr double kShadowTexelCost = 1.0 / 40.0;  // clearing and sampling one shadow texel
 constexpr double kGpuRayCost = 16.0;          // one ray in the GPU's exact pass
 constexpr double kCpuRayCost = 2.0;           // one CPU ray from 2^16 triangles up (cpu_ray_cost)

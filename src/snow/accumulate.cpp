@@ -1,5 +1,6 @@
 // Time-stepped accumulation: coverage (Tokoi 2006, section 4) times fresh
-// snow per step, stabilized after each step (DESIGN.md, "Stabilizer").
+// snow per step, stabilized after each step (docs/ARCHITECTURE.md,
+// "Stabilizer").
 #include "snow/accumulate.h"
 
 #include <algorithm>
