@@ -116,6 +116,9 @@ class Viewer {
   void sync_view();
   void handle_input(GLFWwindow* window, int fb_height);
   void draw_panel(double frame_ms);
+  // Draws the scene, the snow and the panel into the window's back buffer,
+  // and writes the screenshots due (`last`: the run's last frame).
+  void draw_frame(int fb_w, int fb_h, bool last, double frame_ms);
   void apply_pending();
   void set_status(const std::string& message) {
     status_ = message;
@@ -338,6 +341,46 @@ void Viewer::draw_panel(double frame_ms) {
   ImGui::End();
 }
 
+void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
+  // Draw scene and snow.
+  const Bounds view_bounds = with_snow(scene_.bounds, sim_->settings().total_depth);
+  const render::PreviewCamera camera = orbit_.camera(view_bounds, aspect_);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glViewport(0, 0, fb_w, fb_h);
+  glClearColor(shading_.background.x, shading_.background.y, shading_.background.z, 1.0f);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  auto t = Clock::now();
+  scene_renderer_->draw(camera, shading_);
+  glFinish();
+  scene_ms_ = ms_since(t);
+  t = Clock::now();
+  snow_->draw(camera, shading_, sim_->depth_texture(), view_settings_);
+  const float time = float(sim_->frame()) * sim_->settings().frame_time;
+  snow_->draw_flakes(camera, view_bounds, time, sim_->settings().coverage.fall_speed,
+                     sim_->settings().coverage.wind, view_settings_);
+  glFinish();
+  snow_ms_ = ms_since(t);
+
+  const bool shot_at_exit = last && !options_.screenshot.empty();
+  if (want_screenshot_ || (shot_at_exit && !options_.screenshot_panel)) {
+    want_screenshot_ = false;
+    try {
+      render::write_png(read_back_buffer(fb_w, fb_h), screenshot_path_);
+      set_status(std::string("wrote ") + screenshot_path_);
+    } catch (const Error& e) {
+      if (last) throw;
+      set_status(std::string("screenshot failed: ") + e.what());
+    }
+  }
+
+  if (panel_) draw_panel(frame_ms);
+  ImGui::Render();
+  if (panel_) ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+  if (shot_at_exit && options_.screenshot_panel) {
+    render::write_png(read_back_buffer(fb_w, fb_h), screenshot_path_);
+  }
+}
+
 ViewerReport Viewer::run() {
   gl::ContextOptions context_options;
   context_options.backend = gl::Backend::Glfw;
@@ -430,44 +473,8 @@ ViewerReport Viewer::run() {
       }
       sync_view();
 
-      // Draw scene and snow.
-      const Bounds view_bounds = with_snow(scene_.bounds, sim_->settings().total_depth);
-      const render::PreviewCamera camera = orbit_.camera(view_bounds, aspect_);
-      glBindFramebuffer(GL_FRAMEBUFFER, 0);
-      glViewport(0, 0, fb_w, fb_h);
-      glClearColor(shading_.background.x, shading_.background.y, shading_.background.z, 1.0f);
-      glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-      auto t = Clock::now();
-      scene_renderer_->draw(camera, shading_);
-      glFinish();
-      scene_ms_ = ms_since(t);
-      t = Clock::now();
-      snow_->draw(camera, shading_, sim_->depth_texture(), view_settings_);
-      const float time = float(sim_->frame()) * sim_->settings().frame_time;
-      snow_->draw_flakes(camera, view_bounds, time, sim_->settings().coverage.fall_speed,
-                         sim_->settings().coverage.wind, view_settings_);
-      glFinish();
-      snow_ms_ = ms_since(t);
-
       const bool last = options_.frames > 0 && frames + 1 >= options_.frames;
-      const bool shot_at_exit = last && !options_.screenshot.empty();
-      if (want_screenshot_ || (shot_at_exit && !options_.screenshot_panel)) {
-        want_screenshot_ = false;
-        try {
-          render::write_png(read_back_buffer(fb_w, fb_h), screenshot_path_);
-          set_status(std::string("wrote ") + screenshot_path_);
-        } catch (const Error& e) {
-          if (last) throw;
-          set_status(std::string("screenshot failed: ") + e.what());
-        }
-      }
-
-      if (panel_) draw_panel(frame_ms);
-      ImGui::Render();
-      if (panel_) ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
-      if (shot_at_exit && options_.screenshot_panel) {
-        render::write_png(read_back_buffer(fb_w, fb_h), screenshot_path_);
-      }
+      draw_frame(fb_w, fb_h, last, frame_ms);
       glfwSwapBuffers(window);
 
       ++frames;

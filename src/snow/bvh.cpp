@@ -218,31 +218,45 @@ void Bvh::build_morton(uint32_t first, uint32_t count, const std::vector<uint32_
   node.count = 0;
 }
 
-void Bvh::build(uint32_t first, uint32_t count, Prim* prims, Prim* scratch, std::vector<Node>& out,
-                int parallel_levels) {
-  // Depth-first layout: an inner node's left child follows it directly.
-  const size_t index = out.size();
-  out.emplace_back();
-  const bool large = count >= kLargeNode;
-  // fn(r, begin, end) over the node's triangles [begin, end): for a large
-  // node on all cores, once per range r of kLoopChunk (the caller merges the
-  // ranges' results in range order); else once, r = 0.
-  const size_t ranges = large ? (size_t(count) + kLoopChunk - 1) / kLoopChunk : 1;
-  const auto each_range = [&](auto&& fn) {
+namespace {
+
+// The loops of one node over prims [first, first + count): a large node's
+// (kLargeNode triangles or more) on all cores, fn(r, begin, end) once per
+// range r of kLoopChunk, whose results the caller merges in range order; a
+// small node's once, as range 0.
+struct NodeRanges {
+  NodeRanges(uint32_t first, uint32_t count)
+      : first(first),
+        count(count),
+        large(count >= kLargeNode),
+        ranges(large ? (size_t(count) + kLoopChunk - 1) / kLoopChunk : 1) {}
+
+  template <class Fn>
+  void each(Fn&& fn) const {
     if (!large) return fn(size_t(0), size_t(first), size_t(first) + count);
     parallel_for(ranges, [&](size_t r) {
       fn(r, first + r * kLoopChunk, std::min(first + (r + 1) * kLoopChunk, size_t(first) + count));
     });
-  };
-  struct Box {
-    glm::vec3 lo{std::numeric_limits<float>::max()}, hi{-std::numeric_limits<float>::max()};
-    glm::vec3 clo{std::numeric_limits<float>::max()}, chi{-std::numeric_limits<float>::max()};
-  };
-  Box one_box;  // a small node's (most nodes: no allocation)
-  std::vector<Box> range_boxes(large ? ranges : 0);
-  Box* boxes = large ? range_boxes.data() : &one_box;
-  each_range([&](size_t r, size_t begin, size_t end) {
-    Box b;
+  }
+
+  uint32_t first, count;
+  bool large;
+  size_t ranges;
+};
+
+// A node's box (lo, hi) and its centroids' box (clo, chi).
+struct NodeBox {
+  glm::vec3 lo{std::numeric_limits<float>::max()}, hi{-std::numeric_limits<float>::max()};
+  glm::vec3 clo{std::numeric_limits<float>::max()}, chi{-std::numeric_limits<float>::max()};
+};
+
+template <class Prim>
+NodeBox node_box(const NodeRanges& node, const Prim* prims) {
+  NodeBox one_box;  // a small node's (most nodes: no allocation)
+  std::vector<NodeBox> range_boxes(node.large ? node.ranges : 0);
+  NodeBox* boxes = node.large ? range_boxes.data() : &one_box;
+  node.each([&](size_t r, size_t begin, size_t end) {
+    NodeBox b;
     for (size_t k = begin; k < end; ++k) {
       const Prim& p = prims[k];
       b.lo = glm::min(b.lo, p.lo);
@@ -252,54 +266,54 @@ void Bvh::build(uint32_t first, uint32_t count, Prim* prims, Prim* scratch, std:
     }
     boxes[r] = b;
   });
-  glm::vec3 lo = boxes[0].lo, hi = boxes[0].hi, clo = boxes[0].clo, chi = boxes[0].chi;
-  for (size_t r = 1; r < ranges; ++r) {
-    const Box& b = boxes[r];
-    lo = glm::min(lo, b.lo);
-    hi = glm::max(hi, b.hi);
-    clo = glm::min(clo, b.clo);
-    chi = glm::max(chi, b.chi);
+  NodeBox box = boxes[0];
+  for (size_t r = 1; r < node.ranges; ++r) {
+    const NodeBox& b = boxes[r];
+    box.lo = glm::min(box.lo, b.lo);
+    box.hi = glm::max(box.hi, b.hi);
+    box.clo = glm::min(box.clo, b.clo);
+    box.chi = glm::max(box.chi, b.chi);
   }
-  out[index].min = lo;
-  out[index].max = hi;
-  const glm::vec3 extent = chi - clo;
-  if (count <= kLeafSize || !(std::max({extent.x, extent.y, extent.z}) > 0.0f)) {
-    out[index].first = first;
-    out[index].count = count;
-    return;
+  return box;
+}
+
+// kBins bins of the centroids along each axis of a node's centroid box.
+constexpr int kBins = 16;
+struct Binning {
+  Binning(const glm::vec3& clo, const glm::vec3& extent) : clo(clo) {
+    for (int ax = 0; ax < 3; ++ax) scale[ax] = extent[ax] > 0.0f ? float(kBins) / extent[ax] : 0.0f;
   }
-  // The split: of the planes between kBins bins of the centroids along each
-  // axis, the one of least surface area heuristic cost (binned SAH, Wald
-  // 2007). Against a median split of the longest axis its build is slower,
-  // but its tree's walks (sky cull, CPU casts) are faster by more.
-  constexpr int kBins = 16;
-  struct Bin {
-    glm::vec3 lo{std::numeric_limits<float>::max()}, hi{-std::numeric_limits<float>::max()};
-    uint32_t n = 0;
-  };
-  using Bins = std::array<std::array<Bin, kBins>, 3>;
-  glm::vec3 scale;
-  for (int ax = 0; ax < 3; ++ax) scale[ax] = extent[ax] > 0.0f ? float(kBins) / extent[ax] : 0.0f;
-  const auto bin_of = [&](const Prim& p, int ax) {
-    const float f = (p.c[ax] - clo[ax]) * scale[ax];
+  int bin_of(const glm::vec3& c, int ax) const {
+    const float f = (c[ax] - clo[ax]) * scale[ax];
     return f > 0.0f ? int(std::min(f, float(kBins - 1))) : 0;  // (NaN: 0)
-  };
+  }
+  glm::vec3 clo, scale;
+};
+
+struct Bin {
+  glm::vec3 lo{std::numeric_limits<float>::max()}, hi{-std::numeric_limits<float>::max()};
+  uint32_t n = 0;
+};
+using Bins = std::array<std::array<Bin, kBins>, 3>;
+
+template <class Prim>
+Bins fill_bins(const NodeRanges& node, const Prim* prims, const Binning& binning) {
   Bins bins;
-  std::vector<Bins> range_bins(large ? ranges : 0);
-  each_range([&](size_t r, size_t begin, size_t end) {
-    Bins& into = large ? range_bins[r] : bins;
+  std::vector<Bins> range_bins(node.large ? node.ranges : 0);
+  node.each([&](size_t r, size_t begin, size_t end) {
+    Bins& into = node.large ? range_bins[r] : bins;
     for (size_t k = begin; k < end; ++k) {
       const Prim& p = prims[k];
       for (int ax = 0; ax < 3; ++ax) {
-        Bin& bin = into[size_t(ax)][size_t(bin_of(p, ax))];
+        Bin& bin = into[size_t(ax)][size_t(binning.bin_of(p.c, ax))];
         bin.lo = glm::min(bin.lo, p.lo);
         bin.hi = glm::max(bin.hi, p.hi);
         ++bin.n;
       }
     }
   });
-  if (large) bins = range_bins[0];
-  for (size_t r = 1; r < ranges; ++r) {
+  if (node.large) bins = range_bins[0];
+  for (size_t r = 1; r < node.ranges; ++r) {
     for (size_t ax = 0; ax < 3; ++ax) {
       for (size_t b = 0; b < size_t(kBins); ++b) {
         const Bin& add = range_bins[r][ax][b];
@@ -309,12 +323,23 @@ void Bvh::build(uint32_t first, uint32_t count, Prim* prims, Prim* scratch, std:
       }
     }
   }
+  return bins;
+}
+
+// The split: of the planes between the bins along each axis, the one of
+// least surface area heuristic cost (binned SAH, Wald 2007): triangles of
+// bins <= bin go left. axis < 0 where no plane splits the node.
+struct Split {
+  int axis = -1, bin = -1;
+};
+
+Split sah_split(const Bins& bins, const glm::vec3& extent) {
   const auto area = [](const glm::vec3& a, const glm::vec3& b) {
     const glm::vec3 d = glm::max(b - a, glm::vec3(0.0f));
     return d.x * d.y + d.y * d.z + d.z * d.x;
   };
   float best_cost = std::numeric_limits<float>::max();
-  int best_axis = -1, best_bin = -1;
+  Split best;
   for (int ax = 0; ax < 3; ++ax) {
     if (!(extent[ax] > 0.0f)) continue;
     float right_cost[kBins] = {};  // area x count of bins b.. (b >= 1)
@@ -336,35 +361,64 @@ void Bvh::build(uint32_t first, uint32_t count, Prim* prims, Prim* scratch, std:
       const float cost = area(left.lo, left.hi) * float(left.n) + right_cost[b + 1];
       if (cost < best_cost) {
         best_cost = cost;
-        best_axis = ax;
-        best_bin = b;
+        best = {ax, b};
       }
     }
   }
-  uint32_t half = 0;
-  if (best_axis >= 0) {
-    const auto left = [&](const Prim& p) { return bin_of(p, best_axis) <= best_bin; };
-    if (large) {
-      // Stable: each range's lefts and rights go to their places in
-      // scratch, then back.
-      std::vector<uint32_t> lefts(ranges + 1, 0);
-      each_range([&](size_t r, size_t begin, size_t end) {
-        lefts[r + 1] = uint32_t(std::count_if(prims + begin, prims + end, left));
-      });
-      for (size_t r = 0; r < ranges; ++r) lefts[r + 1] += lefts[r];
-      half = lefts[ranges];
-      each_range([&](size_t r, size_t begin, size_t end) {
-        Prim* to_left = scratch + first + lefts[r];
-        Prim* to_right = scratch + first + half + (begin - first - lefts[r]);
-        for (size_t k = begin; k < end; ++k) *(left(prims[k]) ? to_left++ : to_right++) = prims[k];
-      });
-      each_range([&](size_t, size_t begin, size_t end) {
-        std::copy(scratch + begin, scratch + end, prims + begin);
-      });
-    } else {
-      half = uint32_t(std::partition(prims + first, prims + first + count, left) - (prims + first));
-    }
+  return best;
+}
+
+// Moves the node's triangles left of `split` before the others; returns how
+// many went left. A large node's partition is stable (each range's lefts
+// and rights go to their places in scratch, then back), so the tree does
+// not depend on the number of cores.
+template <class Prim>
+uint32_t partition_node(const NodeRanges& node, Prim* prims, Prim* scratch,
+                        const Binning& binning, const Split& split) {
+  const auto left = [&](const Prim& p) { return binning.bin_of(p.c, split.axis) <= split.bin; };
+  if (!node.large) {
+    return uint32_t(std::partition(prims + node.first, prims + node.first + node.count, left) -
+                    (prims + node.first));
   }
+  std::vector<uint32_t> lefts(node.ranges + 1, 0);
+  node.each([&](size_t r, size_t begin, size_t end) {
+    lefts[r + 1] = uint32_t(std::count_if(prims + begin, prims + end, left));
+  });
+  for (size_t r = 0; r < node.ranges; ++r) lefts[r + 1] += lefts[r];
+  const uint32_t half = lefts[node.ranges];
+  node.each([&](size_t r, size_t begin, size_t end) {
+    Prim* to_left = scratch + node.first + lefts[r];
+    Prim* to_right = scratch + node.first + half + (begin - node.first - lefts[r]);
+    for (size_t k = begin; k < end; ++k) *(left(prims[k]) ? to_left++ : to_right++) = prims[k];
+  });
+  node.each([&](size_t, size_t begin, size_t end) {
+    std::copy(scratch + begin, scratch + end, prims + begin);
+  });
+  return half;
+}
+
+}  // namespace
+
+void Bvh::build(uint32_t first, uint32_t count, Prim* prims, Prim* scratch, std::vector<Node>& out,
+                int parallel_levels) {
+  // Depth-first layout: an inner node's left child follows it directly.
+  const size_t index = out.size();
+  out.emplace_back();
+  const NodeRanges node(first, count);
+  const NodeBox box = node_box(node, prims);
+  out[index].min = box.lo;
+  out[index].max = box.hi;
+  const glm::vec3 extent = box.chi - box.clo;
+  if (count <= kLeafSize || !(std::max({extent.x, extent.y, extent.z}) > 0.0f)) {
+    out[index].first = first;
+    out[index].count = count;
+    return;
+  }
+  // Binned SAH: against a median split of the longest axis its build is
+  // slower, but its tree's walks (sky cull, CPU casts) are faster by more.
+  const Binning binning(box.clo, extent);
+  const Split split = sah_split(fill_bins(node, prims, binning), extent);
+  uint32_t half = split.axis >= 0 ? partition_node(node, prims, scratch, binning, split) : 0;
   if (half == 0 || half == count) {
     // Every centroid in one bin (they nearly coincide): the median of the
     // longest axis.
@@ -387,8 +441,8 @@ void Bvh::build(uint32_t first, uint32_t count, Prim* prims, Prim* scratch, std:
       }
     });
     const uint32_t offset = static_cast<uint32_t>(out.size());
-    for (Node& node : right) {
-      if (node.count == 0) node.first += offset;
+    for (Node& n : right) {
+      if (n.count == 0) n.first += offset;
     }
     out.insert(out.end(), right.begin(), right.end());
   } else {
