@@ -20,6 +20,7 @@
 #include "gl/context.h"
 #include "gl/gl.h"
 #include "live/live_sim.h"
+#include "plan/machine.h"
 #include "live/orbit.h"
 #include "live/snow_view.h"
 #include "render/camera.h"
@@ -142,9 +143,9 @@ TEST(LiveSim, CpuAndGpuStabilizersGiveTheSameSnow) {
   const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
   live::LiveSettings settings = table_live_settings(8);
   settings.stabilize.device = "gpu";
-  live::LiveSim gpu(scene, settings);
+  live::LiveSim gpu(scene, settings, plan::current_gl());
   settings.stabilize.device = "cpu";
-  live::LiveSim cpu(scene, settings);
+  live::LiveSim cpu(scene, settings, plan::current_gl());
   EXPECT_FALSE(gpu.stabilizes_on_cpu());
   EXPECT_TRUE(cpu.stabilizes_on_cpu());
   for (int f = 0; f < 10; ++f) {
@@ -174,7 +175,7 @@ TEST(LiveSim, TableSnowfallConservesMassAndShelters) {
   auto context = gl::create_context();
   const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
   const live::LiveSettings settings = table_live_settings(32);
-  live::LiveSim sim(scene, settings);
+  live::LiveSim sim(scene, settings, plan::current_gl());
   const SnowMaps& maps = sim.maps();
   for (int f = 0; f < 12; ++f) sim.step();
   EXPECT_EQ(sim.frame(), 12);

@@ -11,7 +11,6 @@
 #include "core/log.h"
 #include "gl/gl.h"
 #include "snow/accumulate.h"
-#include "plan/machine.h"
 #include "snow/stabilize_cpu.h"
 
 namespace snow::live {
@@ -69,10 +68,12 @@ void check(const LiveSettings& s) {
 
 }  // namespace
 
-LiveSim::LiveSim(const Scene& scene, const LiveSettings& settings, std::vector<uint8_t> receives)
-    : scene_(scene), settings_(settings), receives_(std::move(receives)) {
+LiveSim::LiveSim(const Scene& scene, const LiveSettings& settings, const plan::GlFacts& gl,
+                 std::vector<uint8_t> receives)
+    : scene_(scene), gl_(gl), settings_(settings), receives_(std::move(receives)) {
   check(settings_);
   shadows_ = std::make_unique<CoverageRenderer>(scene_);
+  shadows_->set_gl(gl_);
   peel();
 }
 
@@ -80,7 +81,7 @@ LiveSim::~LiveSim() = default;
 
 void LiveSim::peel() {
   const auto start = Clock::now();
-  SnowMaps maps = peel_layers(scene_, settings_.peel);
+  SnowMaps maps = peel_layers(scene_, settings_.peel, gl_);
   make_stabilizer(maps, nullptr);
   maps_ = std::move(maps);
   timings_.peel = seconds_since(start);
@@ -94,7 +95,7 @@ void LiveSim::peel() {
 
 void LiveSim::make_stabilizer(const SnowMaps& maps, const std::vector<float>* depth) {
   const StabilizeSettings& s = settings_.stabilize;
-  if (snow::stabilizes_on_cpu(s, StabilizerUse::Live, plan::current_gl())) {
+  if (snow::stabilizes_on_cpu(s, StabilizerUse::Live, gl_)) {
     auto cpu = std::make_unique<CpuStabilizer>(maps, s);
     cpu->set_depth(depth ? *depth : std::vector<float>(maps.ground.size(), 0.0f));
     gl::Texture texture = gl::create_texture_2d_array(GL_R32F, maps.grid.width, maps.grid.height,

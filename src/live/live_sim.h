@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "gl/objects.h"
+#include "plan/rules.h"
 #include "scene/scene.h"
 #include "snow/coverage.h"
 #include "snow/maps.h"
@@ -55,8 +56,11 @@ class LiveSim {
   /// Peels the maps, computes the coverage and starts with no snow. Keeps a
   /// reference to `scene`, which must outlive the LiveSim.
   /// `receives[object]` == 0 keeps fresh snow off that object (may be empty).
+  /// `gl`: what the window's GL renders on (the planner's choices of the
+  /// stabilizer and the coverage depend on it).
   /// Throws InputError for bad settings, GLError for GL trouble.
-  LiveSim(const Scene& scene, const LiveSettings& settings, std::vector<uint8_t> receives = {});
+  LiveSim(const Scene& scene, const LiveSettings& settings, const plan::GlFacts& gl,
+          std::vector<uint8_t> receives = {});
   ~LiveSim();
   LiveSim(const LiveSim&) = delete;
   LiveSim& operator=(const LiveSim&) = delete;
@@ -110,6 +114,7 @@ class LiveSim {
   void upload_depth(const SnowMaps& maps);
 
   const Scene& scene_;
+  plan::GlFacts gl_;
   LiveSettings settings_;
   std::vector<uint8_t> receives_;
   SnowMaps maps_;

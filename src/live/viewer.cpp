@@ -424,7 +424,7 @@ ViewerReport Viewer::run() {
 
   ViewerReport report;
   {
-    sim_ = std::make_unique<LiveSim>(scene_, options_.sim, options_.receives);
+    sim_ = std::make_unique<LiveSim>(scene_, options_.sim, gl_, options_.receives);
     snow_ = std::make_unique<SnowView>();
     scene_renderer_ = std::make_unique<render::PreviewRenderer>(scene_);
     sync_view();
