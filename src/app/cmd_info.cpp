@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "app/commands.h"
+#include "app/run_gl.h"
 #include "app/settings.h"
 #include "core/heap.h"
 #include "core/log.h"
@@ -44,16 +45,15 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
   cmd->callback([options, &global] {
     gl::ContextOptions context_options;
     context_options.backend = gl::parse_backend(global.gl_backend);
-    plan::MachineInfo machine = plan::probe_machine(context_options);
     std::unique_ptr<gl::Context> context;
     if (!options->no_gl && !options->json) {
       context = make_headless_context(global);
       std::printf("OpenGL: %s (%s)\n", context->description().c_str(),
                   gl::to_string(context->backend()).c_str());
-      machine.software = plan::current_renderer_is_software();
-    } else if (!options->json) {
-      machine.software = plan::probe_renderer(context_options);
     }
+    const plan::MachineInfo machine =
+        options->json ? plan::MachineInfo{}
+                      : probe_machine_for_info(context_options, context != nullptr);
     if (!options->json) {
       std::printf("Huge pages for the heap: %s\n", huge_pages_status().c_str());
       std::printf("mmap threshold: %s\n", mmap_threshold_status().c_str());

@@ -298,8 +298,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   plan::GlFacts gl_after_peel;
   clock.run("peel", [&] {
     const auto context = gl.stage_context(run.gl.software);
-    if (!gl.machine().software) {  // the peel's context tells the renderer: plan again
-      gl.set_software(plan::current_renderer_is_software());
+    if (gl.learn_renderer()) {  // the peel's context told the renderer: plan again
       run = plan::plan_run(stats, gl.machine(), wanted, true);
       log_plan(run);
       if (run.bvh_ahead) build_bvh_ahead();

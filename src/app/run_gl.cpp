@@ -64,4 +64,18 @@ std::unique_ptr<gl::OnDemandContext> RunGl::stage_context(bool software) {
   return context;
 }
 
+bool RunGl::learn_renderer() {
+  wait_for_probe();
+  if (machine_.software) return false;
+  machine_.software = plan::current_renderer_is_software();
+  return true;
+}
+
+plan::MachineInfo probe_machine_for_info(const gl::ContextOptions& options, bool context_current) {
+  plan::MachineInfo machine = plan::probe_machine(options);
+  machine.software = plan::probe_renderer(options);
+  if (!machine.software && context_current) machine.software = plan::current_renderer_is_software();
+  return machine;
+}
+
 }  // namespace snow::app

@@ -31,8 +31,9 @@ class RunGl {
   const plan::MachineInfo& machine();
   /// Whether a warm-up context is being made.
   bool warming();
-  /// Sets the renderer once a context has told it (plan::current_renderer_is_software).
-  void set_software(bool software) { machine_.software = software; }
+  /// Where the probe could not tell the renderer, asks the current context
+  /// (a stage's, made up front) and returns true; else returns false.
+  bool learn_renderer();
 
   /// A stage's context, current on this thread until it goes: where the
   /// probe told the renderer, made only when a pass needs it
@@ -60,5 +61,10 @@ class RunGl {
   std::future<void> warm_up_;
   std::future<std::optional<bool>> probe_;
 };
+
+/// The machine as `snowmodel snow` would find it, for `snowmodel info`:
+/// probed, and where only a context can tell, the current context's
+/// renderer (with `context_current`).
+plan::MachineInfo probe_machine_for_info(const gl::ContextOptions& options, bool context_current);
 
 }  // namespace snow::app
