@@ -15,7 +15,7 @@
 // --- Preview renderer (preview.vert/.frag) --------------------------------
 #define SNOW_PREVIEW_BASE_COLOR_TEXTURE 0  // sampler2D, sRGB baseColor
 
-// --- Depth peeling (peel.vert/.frag, src/snow/peel.cpp) --------------------
+// --- Depth peeling (peel.vert/.frag, src/snow/peel/gpu.cpp) ----------------
 #define SNOW_PEEL_PREV_TEXTURE 0  // usampler2D RG32UI: previous layer (height bits, triangle)
 
 // --- Shadow maps (shadow.vert, shadow_snow.vert, depth_only.frag, coverage.cpp)
