@@ -15,7 +15,7 @@
 // --- Preview renderer (preview.vert/.frag) --------------------------------
 #define SNOW_PREVIEW_BASE_COLOR_TEXTURE 0  // sampler2D, sRGB baseColor
 
-// --- Depth peeling (peel.vert/.frag, src/snow/peel.cpp) --------------------
+// --- Depth peeling (peel.vert/.frag, src/snow/peel/gpu.cpp) ----------------
 #define SNOW_PEEL_PREV_TEXTURE 0  // usampler2D RG32UI: previous layer (height bits, triangle)
 
 // --- Shadow maps (shadow.vert, shadow_snow.vert, depth_only.frag, coverage.cpp)
@@ -31,7 +31,7 @@
 #define SNOW_COVERAGE_BVH_NODES 4       // SSBO snow::Bvh::Node (32 B) per node
 #define SNOW_COVERAGE_BVH_TRIANGLES 5   // SSBO float[9] per triangle, BVH leaf order
 
-// --- Stabilizer (stabilize_*.vert/.geom/.frag, src/snow/stabilize.cpp) ------
+// --- Stabilizer (stabilize_*.vert/.geom/.frag, src/snow/stabilize/gpu.cpp) --
 // Texture arrays with one layer per map layer, texel (i, j) at (x, y).
 #define SNOW_STABILIZE_CELLS 0       // sampler2DArray RGBA32F: ground, ceiling, tan(repose), flags
 #define SNOW_STABILIZE_DEPTH 1       // sampler2DArray RG32F: snow depth (m), lost (m)

@@ -1,5 +1,5 @@
 #version 450 core
-// Depth peeling from straight above (src/snow/peel.cpp): orthographic camera
+// Depth peeling from straight above (src/snow/peel/gpu.cpp): orthographic camera
 // looking down -Y over the map grid; depth grows downwards from y_top.
 #include "bindings.h"
 

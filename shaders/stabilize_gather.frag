@@ -7,7 +7,7 @@
 // CpuStabilizer::gather_column (per target layer: own outflow in
 // direction order, then inflow in direction order, source layers upwards).
 // Writes the new depth with imageStore and stamps the tiles that changed
-// (active tiles, src/snow/stabilize.cpp). On convergence checks it also
+// (active tiles, src/snow/stabilize/gpu.cpp). On convergence checks it also
 // keeps, per tile, the largest move (sum of a texel's 8 amounts, summed in
 // direction order as the CPU does) and the largest sum sent into the void.
 #include "bindings.h"

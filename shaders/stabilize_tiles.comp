@@ -8,7 +8,7 @@
 // last list (index u_layers) for the passes that draw each column once for
 // all its layers when any has. The list order varies (atomics); each
 // fragment writes only its own texel or column, so it does not matter. See
-// "Active tiles" in src/snow/stabilize.cpp.
+// "Active tiles" in src/snow/stabilize/gpu.cpp.
 //
 // One invocation per block of kBlock x kBlock tiles: a block with no change
 // within reach of any of its tiles (most of them, late in a relaxation) ends

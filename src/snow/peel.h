@@ -1,7 +1,9 @@
 #pragma once
 // Stage 1: snow amount maps by depth peeling from straight above (Tokoi
 // 2006, section 3; height spans after Onoue and Nishita 2004). The result is
-// the SnowMaps contract of snow/maps.h.
+// the SnowMaps contract of snow/maps.h. The backends: the GPU's passes
+// (snow/peel/gpu.cpp) and a vertical ray per texel on the CPU
+// (snow/reference/peel_ref.h); snow/peel/internal.h lists the stage's files.
 #include <cstdint>
 #include <optional>
 #include <string>

@@ -1,8 +1,19 @@
 #pragma once
 // Stage 3: the snow stabilizer. Snow steeper than its angle of repose moves
 // downhill; snow leaving an edge falls through to the highest free surface
-// below in the neighbouring column (DESIGN.md, "Stabilizer"; the angle of
-// repose relaxation of Fearing 2000, section 5, on Tokoi's snow amount maps).
+// below in the neighbouring column (docs/ARCHITECTURE.md, "Stabilizer"; the
+// angle of repose relaxation of Fearing 2000, section 5, on Tokoi's snow
+// amount maps).
+//
+// This header is the stage's interface; the code is in snow/stabilize/:
+//   stabilize.cpp  where the passes run (stabilizes_on_cpu), stabilize()
+//   common.cpp     what both backends share: settings, cells, strides,
+//                  drains, volumes (CPU only)
+//   gpu.cpp        the GPU backend: fragment passes (Stabilizer)
+//   cpu.cpp        the CPU backend: the same passes on all cores
+//                  (CpuStabilizer, snow/stabilize_cpu.h; CPU only)
+//   deposit.cpp    the piles poured where routed snow comes to rest
+//                  (snow/deposit.h; CPU only)
 //
 // Two kinds of passes, on the GPU as fragment passes over the layer texture
 // arrays and on the CPU in snow::CpuStabilizer with the same float math:
@@ -28,30 +39,25 @@
 //    or an eave round off at once. What arrives at a terminal under the open
 //    sky is then poured there as a cone at the repose angle
 //    (snow/deposit.h), not left as a spike metres deep on one texel, so the
-//    relaxation only finishes the piles (Kenney buildings with 0.3 m of
-//    snow: 1344-1856 passes -> 437-512). Routing runs at the start of each
+//    relaxation only finishes the piles. Routing runs at the start of each
 //    stabilize call and after snow is added. At the convergence checks it
 //    runs only to drain (drain_due): where the snow creeps and much of what
 //    moves goes into the void, the excess whose path ends there leaves at
-//    once (Kenney buildings with 0.3 m: 438-564 -> 100-355 passes). A path
-//    also ends in the void at a receiver beside it (one that sheds into the
-//    void at its own free top), since the next relaxation pass sends all
-//    that arrives there off the edge (Kenney tiles with 0.3 m: fountain 145
-//    -> 48 passes, grass-trees 118 -> 64, SheenChair 228 -> 99). Routing everything
-//    again at every check cost a quarter to a third of the stabilizer's time
-//    and saved no passes on the courtyard or a terrain.
+//    once. A path also ends in the void at a receiver beside it (one that
+//    sheds into the void at its own free top), since the next relaxation
+//    pass sends all that arrives there off the edge. Routing everything
+//    again at every check would cost much of the stabilizer's time and save
+//    no passes.
 // Relaxation passes cycle through strides up to max_stride, ..., 2, 1
 // (multi-scale, see StrideSchedule), so creeping piles spread in few passes.
 // A strided pass moves only snow that a single step would move (the stride-1
-// rule on the path's first steps), farther. On the stairs test this took
-// 674 -> 134 passes, on SheenChair 740 -> 692; some creeping piles take up
-// to a third more passes (test bowl 274 -> 344).
+// rule on the path's first steps), farther.
 // On the GPU the relaxation and erosion passes draw only the active tiles
 // (4 x 4 columns) whose inputs changed since the last pass of the same kind
 // and stride (for strided passes: or of stride 1, if later), in the layers
-// that have a surface there
-// (settings.active_tiles); a skipped tile would repeat a pass that moved
-// nothing there, so the result is bit for bit that of full passes. The CPU
+// that have a surface there (settings.active_tiles); a skipped tile would
+// repeat a pass that moved nothing there, so the result is bit for bit that
+// of full passes. The CPU
 // stabilizer skips tiles by the same rule (stabilize_cpu.h), erodes in place
 // to the same kept heights in fewer rounds, and is what the batch job runs
 // unless settings.device asks for the GPU (stabilizes_on_cpu).
@@ -79,44 +85,36 @@ struct StabilizeSettings {
                                    // (0 makes every move; negative: automatic,
                                    // kAutoMinMoveShare x tolerance, see min_move_of).
                                    // Without it, float rounding keeps moving micrometres of
-                                   // snow in settled piles, and their tiles stay active: 10k
-                                   // terrain at 1024, 57 -> 25 s
+                                   // snow in settled piles, and their tiles stay active
   int max_iterations = 4000;       // relaxation passes at most per call (>= 0)
   int check_every = 4;             // passes between convergence checks (a small GPU reduction
                                    // and readback), which also decide on strides and drains;
-                                   // >= 1. With 16, runs stopped up to 15 passes late and
-                                   // drained late (Kenney tiles, 0.3 m, 16 -> 4: building-small-a
-                                   // 118 -> 81 passes, fountain 48 -> 26, SheenChair 99 -> 42)
+                                   // >= 1. A run stops and drains up to check_every - 1
+                                   // passes late
   int max_stride = 4;              // texels, largest stride of the multi-scale relaxation
                                    // passes (a power of two, 1..64; 1 = single steps only).
-                                   // Not scaled with the map size: on the courtyard at 256
-                                   // texels, fixed cycles from 8 and 32 took 160 and 234
-                                   // passes against 126
+                                   // Not scaled with the map size: longer strides only add
+                                   // passes where the snow settles fast
   bool adaptive_stride = true;     // start with single steps and lengthen the strides where
                                    // the snow creeps (StrideSchedule); false: cycle from
                                    // max_stride from the first pass
   bool route_steep = true;         // route what cannot stay (steep supports, edges) in one go
-                                   // before relaxing (off:
-                                   // relaxation only, for comparisons)
+                                   // before relaxing (off: relaxation only, for comparisons)
   bool deposit_piles = true;       // lay the routed snow as a cone at the repose angle around
                                    // where it comes to rest (snow/deposit.h), a warm start
-                                   // for the relaxation (building-small-a, 0.3 m: 1536 ->
-                                   // 466 passes); off: all of it on that one texel
+                                   // for the relaxation; off: all of it on that one texel
   bool drain_edges = true;         // with route_steep: once snow creeps off an edge into the
-                                   // void, drain what will leave in one go (drain_due;
-                                   // pavement-fountain, 0.3 m: 2532 -> 145 passes)
+                                   // void, drain what will leave in one go (drain_due)
   uint32_t seed = 1;               // seed of the repose jitter; same seed, same result
   bool active_tiles = true;        // GPU: relaxation and erosion passes compute only the
                                    // 4 x 4-column tiles that can still change (bit-identical
                                    // results; off: every texel every pass, for comparisons;
                                    // also off where GL points cannot be 4 pixels wide)
-  std::string device = "auto";     // where the batch job's passes run: "gpu" (fragment passes),
-                                   // "cpu" (snow::CpuStabilizer: the same passes on all cores,
-                                   // bit for bit), or "auto": the CPU where the GL renderer is
-                                   // a software rasterizer, which runs the GPU passes on the
-                                   // same cores, slower (llvmpipe, building-small-a with the
-                                   // defaults: whole run 8.6 s on the GPU passes, 2.1 s), else
-                                   // the GPU. The live preview chooses the same way
+  std::string device = "auto";     // where the passes run: "gpu" (fragment passes), "cpu"
+                                   // (snow::CpuStabilizer: the same passes on all cores, bit
+                                   // for bit), or "auto": plan::stabilizer_on_cpu (the CPU for
+                                   // the batch job; for the live preview the CPU where the GL
+                                   // renderer is a software rasterizer, else the GPU)
   bool count_tiles = false;        // GPU: count the active tiles (a small readback per pass)
                                    // into StabilizeResult::tile_share, for benchmarks
 };
@@ -162,12 +160,10 @@ constexpr float kCeilingClearance = 1e-4f;
 void check_stabilize_settings(const StabilizeSettings& settings);
 
 /// The automatic min_move: this share of the tolerance. Moves that far
-/// below the tolerance mostly keep settled tiles computing: with 1e-6 m
-/// rather than 1e-5 m, building-small-d (0.3 m of snow) took 316 against
-/// 267 ms and the courtyard 3.23 against 3.07 s (medians), in the same
-/// passes, with the same volumes. Creeping slower than this stops sooner:
-/// with drains off, snow creeping off a box's edge keeps 0.09 % more
-/// (0.24 % at a share of 0.3; StabilizeReference.SnowCreepingOffAnEdgeIsDrained).
+/// below the tolerance mostly keep settled tiles computing, in the same
+/// passes, with the same volumes. Snow creeping slower than this stops
+/// sooner: with drains off, a little more stays on a box's edge
+/// (StabilizeReference.SnowCreepingOffAnEdgeIsDrained bounds it).
 constexpr float kAutoMinMoveShare = 0.1f;
 /// settings.min_move, or the automatic one where it is negative.
 inline float min_move_of(const StabilizeSettings& settings) {
@@ -194,17 +190,15 @@ ZeroedArray<glm::vec4> stabilize_surface_cells(const SnowMaps& maps,
 /// `stride` columns at once along a path of single steps that neither fall
 /// over an edge nor rise, against the sum of the path's repose slopes, so
 /// piles spread over long distances in few passes while a state at rest for
-/// single steps stays at rest. Strides help where piles creep (SheenChair at
-/// 256 texels: 1824 passes with single steps, 756 with strides up to 4) and
-/// hurt where single steps settle the snow fast (1M terrain at 1024: 48
-/// against 118; the courtyard at 256: 80 against 118). So the passes start
-/// with single steps, and a convergence check after a single step at which
-/// the largest move fell by less than half per check_every passes since the
-/// previous such check doubles the largest stride, up to max_stride; passes
-/// cycle through that stride, its half, ..., 1. Snow set or added starts
-/// over with single steps. With settings.adaptive_stride off, the passes
-/// cycle from max_stride from the first. The GPU stabilizer and the
-/// CPU stabilizer share this.
+/// single steps stays at rest. Strides help where piles creep and add passes
+/// where single steps settle the snow fast. So the passes start with single
+/// steps, and a convergence check after a single step at which the largest
+/// move fell by less than half per check_every passes since the previous
+/// such check doubles the largest stride, up to max_stride; passes cycle
+/// through that stride, its half, ..., 1. Snow set or added starts over with
+/// single steps. With settings.adaptive_stride off, the passes cycle from
+/// max_stride from the first. The GPU stabilizer and the CPU stabilizer
+/// share this.
 class StrideSchedule {
  public:
   explicit StrideSchedule(const StabilizeSettings& settings)
@@ -240,11 +234,11 @@ class StrideSchedule {
 
 /// Draining (settings.drain_edges): snow creeping off an edge into the void
 /// is a slope relaxing by diffusion, in passes that grow with the square of
-/// its length (Kenney pavement-fountain, 0.3 m: 2532 passes). So at a check
-/// where the snow creeps and the snow leaving one texel into the void is at
-/// least kDrainShare of the largest move, the routing runs again, but moves
-/// only the excess whose path ends in the void: it is lost at once, and the
-/// snow elsewhere stays (no mounds where the relaxation would spread it).
+/// its length. So at a check where the snow creeps and the snow leaving one
+/// texel into the void is at least kDrainShare of the largest move, the
+/// routing runs again, but moves only the excess whose path ends in the void:
+/// it is lost at once, and the snow elsewhere stays (no mounds where the
+/// relaxation would spread it).
 /// `residual_void`: the largest sum a texel sent into the void in that pass.
 /// Shared by both stabilizers, which measure both maxima alike.
 constexpr float kDrainShare = 0.25f;
@@ -255,9 +249,8 @@ bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule
 /// drain runs, at most once per kPressedEvery passes (the caller then calls
 /// schedule.pressed_looked_for()); where none lies more than the tolerance
 /// above its ceiling's clearance, nothing changes. Looking scans every layer
-/// texel, after a full readback on the GPU: at every check every 4 passes,
-/// that took the courtyard's snowfall from 2.6 to 3.0 s. Shared by both
-/// stabilizers.
+/// texel, after a full readback on the GPU, hence not at every check. Shared
+/// by both stabilizers.
 constexpr int kPressedEvery = 16;
 bool pressed_snow_due(const StabilizeSettings& settings, const StrideSchedule& schedule,
                       float residual);

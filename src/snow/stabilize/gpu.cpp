@@ -1,10 +1,11 @@
-// The snow stabilizer on the GPU (DESIGN.md "Stabilizer"; angle of repose
-// relaxation after Fearing 2000, section 5, on the snow amount maps of Tokoi
-// 2006; routing of what cannot stay as flow routing over a terrain, with a
-// distance-transform erosion and pointer jumping). One draw per map layer and
-// pass (the gather pass: one draw for all layers, one fragment per column,
-// written through an image), ping-pong between two depth texture arrays; the
-// CPU twin is CpuStabilizer (stabilize_cpu.h).
+// The stabilizer's GPU backend (the stage's contract: snow/stabilize.h;
+// docs/ARCHITECTURE.md, "Stabilizer"): angle of repose relaxation after
+// Fearing 2000, section 5, on the snow amount maps of Tokoi 2006; routing of
+// what cannot stay as flow routing over a terrain, with a distance-transform
+// erosion and pointer jumping. One draw per map layer and pass (the gather
+// pass: one draw for all layers, one fragment per column, written through an
+// image), ping-pong between two depth texture arrays; the CPU backend is
+// CpuStabilizer (snow/stabilize_cpu.h), bit for bit the same.
 #include "snow/stabilize.h"
 
 #include <algorithm>
@@ -29,206 +30,11 @@ namespace {
 constexpr int kReduceBlock = 16;  // columns per side of a block of the snow sums
 constexpr int kTile = 4;          // columns per side of an active tile (all layers)
 
-}  // namespace
-
-void check_stabilize_settings(const StabilizeSettings& s) {
-  auto bad = [](const std::string& what) { throw InputError("stabilize: " + what); };
-  if (!(s.repose_deg >= 5.0f && s.repose_deg <= 85.0f)) {
-    bad("repose_deg must be in 5..85 degrees, got " + std::to_string(s.repose_deg));
-  }
-  if (!(s.repose_jitter_deg >= 0.0f) || s.repose_deg - s.repose_jitter_deg < 1.0f ||
-      s.repose_deg + s.repose_jitter_deg > 89.0f) {
-    bad("repose_jitter_deg must be >= 0 with repose +- jitter in 1..89 degrees, got " +
-        std::to_string(s.repose_jitter_deg));
-  }
-  if (!(s.tolerance >= 0.0f) || !std::isfinite(s.tolerance)) {
-    bad("tolerance must be a finite number >= 0 metres, got " + std::to_string(s.tolerance));
-  }
-  if (!std::isfinite(s.min_move)) {
-    bad("min_move must be a finite number of metres (negative: automatic), got " +
-        std::to_string(s.min_move));
-  }
-  if (s.max_iterations < 0) bad("max_iterations must be >= 0");
-  if (s.check_every < 1) bad("check_every must be >= 1");
-  if (s.device != "auto" && s.device != "gpu" && s.device != "cpu") {
-    bad("device must be auto, gpu or cpu, got '" + s.device + "'");
-  }
-  if (s.max_stride < 1 || s.max_stride > 64 || (s.max_stride & (s.max_stride - 1)) != 0) {
-    bad("max_stride must be a power of two in 1..64, got " + std::to_string(s.max_stride));
-  }
-}
-
-namespace {
-
-void check_maps(const SnowMaps& maps) {
-  const size_t n = size_t(maps.layers) * maps.grid.texels();
-  if (maps.layers < 1 || maps.layers > 64) {
-    throw InputError("stabilize: maps must have 1..64 layers, got " + std::to_string(maps.layers));
-  }
-  if (maps.grid.width < 1 || maps.grid.height < 1 || !(maps.grid.texel > 0.0f)) {
-    throw InputError("stabilize: empty map grid or non-positive texel");
-  }
-  if (maps.ground.size() != n || maps.ceiling.size() != n || maps.normal.size() != n) {
-    throw InputError("stabilize: map arrays do not hold layers * width * height entries");
-  }
-  if (double(n) >= double(0xffffffffu)) {
-    throw InputError("stabilize: maps of " + std::to_string(n) + " layer texels are too large");
-  }
-}
-
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// 32-bit integer hash (lowbias32 by C. Wellons).
-uint32_t hash32(uint32_t x) {
-  x ^= x >> 16;
-  x *= 0x7feb352du;
-  x ^= x >> 15;
-  x *= 0x846ca68bu;
-  x ^= x >> 16;
-  return x;
-}
-
 }  // namespace
-
-float texel_repose_deg(const StabilizeSettings& settings, int l, int i, int j) {
-  uint32_t h = hash32(settings.seed ^ 0x9e3779b9u);
-  h = hash32(h ^ uint32_t(i));
-  h = hash32(h ^ uint32_t(j));
-  h = hash32(h ^ uint32_t(l));
-  const double u = double(h >> 8) / double(1u << 24);  // [0, 1)
-  return float(double(settings.repose_deg) + (2.0 * u - 1.0) * double(settings.repose_jitter_deg));
-}
-
-void StrideSchedule::restart() {
-  cap_ = adaptive_ ? 1 : max_;
-  cycle_ = 0;
-  since_ = 0;
-  last_ = -1.0;
-  creeping_ = false;
-}
-
-int StrideSchedule::next() {
-  int levels = 1;
-  while ((1 << levels) <= cap_) ++levels;  // cap_ = 2^(levels-1)
-  ++since_;
-  ++since_pressed_;
-  return cap_ >> (cycle_++ % levels);
-}
-
-void StrideSchedule::checked(int stride, float residual) {
-  creeping_ = false;
-  if (stride != 1 || since_ < every_) return;
-  // Fell by less than half per check_every passes: creeping, longer moves.
-  creeping_ =
-      last_ >= 0.0 && double(residual) > last_ * std::pow(0.5, double(since_) / double(every_));
-  if (creeping_ && adaptive_ && cap_ < max_) {
-    cap_ *= 2;
-    cycle_ = 0;
-  }
-  last_ = double(residual);
-  since_ = 0;
-}
-
-bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule, float residual,
-               float residual_void) {
-  return settings.drain_edges && settings.route_steep && schedule.creeping() &&
-         residual >= settings.tolerance && residual_void >= kDrainShare * residual;
-}
-
-bool pressed_snow_due(const StabilizeSettings& settings, const StrideSchedule& schedule,
-                      float residual) {
-  return settings.route_steep && settings.deposit_piles && schedule.creeping() &&
-         residual >= settings.tolerance && schedule.since_pressed() >= kPressedEvery;
-}
-
-namespace {
-
-// The cell of layer texel k = (l, i, j), which has a finite ground.
-glm::vec4 surface_cell(const SnowMaps& maps, const StabilizeSettings& settings, int l, int i,
-                       int j) {
-  const size_t k = maps.index(l, i, j);
-  const float g = maps.ground[k];
-  glm::vec4 cell;
-  const double angle = double(texel_repose_deg(settings, l, i, j)) * M_PI / 180.0;
-  cell.z = float(std::tan(angle));
-  int flags = kCellSurface;
-  if (gap_is_solid(maps, l, i, j)) flags |= kCellSolid;
-  if (maps.normal[k].y < 0.0f) flags |= kCellDown;
-  cell.x = g;
-  // +inf (open sky) -> 3e38; a ceiling below the ground (inconsistent
-  // maps) -> no gap.
-  cell.y = std::min(maps.ceiling[k], kCellOpenSky);
-  if (std::isnan(maps.ceiling[k])) cell.y = kCellOpenSky;
-  cell.y = std::max(cell.y, g);
-  cell.w = float(flags);
-  return cell;
-}
-
-// Calls fn(k, cell) for every layer texel with a surface, rows on all
-// cores (a tangent per texel).
-template <class Fn>
-void for_surface_cells(const SnowMaps& maps, const StabilizeSettings& settings, Fn fn) {
-  const size_t rows = size_t(maps.layers) * size_t(maps.grid.height);
-  parallel_for(rows, [&](size_t row) {
-    const int l = int(row / size_t(maps.grid.height)), j = int(row % size_t(maps.grid.height));
-    for (int i = 0; i < maps.grid.width; ++i) {
-      const size_t k = maps.index(l, i, j);
-      if (std::isfinite(maps.ground[k])) fn(k, surface_cell(maps, settings, l, i, j));
-    }
-  });
-}
-
-}  // namespace
-
-std::vector<glm::vec4> stabilize_cells(const SnowMaps& maps, const StabilizeSettings& settings) {
-  check_stabilize_settings(settings);
-  check_maps(maps);
-  std::vector<glm::vec4> cells(maps.ground.size(), glm::vec4(0.0f, kCellOpenSky, 0.0f, 0.0f));
-  for_surface_cells(maps, settings, [&](size_t k, const glm::vec4& cell) { cells[k] = cell; });
-  return cells;
-}
-
-ZeroedArray<glm::vec4> stabilize_surface_cells(const SnowMaps& maps,
-                                               const StabilizeSettings& settings) {
-  check_stabilize_settings(settings);
-  check_maps(maps);
-  ZeroedArray<glm::vec4> cells(maps.ground.size());
-  for_surface_cells(maps, settings, [&](size_t k, const glm::vec4& cell) { cells[k] = cell; });
-  return cells;
-}
-
-void StabilizeResult::add(const StabilizeResult& later) {
-  const int passes = iterations + later.iterations;
-  tile_share = passes > 0 ? (tile_share * iterations + later.tile_share * later.iterations) / passes
-                          : later.tile_share;
-  iterations = passes;
-  residual = later.residual;
-  converged = later.converged;
-  route_passes += later.route_passes;
-  routed_volume += later.routed_volume;
-  drains += later.drains;
-  pours += later.pours;
-  lost_volume += later.lost_volume;
-  volume = later.volume;
-  route_seconds += later.route_seconds;
-}
-
-double snow_volume(const SnowMaps& maps, const std::vector<float>& depth) {
-  const size_t n = std::min(depth.size(), maps.ground.size());
-  const double sum = parallel_sum(n, kSumChunk, [&](size_t begin, size_t end) {
-    double part = 0.0;
-    for (size_t k = begin; k < end; ++k) {
-      if (!std::isnan(maps.ground[k]) && depth[k] > 0.0f) part += double(depth[k]);
-    }
-    return part;
-  });
-  return sum * double(maps.grid.texel) * double(maps.grid.texel);
-}
-
-// ---------------------------------------------------------------------------
-// GPU
 
 struct Stabilizer::Impl {
   StabilizeSettings settings;
@@ -278,6 +84,10 @@ struct Stabilizer::Impl {
   StrideSchedule schedule{settings};
 
   Impl(const SnowMaps& maps, const StabilizeSettings& s);
+  void upload_cells(const SnowMaps& maps);
+  void create_textures();
+  void create_framebuffers();
+  void create_programs();
   ~Impl() { release_bindings(); }
   Impl(const Impl&) = delete;
   Impl& operator=(const Impl&) = delete;
@@ -345,54 +155,69 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     throw GLError("stabilize: " + std::to_string(layers) +
                   " layers exceed GL_MAX_ARRAY_TEXTURE_LAYERS " + std::to_string(max_layers));
   }
-  {  // the CPU copy of the cells is freed before the pass textures are allocated
-    const std::vector<glm::vec4> cell_data = stabilize_cells(maps, s);
-    surface.resize(cell_data.size());
-    for (size_t k = 0; k < cell_data.size(); ++k) {
-      surface[k] = (int(cell_data[k].w) & kCellSurface) != 0 ? 1 : 0;
-    }
-    // Passes draw each layer only over the bounding box of its surfaces;
-    // texels outside keep their cleared values (no snow, no flow). Active
-    // tiles are drawn only in the layers with a surface in them.
-    tiles_x = (width + kTile - 1) / kTile;
-    tiles_y = (height + kTile - 1) / kTile;
-    std::vector<GLuint> occupied(size_t(tiles_x) * size_t(tiles_y) * size_t(layers), 0);
-    std::vector<uint8_t> surfaces(size_t(width) * size_t(height), 0);  // per column
-    for (int l = 0; l < layers; ++l) {
-      glm::ivec2 lo(grid.width, grid.height), hi(-1, -1);
-      for (int j = 0; j < grid.height; ++j) {
-        for (int i = 0; i < grid.width; ++i) {
-          if (!surface[maps.index(l, i, j)]) continue;
-          lo = glm::min(lo, glm::ivec2(i, j));
-          hi = glm::max(hi, glm::ivec2(i, j));
-          occupied[(size_t(l) * tiles_y + size_t(j / kTile)) * tiles_x + size_t(i / kTile)] = 1;
-          ++surfaces[size_t(j) * size_t(width) + size_t(i)];
-        }
-      }
-      rect.push_back(hi.x < 0 ? glm::ivec4(0) : glm::ivec4(lo, hi - lo + 1));
-    }
-    column = gl::create_texture_2d(GL_R8UI, width, height, "stabilize column surfaces");
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTextureSubImage2D(column.id(), 0, 0, 0, width, height, GL_RED_INTEGER, GL_UNSIGNED_BYTE,
-                        surfaces.data());
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    tile_layers =
-        gl::create_texture_2d_array(GL_R32UI, tiles_x, tiles_y, layers, "stabilize tile layers");
-    glTextureSubImage3D(tile_layers.id(), 0, 0, 0, 0, tiles_x, tiles_y, layers, GL_RED_INTEGER,
-                        GL_UNSIGNED_INT, occupied.data());
-    cells = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize cells");
-    glTextureSubImage3D(cells.id(), 0, 0, 0, 0, width, height, layers, GL_RGBA, GL_FLOAT,
-                        cell_data.data());
-    if (s.route_steep && s.deposit_piles) {
-      // Rows on all cores (4M columns of 3 layers: 0.19 s on one core).
-      pour_cells = ZeroedArray<glm::vec4>(cell_data.size());
-      parallel_for(size_t(layers) * size_t(height), [&](size_t row) {
-        for (size_t k = row * size_t(width); k < (row + 1) * size_t(width); ++k) {
-          if (surface[k]) pour_cells[k] = cell_data[k];
-        }
-      });
-    }
+  upload_cells(maps);  // its CPU copy of the cells is freed before the pass textures exist
+  create_textures();
+  create_framebuffers();
+  create_programs();
+  release_bindings();
+  gl::check_error("stabilize: set-up");
+}
+
+// The cells (stabilize_cells) and what the passes derive from them: which
+// texels have a surface, each layer's rectangle, the tiles and columns with
+// a surface, and the cells kept on the CPU for pouring piles.
+void Stabilizer::Impl::upload_cells(const SnowMaps& maps) {
+  const std::vector<glm::vec4> cell_data = stabilize_cells(maps, settings);
+  surface.resize(cell_data.size());
+  for (size_t k = 0; k < cell_data.size(); ++k) {
+    surface[k] = (int(cell_data[k].w) & kCellSurface) != 0 ? 1 : 0;
   }
+  // Passes draw each layer only over the bounding box of its surfaces;
+  // texels outside keep their cleared values (no snow, no flow). Active
+  // tiles are drawn only in the layers with a surface in them.
+  tiles_x = (width + kTile - 1) / kTile;
+  tiles_y = (height + kTile - 1) / kTile;
+  std::vector<GLuint> occupied(size_t(tiles_x) * size_t(tiles_y) * size_t(layers), 0);
+  std::vector<uint8_t> surfaces(size_t(width) * size_t(height), 0);  // per column
+  for (int l = 0; l < layers; ++l) {
+    glm::ivec2 lo(grid.width, grid.height), hi(-1, -1);
+    for (int j = 0; j < grid.height; ++j) {
+      for (int i = 0; i < grid.width; ++i) {
+        if (!surface[maps.index(l, i, j)]) continue;
+        lo = glm::min(lo, glm::ivec2(i, j));
+        hi = glm::max(hi, glm::ivec2(i, j));
+        occupied[(size_t(l) * tiles_y + size_t(j / kTile)) * tiles_x + size_t(i / kTile)] = 1;
+        ++surfaces[size_t(j) * size_t(width) + size_t(i)];
+      }
+    }
+    rect.push_back(hi.x < 0 ? glm::ivec4(0) : glm::ivec4(lo, hi - lo + 1));
+  }
+  column = gl::create_texture_2d(GL_R8UI, width, height, "stabilize column surfaces");
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  glTextureSubImage2D(column.id(), 0, 0, 0, width, height, GL_RED_INTEGER, GL_UNSIGNED_BYTE,
+                      surfaces.data());
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  tile_layers =
+      gl::create_texture_2d_array(GL_R32UI, tiles_x, tiles_y, layers, "stabilize tile layers");
+  glTextureSubImage3D(tile_layers.id(), 0, 0, 0, 0, tiles_x, tiles_y, layers, GL_RED_INTEGER,
+                      GL_UNSIGNED_INT, occupied.data());
+  cells = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize cells");
+  glTextureSubImage3D(cells.id(), 0, 0, 0, 0, width, height, layers, GL_RGBA, GL_FLOAT,
+                      cell_data.data());
+  if (settings.route_steep && settings.deposit_piles) {
+    // Rows on all cores.
+    pour_cells = ZeroedArray<glm::vec4>(cell_data.size());
+    parallel_for(size_t(layers) * size_t(height), [&](size_t row) {
+      for (size_t k = row * size_t(width); k < (row + 1) * size_t(width); ++k) {
+        if (surface[k]) pour_cells[k] = cell_data[k];
+      }
+    });
+  }
+}
+
+// The pass textures (72 B per layer texel), the tile stamps and lists,
+// cleared.
+void Stabilizer::Impl::create_textures() {
   for (int x = 0; x < 2; ++x) {
     depth[x] = gl::create_texture_2d_array(GL_RG32F, width, height, layers, "stabilize depth");
   }
@@ -405,7 +230,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   reduce = gl::create_texture_2d(GL_RGBA32F, reduce_width, reduce_height, "stabilize sums");
   GLfloat point_sizes[2] = {1.0f, 1.0f};
   glGetFloatv(GL_POINT_SIZE_RANGE, point_sizes);
-  tiled = s.active_tiles && point_sizes[1] >= float(kTile);  // tiles are drawn as points
+  tiled = settings.active_tiles && point_sizes[1] >= float(kTile);  // tiles are drawn as points
   tile_relax = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
   tile_erode = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
   tile_moves = gl::create_texture_2d(GL_R32UI, tiles_x, tiles_y, "stabilize tile moves");
@@ -422,7 +247,7 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
       nullptr, GL_DYNAMIC_STORAGE_BIT);
   {
     int levels = 1;
-    while ((1 << levels) <= s.max_stride) ++levels;
+    while ((1 << levels) <= settings.max_stride) ++levels;
     stride_last.assign(size_t(levels), -1);
   }
   const float zero[4] = {0, 0, 0, 0};
@@ -433,7 +258,11 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   glClearTexImage(out_a.id(), 0, GL_RGBA, GL_FLOAT, zero);
   glClearTexImage(out_b.id(), 0, GL_RGBA, GL_FLOAT, zero);
   gl::check_error("stabilize: texture upload");
+}
 
+// Per layer, the framebuffers the passes draw into; the layered scatter
+// target, the sums' target and the attachment-less one.
+void Stabilizer::Impl::create_framebuffers() {
   auto layer_fbo = [&](std::initializer_list<const gl::Texture*> textures, int l) {
     gl::Framebuffer fbo = gl::create_framebuffer();
     GLenum buffers[4];
@@ -468,7 +297,10 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
   glNamedFramebufferParameteri(fbo_empty.id(), GL_FRAMEBUFFER_DEFAULT_HEIGHT, height);
   glNamedFramebufferDrawBuffer(fbo_empty.id(), GL_NONE);
   gl::check_framebuffer(fbo_empty, "stabilize check framebuffer");
+}
 
+// The passes' programs with the uniforms common to all.
+void Stabilizer::Impl::create_programs() {
   vao = gl::create_vertex_array();
   query = gl::create_query(GL_SAMPLES_PASSED);
   outflow = gl::Program({"stabilize.vert", "stabilize_outflow.frag"});
@@ -502,8 +334,6 @@ Stabilizer::Impl::Impl(const SnowMaps& maps, const StabilizeSettings& s)
     p->set("u_viewport", glm::ivec2(tiles_x * kTile, tiles_y * kTile));
   }
   sums.set("u_block", kReduceBlock);
-  release_bindings();
-  gl::check_error("stabilize: set-up");
 }
 
 void Stabilizer::Impl::set_common(const gl::Program& program) const {
@@ -569,9 +399,9 @@ void Stabilizer::Impl::per_layer(const gl::Program& program,
 // add_snow (and the routing that follows, which uses the outflow textures as
 // scratch) the first pass computes all tiles with a surface, and so does a
 // strided pass before any pass of stride 1.
-// Tiles of 4 x 4 columns are llvmpipe's shading blocks; on the Kenney
-// building-small-a at 256 texels (246 passes) the relaxation took 27.2 s with
-// 16 x 16 tiles, 18.9 s with 8, 15.9 s with 4 and 23.5 s with 2.
+// Tiles of 4 x 4 columns are llvmpipe's shading blocks: larger tiles compute
+// more columns that cannot change, smaller ones cost more points per pass
+// (the sizes compared: tools/RESULTS.md).
 // Erosion passes compute the tiles within one tile of a tile the previous
 // erosion pass changed; no such tile ends the erosion (the same pass count as
 // the occlusion-query check of the full passes). The routing's receiver pass
@@ -1117,21 +947,5 @@ unsigned Stabilizer::depth_texture() const { return impl_->depth[impl_->cur].id(
 const MapGrid& Stabilizer::grid() const { return impl_->grid; }
 int Stabilizer::layers() const { return impl_->layers; }
 const StabilizeSettings& Stabilizer::settings() const { return impl_->settings; }
-
-bool stabilizes_on_cpu(const StabilizeSettings& settings, StabilizerUse use,
-                       std::optional<plan::GlFacts> gl) {
-  if (settings.device == "auto" && use == StabilizerUse::Live && !gl) gl = plan::current_gl();
-  return plan::stabilizer_on_cpu(settings.device, use, gl.value_or(plan::GlFacts{}));
-}
-
-StabilizeResult stabilize(const SnowMaps& maps, std::vector<float>& depth,
-                          const StabilizeSettings& settings) {
-  Stabilizer stabilizer(maps, settings);
-  stabilizer.set_depth(depth);
-  StabilizeResult result = stabilizer.run();
-  depth = stabilizer.depth();
-  for (float& d : depth) d = std::max(d, 0.0f);
-  return result;
-}
 
 }  // namespace snow
