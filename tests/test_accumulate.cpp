@@ -54,7 +54,8 @@ TEST(Accumulate, MassAddsUp) {
   AccumulateSettings settings;
   settings.fall_depth = 0.3f;
   settings.steps = 3;
-  const SnowResult r = accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings);
+  const SnowResult r =
+      accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings, plan::current_gl());
   std::printf("fell %.5f, lies %.5f, lost %.5f m^3 (%d passes)\n", r.fallen_volume, r.volume,
               r.lost_volume, r.iterations);
   ASSERT_GT(r.fallen_volume, 0.0);
@@ -80,18 +81,19 @@ TEST(Accumulate, SmallSceneOnAColdGpuMakesNoContext) {
   const Scene scene = make_table_scene();
   PeelSettings peel;
   peel.max_side = 64;
-  const SnowMaps maps = peel_layers(scene, peel);
+  const SnowMaps maps = peel_layers(scene, peel, plan::current_gl());
   const SnowMaps cpu = scene_maps(scene, 64, peel.layers);  // the CPU peel's maps
   ASSERT_EQ(maps.ground.size(), cpu.ground.size());
   EXPECT_EQ(std::memcmp(maps.ground.data(), cpu.ground.data(), cpu.ground.size() * sizeof(float)),
             0);
   AccumulateSettings settings;
   settings.fall_depth = 0.3f;
-  const SnowResult r = accumulate(scene, maps, CoverageSettings{}, StabilizeSettings{}, settings);
+  const SnowResult r = accumulate(scene, maps, CoverageSettings{}, StabilizeSettings{}, settings,
+                                  plan::current_gl());
   EXPECT_FALSE(gpu.made());
   EXPECT_GT(r.volume, 0.0);
   peel.max_side = 1024;  // the floor alone: about a million texel centres in its boxes
-  EXPECT_THROW(peel_layers(scene, peel), std::logic_error);
+  EXPECT_THROW(peel_layers(scene, peel, plan::current_gl()), std::logic_error);
 }
 
 // The coverage's BVH built ahead (as the batch job builds it beside the
@@ -101,12 +103,13 @@ TEST(Accumulate, BvhBuiltAheadGivesTheSameSnow) {
   const Scene scene = make_table_scene();
   const SnowMaps maps = scene_maps(scene, 64);
   AccumulateSettings settings;
-  const SnowResult plain = accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings);
+  const SnowResult plain =
+      accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings, plan::current_gl());
   for (const Bvh::Build build : {Bvh::Build::Sah, Bvh::Build::Morton}) {
     CoverageBvh bvh = build_coverage_bvh(scene, build);
     EXPECT_EQ(bvh.bvh.triangle_count(), scene.triangle_count());
-    const SnowResult ahead =
-        accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings, {}, &bvh);
+    const SnowResult ahead = accumulate(scene, maps, few_directions(), StabilizeSettings{},
+                                        settings, plan::current_gl(), {}, &bvh);
     ASSERT_EQ(ahead.depth.size(), plain.depth.size());
     EXPECT_EQ(
         std::memcmp(ahead.depth.data(), plain.depth.data(), plain.depth.size() * sizeof(float)), 0);
@@ -120,8 +123,10 @@ TEST(Accumulate, StepsSplitTheFall) {
   const SnowMaps maps = scene_maps(scene, 64);
   AccumulateSettings one, four;
   four.steps = 4;
-  const SnowResult a = accumulate(scene, maps, few_directions(), StabilizeSettings{}, one);
-  const SnowResult b = accumulate(scene, maps, few_directions(), StabilizeSettings{}, four);
+  const SnowResult a =
+      accumulate(scene, maps, few_directions(), StabilizeSettings{}, one, plan::current_gl());
+  const SnowResult b =
+      accumulate(scene, maps, few_directions(), StabilizeSettings{}, four, plan::current_gl());
   // Without snow on snow the coverage is the same, so the same snow falls.
   EXPECT_NEAR(a.fallen_volume, b.fallen_volume, 1e-5 * a.fallen_volume);
   EXPECT_NEAR(a.volume + a.lost_volume, b.volume + b.lost_volume, 1e-4 * a.fallen_volume);
@@ -135,7 +140,8 @@ TEST(Accumulate, SnowOnSnowUpdatesCoverage) {
   AccumulateSettings settings;
   settings.steps = 5;
   settings.snow_on_snow_every = 2;
-  const SnowResult r = accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings);
+  const SnowResult r =
+      accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings, plan::current_gl());
   EXPECT_EQ(r.coverage_updates, 3);  // before step 0, 2 and 4
   EXPECT_NEAR(r.volume + r.lost_volume, r.fallen_volume, 1e-5 * r.fallen_volume);
 }
@@ -146,7 +152,8 @@ TEST(Accumulate, ClosedBoxStaysEmpty) {
   const SnowMaps maps = scene_maps(scene, 64);
   AccumulateSettings settings;
   settings.steps = 2;
-  const SnowResult r = accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings);
+  const SnowResult r =
+      accumulate(scene, maps, few_directions(), StabilizeSettings{}, settings, plan::current_gl());
   // The cavity (the inside of the walls, below the lid) gets nothing.
   const ClosedBoxDims dims;
   const float inner = dims.size / 2 - dims.wall;
@@ -173,13 +180,18 @@ TEST(Accumulate, RejectsBadSettings) {
   const SnowMaps maps = scene_maps(scene, 16, 2);
   AccumulateSettings bad;
   bad.steps = 0;
-  EXPECT_THROW(accumulate(scene, maps, few_directions(), StabilizeSettings{}, bad), InputError);
+  EXPECT_THROW(
+      accumulate(scene, maps, few_directions(), StabilizeSettings{}, bad, plan::current_gl()),
+      InputError);
   bad = AccumulateSettings{};
   bad.fall_depth = -1.0f;
-  EXPECT_THROW(accumulate(scene, maps, few_directions(), StabilizeSettings{}, bad), InputError);
+  EXPECT_THROW(
+      accumulate(scene, maps, few_directions(), StabilizeSettings{}, bad, plan::current_gl()),
+      InputError);
   StabilizeSettings bad_stabilize;
   bad_stabilize.repose_deg = 95.0f;
-  EXPECT_THROW(accumulate(scene, maps, few_directions(), bad_stabilize, AccumulateSettings{}),
+  EXPECT_THROW(accumulate(scene, maps, few_directions(), bad_stabilize, AccumulateSettings{},
+                          plan::current_gl()),
                InputError);
 }
 

@@ -45,7 +45,7 @@ SnowMaps peel(const Scene& scene, int side, int layers = 6) {
   PeelSettings s;
   s.max_side = side;
   s.layers = layers;
-  return peel_layers(scene, s);
+  return peel_layers(scene, s, plan::current_gl());
 }
 
 glm::ivec2 texel_at(const MapGrid& g, float x, float z) {

@@ -216,7 +216,7 @@ TEST(MemoryGuard, HundredKilometresAtOneMillimetreThrowsBeforeAllocating) {
     EXPECT_EQ(what.find('\n'), std::string::npos);
   }
   // peel_layers checks before touching GL or allocating maps (no context needed).
-  EXPECT_THROW(peel_layers(scene, s), InputError);
+  EXPECT_THROW(peel_layers(scene, s, plan::GlFacts{}), InputError);
 }
 
 TEST(MemoryGuard, EstimateGrowsWithSizeAndSuggestionFits) {
@@ -238,12 +238,14 @@ TEST(MemoryGuard, EstimateGrowsWithSizeAndSuggestionFits) {
 // layers added after them and keeps what is there.
 TEST(Peel, KeepsOnlyTheLayersColumnsReach) {
   REQUIRE_GL();
-  const SnowMaps full = peel_layers(make_table_scene(), settings_with_side(64, 8));
+  const SnowMaps full =
+      peel_layers(make_table_scene(), settings_with_side(64, 8), plan::current_gl());
   ASSERT_EQ(full.layers, 3);
   const size_t n = 3 * full.grid.texels();
   ASSERT_EQ(full.ground.size(), n);
   ASSERT_EQ(full.object.size(), n);
-  const SnowMaps three = peel_layers(make_table_scene(), settings_with_side(64, 3));
+  const SnowMaps three =
+      peel_layers(make_table_scene(), settings_with_side(64, 3), plan::current_gl());
   ASSERT_EQ(three.layers, 3);
   for (size_t k = 0; k < n; ++k) {
     ASSERT_TRUE(three.ground[k] == full.ground[k] ||
@@ -270,7 +272,7 @@ TEST(Peel, KeepsOnlyTheLayersColumnsReach) {
 
   SceneBuilder plane;
   plane.add_plane("Floor", 0.0f, {-1.0f, -1.0f}, {1.0f, 1.0f});
-  const SnowMaps flat = peel_layers(plane.build(), settings_with_side(16));
+  const SnowMaps flat = peel_layers(plane.build(), settings_with_side(16), plan::current_gl());
   EXPECT_EQ(flat.layers, 1);
   EXPECT_EQ(flat.ground.size(), flat.grid.texels());
 }
@@ -279,7 +281,7 @@ TEST(Peel, TableLayersAndCeilings) {
   REQUIRE_GL();
   TableDims dims;  // top at 0.75, 1 m square, 5 cm thick, on a 4 m floor
   const Scene scene = make_table_scene(dims);
-  const SnowMaps maps = peel_layers(scene, settings_with_side(128));
+  const SnowMaps maps = peel_layers(scene, settings_with_side(128), plan::current_gl());
   ASSERT_EQ(maps.layers, 3);  // of 8: no column holds a fourth surface
   EXPECT_EQ(maps.overflow_columns, 0u);
   const glm::ivec2 mid = texel_at(maps.grid, 0.01f, 0.01f);
@@ -331,7 +333,7 @@ TEST(Peel, GpuMatchesReferenceOnCannedScenes) {
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
     const PeelSettings s = settings_with_side(c.scene.triangle_count() > 1000 ? 256 : 96, 6);
-    const SnowMaps gpu = peel_layers(c.scene, s);
+    const SnowMaps gpu = peel_layers(c.scene, s, plan::current_gl());
     const SnowMaps cpu = reference::peel_layers(c.scene, gpu.grid, s.layers, s.merge_distance);
     const Agreement a = compare_maps(gpu, cpu);
     std::printf("%s: compared %zu mismatched %zu max err %g\n", c.name, a.compared, a.mismatched,
@@ -374,7 +376,7 @@ TEST(Peel, CoplanarDuplicatesMergeAndFlippedFacesAreFloors) {
   add_quad(scene, "FloorCopy", 0.0f, -2, 2, -2, 2, true);      // coplanar duplicate
   add_quad(scene, "Decal", 0.0005f, -1, 1, -1, 1, true);       // 0.5 mm above: same layer
   add_quad(scene, "Shelf", 0.3f, -0.5f, 0.5f, -0.5f, 0.5f, true);
-  const SnowMaps maps = peel_layers(scene, settings_with_side(64, 4));
+  const SnowMaps maps = peel_layers(scene, settings_with_side(64, 4), plan::current_gl());
   const glm::ivec2 mid = texel_at(maps.grid, 0.01f, 0.01f);
   EXPECT_NEAR(maps.ground[maps.index(0, mid.x, mid.y)], 0.3f, 1e-5);
   EXPECT_NEAR(maps.ground[maps.index(1, mid.x, mid.y)], 0.0005f, 1e-6);
@@ -399,7 +401,7 @@ TEST(Peel, CountsAndWarnsAboutOverflowColumnsOnce) {
   for (const char* device : {"gpu", "cpu"}) {
     SCOPED_TRACE(device);
     clear_warnings();
-    const SnowMaps maps = peel_layers(scene, settings_with_side(64, 3, device));
+    const SnowMaps maps = peel_layers(scene, settings_with_side(64, 3, device), plan::current_gl());
     // Every texel centre inside the plates holds 5 surfaces.
     size_t inside = 0;
     for (int j = 0; j < maps.grid.height; ++j) {
@@ -429,7 +431,7 @@ TEST(Peel, EmptySceneGivesEmptyMaps) {
   scene.bounds.extend({0, 0, 0});
   scene.bounds.extend({1, 1, 1});
   for (const char* device : {"gpu", "cpu"}) {
-    const SnowMaps maps = peel_layers(scene, settings_with_side(16, 2, device));
+    const SnowMaps maps = peel_layers(scene, settings_with_side(16, 2, device), plan::current_gl());
     EXPECT_EQ(maps.layers, 1) << device;
     for (float g : maps.ground) EXPECT_TRUE(std::isnan(g)) << device;
   }
@@ -440,28 +442,30 @@ TEST(Peel, EmptySceneGivesEmptyMaps) {
 TEST(Peel, DeviceChoosesTheCpuInSoftware) {
   REQUIRE_GL();
   const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
-  const SnowMaps cpu = peel_layers(scene, settings_with_side(96, 6, "cpu"));
+  const SnowMaps cpu = peel_layers(scene, settings_with_side(96, 6, "cpu"), plan::current_gl());
   const SnowMaps ref = reference::peel_layers(scene, cpu.grid, 6);
   EXPECT_EQ(compare_maps(cpu, ref).mismatched, 0u);
   EXPECT_EQ(cpu.ground.size(), ref.ground.size());
   for (int side : {96, 512}) {
-    const SnowMaps automatic = peel_layers(scene, settings_with_side(side, 6, "auto"));
+    const SnowMaps automatic =
+        peel_layers(scene, settings_with_side(side, 6, "auto"), plan::current_gl());
     const SnowMaps expected =
-        peel_layers(scene, settings_with_side(side, 6, gl::renderer_is_software() ? "cpu" : "gpu"));
+        peel_layers(scene, settings_with_side(side, 6, gl::renderer_is_software() ? "cpu" : "gpu"),
+                    plan::current_gl());
     ASSERT_EQ(automatic.ground.size(), expected.ground.size()) << side;
     EXPECT_EQ(std::memcmp(automatic.ground.data(), expected.ground.data(),
                           automatic.ground.size() * sizeof(float)),
               0)
         << side;
   }
-  EXPECT_THROW(peel_layers(scene, settings_with_side(96, 6, "tpu")), InputError);
+  EXPECT_THROW(peel_layers(scene, settings_with_side(96, 6, "tpu"), plan::current_gl()),
+               InputError);
 }
 
 // "auto" peels on the CPU while the triangles' boxes hold at most
 // kCpuPeelHits texel centres, or at most 4 per layer texel.
 TEST(Peel, CpuPeelKeepsItsHitsWithinTheMaps) {
-  REQUIRE_GL();
-  if (!gl::renderer_is_software()) GTEST_SKIP() << "auto peels on the GPU here";
+  const plan::GlFacts software{true, false};  // the choice alone: no GL needed
   // 3 stacked plates of 2 triangles, each box over nearly all of a 1024 x
   // 1024 map: about 5.5M box texels, over kCpuPeelHits (4.2M).
   SceneBuilder b;
@@ -472,14 +476,15 @@ TEST(Peel, CpuPeelKeepsItsHitsWithinTheMaps) {
   }
   const Scene scene = b.build();
   PeelSettings s = settings_with_side(1024, 2, "auto");
-  EXPECT_TRUE(peels_on_cpu(scene, make_grid(scene.bounds, s), s));  // 4 x 2.1M layer texels
+  EXPECT_TRUE(
+      peels_on_cpu(scene, make_grid(scene.bounds, s), s, software));  // 4 x 2.1M layer texels
   s.layers = 1;
-  EXPECT_FALSE(peels_on_cpu(scene, make_grid(scene.bounds, s), s));  // 4 x 1.05M
+  EXPECT_FALSE(peels_on_cpu(scene, make_grid(scene.bounds, s), s, software));  // 4 x 1.05M
   s.device = "cpu";
-  EXPECT_TRUE(peels_on_cpu(scene, make_grid(scene.bounds, s), s));
+  EXPECT_TRUE(peels_on_cpu(scene, make_grid(scene.bounds, s), s, software));
   s.device = "gpu";
   s.layers = 2;
-  EXPECT_FALSE(peels_on_cpu(scene, make_grid(scene.bounds, s), s));
+  EXPECT_FALSE(peels_on_cpu(scene, make_grid(scene.bounds, s), s, software));
 }
 
 // Many large stacked triangles would make the CPU peel store every hit of
@@ -501,13 +506,14 @@ TEST(Peel, ManyStackedTrianglesKeepTheGpu) {
   };
   const Scene scene = plates(1100);
   const PeelSettings automatic = settings_with_side(64, 4, "auto");
-  EXPECT_FALSE(peels_on_cpu(scene, make_grid(scene.bounds, automatic), automatic));
+  EXPECT_FALSE(
+      peels_on_cpu(scene, make_grid(scene.bounds, automatic), automatic, plan::current_gl()));
   // A few of them are left to the CPU in software.
   const Scene few = plates(10);
-  EXPECT_EQ(peels_on_cpu(few, make_grid(few.bounds, automatic), automatic),
+  EXPECT_EQ(peels_on_cpu(few, make_grid(few.bounds, automatic), automatic, plan::current_gl()),
             gl::renderer_is_software());
-  const SnowMaps peeled = peel_layers(scene, automatic);
-  const SnowMaps gpu = peel_layers(scene, settings_with_side(64, 4, "gpu"));
+  const SnowMaps peeled = peel_layers(scene, automatic, plan::current_gl());
+  const SnowMaps gpu = peel_layers(scene, settings_with_side(64, 4, "gpu"), plan::current_gl());
   ASSERT_EQ(peeled.ground.size(), gpu.ground.size());
   EXPECT_EQ(std::memcmp(peeled.ground.data(), gpu.ground.data(), gpu.ground.size() * sizeof(float)),
             0);

@@ -423,30 +423,21 @@ TEST(StabilizeCpu, AutomaticMinMoveIsATenthOfTheTolerance) {
 }
 
 // --stabilizer auto: the batch job takes the CPU's passes whatever renders;
-// the live preview takes the GPU's unless the renderer is software. A
-// hardware renderer is stood in for by a context that is never made: an
-// OnDemandContext told it is not software answers renderer_is_software()
-// without making one.
+// the live preview takes the GPU's unless the renderer is software.
 TEST(StabilizeDevice, AutoIsTheCpuForTheBatchJobAndTheRendererForThePreview) {
   StabilizeSettings settings;
   EXPECT_EQ(settings.device, "auto");
   for (const bool software : {false, true}) {
     SCOPED_TRACE(software);
-    gl::OnDemandContext hardware(
-        []() -> std::unique_ptr<gl::Context> {
-          throw std::logic_error("no pass should need a context here");
-        },
-        software);
+    const plan::GlFacts gl{software, false};
     settings.device = "auto";
-    EXPECT_TRUE(stabilizes_on_cpu(settings));
-    EXPECT_TRUE(stabilizes_on_cpu(settings, StabilizerUse::Batch));
-    EXPECT_EQ(stabilizes_on_cpu(settings, StabilizerUse::Live), software);
-    EXPECT_FALSE(hardware.made());
+    EXPECT_TRUE(stabilizes_on_cpu(settings, StabilizerUse::Batch, gl));
+    EXPECT_EQ(stabilizes_on_cpu(settings, StabilizerUse::Live, gl), software);
     for (const StabilizerUse use : {StabilizerUse::Batch, StabilizerUse::Live}) {
       settings.device = "gpu";
-      EXPECT_FALSE(stabilizes_on_cpu(settings, use));
+      EXPECT_FALSE(stabilizes_on_cpu(settings, use, gl));
       settings.device = "cpu";
-      EXPECT_TRUE(stabilizes_on_cpu(settings, use));
+      EXPECT_TRUE(stabilizes_on_cpu(settings, use, gl));
     }
   }
 }

@@ -99,7 +99,7 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
   r.peel = 1e30;
   for (int k = 0; k < o.repeat; ++k) {
     const double t0 = seconds();
-    maps = snow::peel_layers(scene, ps);
+    maps = snow::peel_layers(scene, ps, snow::plan::current_gl());
     r.peel = std::min(r.peel, seconds() - t0);
   }
   r.width = maps.grid.width;

@@ -131,7 +131,7 @@ int main(int argc, char** argv) {
     if (plan::huge_pages_off(plan::probe_machine({}), 0, make_grid(scene.bounds, peel).texels()))
       turn_off_huge_pages();
     auto t0 = std::chrono::steady_clock::now();
-    const SnowMaps maps = peel_layers(scene, peel);
+    const SnowMaps maps = peel_layers(scene, peel, plan::current_gl());
     const double peel_s = seconds_since(t0);
     std::vector<float> depth(size_t(maps.layers) * maps.grid.texels(), 0.0f);
     if (with_coverage) {

@@ -323,8 +323,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
                          std::to_string(snow_scene.triangle_count()) + " triangles");
       }
     }
-    snow = accumulate(snow_scene, maps, s.coverage, s.stabilize, s.accumulate, receives,
-                      bvh ? &*bvh : nullptr, gl_after_peel);
+    snow = accumulate(snow_scene, maps, s.coverage, s.stabilize, s.accumulate, gl_after_peel,
+                      receives, bvh ? &*bvh : nullptr);
   });
   warn_if_unsettled(snow, s.stabilize);
   warn_if_sheltered(snow_scene, maps, snow.coverage);

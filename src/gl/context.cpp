@@ -61,7 +61,9 @@ void GLAD_API_PTR debug_callback(GLenum source, GLenum type, GLuint id, GLenum s
   }
 }
 
+// "?" also where no context has loaded the functions yet.
 const char* gl_string(GLenum name) {
+  if (glGetString == nullptr) return "?";
   const GLubyte* s = glGetString(name);
   return s ? reinterpret_cast<const char*>(s) : "?";
 }

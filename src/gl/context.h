@@ -54,6 +54,7 @@ class Context {
 /// True when the current context renders in software (Mesa's llvmpipe,
 /// softpipe or swrast): its "GPU" passes run on the CPU cores. While an
 /// OnDemandContext of this thread is not made yet: what it was told.
+/// False where no context has loaded the GL functions yet.
 bool renderer_is_software();
 
 /// Creates a context and makes it current. With Backend::Auto (and no

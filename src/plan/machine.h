@@ -1,36 +1,14 @@
 #pragma once
-// Facts about the machine that the planner's choices depend on. Only the
-// planner (src/plan) and src/gl ask GL what it renders on; every stage
-// receives these facts, or the choices made from them, as arguments.
+// How the planner finds the machine's facts (plan::MachineInfo,
+// plan::GlFacts): the only place besides src/gl that asks GL what it
+// renders on. Every stage receives these facts, or the choices made from
+// them, as arguments.
 #include <optional>
 
 #include "gl/context.h"
+#include "plan/plan.h"
 
 namespace snow::plan {
-
-/// What GL renders on, and whether the process has started it, as known
-/// when a stage begins.
-struct GlFacts {
-  bool software = false;  // a software rasterizer (Mesa's llvmpipe, softpipe, swrast): its
-                          // "GPU" passes run on the CPU cores
-  bool started = false;   // a GL context has been made in this process: the driver is loaded
-                          // and further contexts come cheaply
-};
-
-/// What the batch job knows of the machine before any context is made.
-struct MachineInfo {
-  /// Whether GL renders in software (gl::probe_software): empty where only
-  /// a context can tell (GLFW, EGL without device enumeration) and where
-  /// the backend is named (--gl-backend, SNOWMODEL_GL_BACKEND).
-  std::optional<bool> software;
-  /// The GL backend is a window (GLFW), which must start on the main thread.
-  bool window_backend = false;
-  /// CPU cores the stages may use (parallel_for's default_threads()), >= 1.
-  unsigned cores = 1;
-  /// The (virtual) machine hands free memory back to its host in 2 MiB
-  /// blocks (core/heap.h, free_pages_reported): huge pages cost more there.
-  bool reports_free_pages = false;
-};
 
 /// Probes the machine for a run whose contexts are made with `options`:
 /// the cores, the free-page reporting and whether the backend is a window.

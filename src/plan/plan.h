@@ -7,13 +7,28 @@
 // figures are plan/rules.h's.
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include "plan/machine.h"
 #include "plan/rules.h"
 
 namespace snow::plan {
+
+/// What the batch job knows of the machine before any context is made.
+struct MachineInfo {
+  /// Whether GL renders in software (gl::probe_software): empty where only
+  /// a context can tell (GLFW, EGL without device enumeration) and where
+  /// the backend is named (--gl-backend, SNOWMODEL_GL_BACKEND).
+  std::optional<bool> software;
+  /// The GL backend is a window (GLFW), which must start on the main thread.
+  bool window_backend = false;
+  /// CPU cores the stages may use (parallel_for's default_threads()), >= 1.
+  unsigned cores = 1;
+  /// The (virtual) machine hands free memory back to its host in 2 MiB
+  /// blocks (core/heap.h, free_pages_reported): huge pages cost more there.
+  bool reports_free_pages = false;
+};
 
 /// Fresh snow deeper than this many texels is slow to stabilize: piles
 /// about as wide as the snow is deep settle in passes growing with the

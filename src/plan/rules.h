@@ -11,9 +11,18 @@
 #include <cstdint>
 #include <string>
 
-#include "plan/machine.h"
 
 namespace snow::plan {
+
+/// What GL renders on, and whether the process has started it, as known
+/// when a stage begins.
+struct GlFacts {
+  bool software = false;  // a software rasterizer (Mesa's llvmpipe, softpipe, swrast): its
+                          // "GPU" passes run on the CPU cores
+  bool started = false;   // a GL context has been made in this process: the driver is loaded
+                          // and further contexts come cheaply
+};
+
 
 // --- Peel: the GPU's depth passes or a vertical ray per texel on the CPU ---
 

@@ -71,8 +71,8 @@ void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
 
 SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSettings& coverage,
                       const StabilizeSettings& stabilize, const AccumulateSettings& settings,
-                      const std::vector<uint8_t>& receives, CoverageBvh* bvh,
-                      std::optional<plan::GlFacts> gl) {
+                      const plan::GlFacts& gl, const std::vector<uint8_t>& receives,
+                      CoverageBvh* bvh) {
   if (!std::isfinite(settings.fall_depth) || settings.fall_depth < 0 ||
       settings.fall_depth > 1000) {
     throw InputError("snow depth must be between 0 and 1000 m, got " +
@@ -93,7 +93,7 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   } else {
     shadows.emplace(scene, &maps);
   }
-  if (gl) shadows->set_gl(*gl);
+  shadows->set_gl(gl);
   result.coverage = shadows->compute(maps, coverage);
   result.coverage_method = shadows->timings().method;
   mask_coverage(maps, receives, result.coverage);

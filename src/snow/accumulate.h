@@ -54,7 +54,7 @@ void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
 /// Throws InputError for bad settings, GLError for GL trouble.
 SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSettings& coverage,
                       const StabilizeSettings& stabilize, const AccumulateSettings& settings,
-                      const std::vector<uint8_t>& receives = {}, CoverageBvh* bvh = nullptr,
-                      std::optional<plan::GlFacts> gl = std::nullopt);
+                      const plan::GlFacts& gl, const std::vector<uint8_t>& receives = {},
+                      CoverageBvh* bvh = nullptr);
 
 }  // namespace snow

@@ -32,10 +32,11 @@ struct PeelSettings {
 };
 
 /// Whether peel_layers peels on the CPU: plan::choose_peel for
-/// settings.device and `gl` (plan::current_gl() where not given), the
-/// texel centres in the triangles' xz boxes counted against its bound.
+/// settings.device and `gl` (what GL renders on and whether it has started,
+/// as the caller's plan knows it), the texel centres in the triangles' xz
+/// boxes counted against its bound.
 bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
-                  std::optional<plan::GlFacts> gl = std::nullopt);
+                  const plan::GlFacts& gl);
 
 /// The map grid over the scene's horizontal (x, z) bounds plus the margin,
 /// centred on them. With settings.texel > 0 the texel is that size; with 0
@@ -93,12 +94,11 @@ void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings
 /// or GLError (GL_OUT_OF_MEMORY, shaders).
 /// `gl`: what GL renders on and whether it has started, as the caller's
 /// plan knows it (peels_on_cpu).
-SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings,
-                     std::optional<plan::GlFacts> gl = std::nullopt);
+SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings, const plan::GlFacts& gl);
 
 /// Same on a given grid (settings.texel, max_side and margin are ignored).
 SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
-                     std::optional<plan::GlFacts> gl = std::nullopt);
+                     const plan::GlFacts& gl);
 
 /// Benchmark helper: renders the whole scene `passes` times from straight
 /// above into a depth-only target of width x height texels (no peeling test,

@@ -264,12 +264,11 @@ double snow_volume(const SnowMaps& maps, const std::vector<float>& depth);
 
 using plan::StabilizerUse;
 
-/// Where settings.device puts the passes: true for the CPU
-/// (plan::stabilizer_on_cpu; `gl`: plan::current_gl() where not given and
-/// needed). The GPU's passes need a current GL context, or a
-/// gl::OnDemandContext.
-bool stabilizes_on_cpu(const StabilizeSettings& settings, StabilizerUse use = StabilizerUse::Batch,
-                       std::optional<plan::GlFacts> gl = std::nullopt);
+/// Where settings.device puts the passes of `use` on the GL that `gl`
+/// describes: true for the CPU (plan::stabilizer_on_cpu). The GPU's passes
+/// need a current GL context, or a gl::OnDemandContext.
+bool stabilizes_on_cpu(const StabilizeSettings& settings, StabilizerUse use,
+                       const plan::GlFacts& gl);
 
 /// Stabilizes `depth` (metres per layer texel, maps' layout; NaN, negative
 /// or depth on texels without a surface is treated as 0 and cleared) in

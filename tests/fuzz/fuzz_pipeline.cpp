@@ -57,9 +57,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   accumulate.snow_on_snow_every = (b0 >> 5) & 1;
   snow::PolygonizeSettings polygonize;
   try {
-    const snow::SnowMaps maps = snow::peel_layers(scene, peel);
+    const snow::SnowMaps maps = snow::peel_layers(scene, peel, snow::plan::current_gl());
     const snow::SnowResult snow =
-        snow::accumulate(scene, maps, coverage, stabilize, accumulate, {});
+        snow::accumulate(scene, maps, coverage, stabilize, accumulate, snow::plan::current_gl());
     if (!std::isfinite(snow.volume) || snow.volume < -1e-6) __builtin_trap();
     for (float d : snow.depth) {
       if (!std::isfinite(d) || d < -1e-4f) __builtin_trap();

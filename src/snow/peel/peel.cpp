@@ -44,7 +44,7 @@ void warn_overflow(const SnowMaps& maps, int layers) {
 }
 
 SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
-                      std::optional<plan::GlFacts> gl) {
+                      const plan::GlFacts& gl) {
   peel::validate_settings(settings);
   if (grid.width < 1 || grid.height < 1 || !(grid.texel > 0.0f)) {
     throw InputError("peel: empty map grid");
@@ -68,22 +68,21 @@ SnowMaps peel_checked(const Scene& scene, const MapGrid& grid, const PeelSetting
 }  // namespace
 
 bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
-                  std::optional<plan::GlFacts> gl) {
+                  const plan::GlFacts& gl) {
   peel::validate_settings(settings);
-  if (settings.device == "auto" && !gl) gl = plan::current_gl();
-  const plan::PeelChoice choice = plan::choose_peel(settings.device, gl.value_or(plan::GlFacts{}),
-                                                    grid.texels() * size_t(settings.layers));
+  const plan::PeelChoice choice =
+      plan::choose_peel(settings.device, gl, grid.texels() * size_t(settings.layers));
   if (choice.always_cpu || choice.cpu_box_texels == 0) return choice.always_cpu;
   return box_texels(scene, grid, choice.cpu_box_texels) <= choice.cpu_box_texels;
 }
 
 SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings,
-                     std::optional<plan::GlFacts> gl) {
+                     const plan::GlFacts& gl) {
   return peel_layers(scene, make_grid(scene.bounds, settings), settings, gl);
 }
 
 SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
-                     std::optional<plan::GlFacts> gl) {
+                     const plan::GlFacts& gl) {
   try {
     return peel_checked(scene, grid, settings, gl);
   } catch (const std::bad_alloc&) {

@@ -11,9 +11,8 @@
 namespace snow {
 
 bool stabilizes_on_cpu(const StabilizeSettings& settings, StabilizerUse use,
-                       std::optional<plan::GlFacts> gl) {
-  if (settings.device == "auto" && use == StabilizerUse::Live && !gl) gl = plan::current_gl();
-  return plan::stabilizer_on_cpu(settings.device, use, gl.value_or(plan::GlFacts{}));
+                       const plan::GlFacts& gl) {
+  return plan::stabilizer_on_cpu(settings.device, use, gl);
 }
 
 StabilizeResult stabilize(const SnowMaps& maps, std::vector<float>& depth,
