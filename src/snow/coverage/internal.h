@@ -10,8 +10,13 @@
 //                   direction, settled without shadow maps or rays
 //   cpu_rays.cpp    cast_rays_on_cpu (CoverageMethod::CpuRays)
 //   cpu_shadow_maps.cpp  shadow_maps_on_cpu (CoverageMethod::CpuShadowMaps)
+//   gpu.h, gpu.cpp  the GL side: GpuSide and count_on_gpu
+//                   (CoverageMethod::ShadowMaps and GpuRays)
+//   renderer.cpp    CoverageRenderer: the steps of a compute, the method
+//                   chosen through the plan, and the dispatch to it
 //
-// Only the GL side includes GL: this header and the CPU parts do not.
+// Only gpu.h, gpu.cpp and renderer.cpp include GL headers; this header and
+// the CPU parts include none.
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
