@@ -32,6 +32,8 @@
 // the CPU cores instead: each core draws a direction's map (the highest
 // surface at each texel centre), classifies every receiver on it as the
 // compute pass does and casts the uncertain pairs; no GL is used.
+// The parts (one file per method, the sky cull, the receivers) are in
+// src/snow/coverage/; coverage/internal.h lists them.
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -103,12 +105,6 @@ std::vector<glm::vec3> fall_directions(const CoverageSettings& settings);
 /// directions').
 std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& settings);
 
-/// Shadow-map renderer kept between calls (the live preview recomputes
-/// coverage every few frames while snow accumulates): owns the uploaded
-/// scene, the shadow-map array, the programs and the receiver buffers. Once
-/// a compute has used GL (made through gl::require_context where a
-/// gl::OnDemandContext is installed), that context must be current in every
-/// later call, including destruction; the CPU methods use none.
 /// The BVH a CoverageRenderer builds over `triangles` triangles for maps of
 /// `receivers` layer texels with a surface: Morton order where the
 /// triangles far outnumber them (more than 16 per texel), whose rays are
@@ -126,6 +122,12 @@ struct CoverageBvh {
 /// draw call takes, std::bad_alloc when memory runs out.
 CoverageBvh build_coverage_bvh(const Scene& scene, Bvh::Build build);
 
+/// Shadow-map renderer kept between calls (the live preview recomputes
+/// coverage every few frames while snow accumulates): owns the uploaded
+/// scene, the shadow-map array, the programs and the receiver buffers. Once
+/// a compute has used GL (made through gl::require_context where a
+/// gl::OnDemandContext is installed), that context must be current in every
+/// later call, including destruction; the CPU methods use none.
 class CoverageRenderer {
  public:
   /// Builds the scene's BVH (CPU, O(n log n)). Given the maps that compute()
