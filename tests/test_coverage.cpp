@@ -199,7 +199,7 @@ TEST(Coverage, OpenPlaneIsFullyCovered) {
   REQUIRE_GL();
   const Scene scene = make_open_plane(10.0f);
   const SnowMaps maps = peel(scene, 128);
-  const std::vector<float> cov = compute_coverage(scene, maps, {});
+  const std::vector<float> cov = compute_coverage(scene, maps, {}, plan::current_gl());
   ASSERT_EQ(cov.size(), maps.ground.size());
   size_t plane = 0;
   float lowest = 1.0f;
@@ -226,7 +226,7 @@ TEST(Coverage, TableShadowsTheFloorWithSoftEdges) {
   const Scene scene = make_table_scene(h, 1.0f, 4.0f);
   const SnowMaps maps = peel(scene, 160);
   CoverageSettings s;
-  const std::vector<float> cov = compute_coverage(scene, maps, s);
+  const std::vector<float> cov = compute_coverage(scene, maps, s, plan::current_gl());
   const MapGrid& g = maps.grid;
   // Under the middle of the table.
   const glm::ivec2 mid = texel_at(g, 0.0f, 0.0f);
@@ -265,7 +265,7 @@ TEST(Coverage, ClosedBoxFloorGetsNoSnow) {
   const SnowMaps maps = peel(scene, 128);
   CoverageSettings s;
   s.wind = glm::vec2(0.3f, 0.2f);
-  const std::vector<float> cov = compute_coverage(scene, maps, s);
+  const std::vector<float> cov = compute_coverage(scene, maps, s, plan::current_gl());
   const MapGrid& g = maps.grid;
   size_t interior = 0;
   for (int j = 0; j < g.height; ++j) {
@@ -318,10 +318,10 @@ TEST(Coverage, WindMovesTheWallsShadowDownwind) {
   const SnowMaps maps = peel(scene, 256);
   const float face = 0.5f * dims.wall_thickness;
   CoverageSettings calm;
-  const std::vector<float> cov_calm = compute_coverage(scene, maps, calm);
+  const std::vector<float> cov_calm = compute_coverage(scene, maps, calm, plan::current_gl());
   CoverageSettings windy;
   windy.wind = glm::vec2(0.0f, 0.5f);  // along +z: tilt atan(0.5)
-  const std::vector<float> cov_wind = compute_coverage(scene, maps, windy);
+  const std::vector<float> cov_wind = compute_coverage(scene, maps, windy, plan::current_gl());
   const float z_calm = half_coverage_distance(maps, cov_calm, face);
   const float z_wind = half_coverage_distance(maps, cov_wind, face);
   const float expected = dims.wall_height * 0.5f;  // H tan(tilt) = 2 * 0.5
@@ -366,7 +366,7 @@ TEST(Coverage, ShadowMapsMatchRayCastReference) {
     CoverageSettings s;
     s.wind = c.wind;
     const std::vector<float> cpu = reference::compute_coverage(c.scene, maps, fall_directions(s));
-    CoverageRenderer renderer(c.scene);
+    CoverageRenderer renderer(c.scene, plan::current_gl());
     std::vector<float> by_gl;
     for (const auto& [method, expected] :
          {std::make_pair("shadow-maps", CoverageMethod::ShadowMaps),
@@ -400,7 +400,7 @@ TEST(Coverage, RaysMatchTheRayCastReference) {
     CoverageSettings s;
     s.wind = c.wind;
     const std::vector<float> cpu = reference::compute_coverage(c.scene, maps, fall_directions(s));
-    CoverageRenderer renderer(c.scene);
+    CoverageRenderer renderer(c.scene, plan::current_gl());
     for (const auto& [method, expected] : {std::make_pair("rays", CoverageMethod::GpuRays),
                                            std::make_pair("cpu-rays", CoverageMethod::CpuRays)}) {
       const Difference d = coverage_by(renderer, maps, s, method, expected, cpu, c.name).second;
@@ -424,7 +424,7 @@ TEST(Coverage, CpuRaysMatchTheReferenceOnAToyCar) {
   const SnowMaps maps = peel(scene, 256, 8);
   CoverageSettings s;
   s.method = "cpu-rays";
-  const std::vector<float> rays = compute_coverage(scene, maps, s);
+  const std::vector<float> rays = compute_coverage(scene, maps, s, plan::current_gl());
   const std::vector<float> ref = reference::compute_coverage(scene, maps, fall_directions(s));
   const Difference d = compare(maps, rays, ref);
   std::printf("ToyCar at 256: max |rays - reference| %.3f over %zu layer texels\n", d.max, d.count);
@@ -551,25 +551,28 @@ TEST(Coverage, AutomaticMethodCastsRaysWhereReceiversAreFew) {
   b.add_mesh("TableTop", positions, indices);
   const Scene scene = b.build();
   const SnowMaps maps = peel(scene, 24);
-  CoverageRenderer renderer(scene);
+  CoverageRenderer renderer(scene, plan::current_gl());
   const std::vector<float> a = renderer.compute(maps, CoverageSettings{});
   EXPECT_EQ(renderer.timings().method,
             gl::renderer_is_software() ? CoverageMethod::CpuRays : CoverageMethod::GpuRays);
   // Told the maps, the renderer builds its BVH in Morton order for the few
   // rays (80k triangles, 24 x 24 texels x 2 layers): the same coverage.
   EXPECT_EQ(renderer.bvh_build(), Bvh::Build::Sah);
-  CoverageRenderer morton(scene, &maps);
+  CoverageRenderer morton(scene, plan::current_gl(), &maps);
   EXPECT_EQ(morton.bvh_build(), Bvh::Build::Morton);
   const std::vector<float> am = morton.compute(maps, CoverageSettings{});
   EXPECT_EQ(std::memcmp(a.data(), am.data(), a.size() * sizeof(float)), 0);
-  EXPECT_EQ(CoverageRenderer(make_table_scene(0.75f, 1.0f, 4.0f), &maps).bvh_build(),
-            Bvh::Build::Sah);
+  EXPECT_EQ(
+      CoverageRenderer(make_table_scene(0.75f, 1.0f, 4.0f), plan::current_gl(), &maps).bvh_build(),
+      Bvh::Build::Sah);
   // Built ahead from the grid alone (the batch job on a GPU, beside the
   // peel): 80k triangles over 576 texels, Morton order; the same coverage.
   EXPECT_EQ(coverage_bvh_build(80000, 576), Bvh::Build::Morton);
   EXPECT_EQ(coverage_bvh_build(9000, 576), Bvh::Build::Sah);
-  CoverageRenderer ahead(scene, build_coverage_bvh(scene, coverage_bvh_build(scene.triangle_count(),
-                                                                             maps.grid.texels())));
+  CoverageRenderer ahead(
+      scene,
+      build_coverage_bvh(scene, coverage_bvh_build(scene.triangle_count(), maps.grid.texels())),
+      plan::current_gl());
   EXPECT_EQ(ahead.bvh_build(), Bvh::Build::Morton);
   const std::vector<float> aa = ahead.compute(maps, CoverageSettings{});
   EXPECT_EQ(std::memcmp(a.data(), aa.data(), a.size() * sizeof(float)), 0);
@@ -636,7 +639,7 @@ TEST(Coverage, ReceiverRunsCountAsEachReceiverAlone) {
     CoverageSettings s;
     s.wind = run.wind;
     s.method = "cpu-shadow-maps";
-    CoverageRenderer renderer(run.scene);
+    CoverageRenderer renderer(run.scene, plan::current_gl());
     const std::vector<float> by_runs = renderer.compute(maps, s, run.snow ? &depth : nullptr);
     const CoverageRenderer::Timings t = renderer.timings();
     ASSERT_EQ(t.method, CoverageMethod::CpuShadowMaps);
@@ -668,7 +671,7 @@ TEST(Coverage, AutomaticMethodCountsOnlyTrianglesNearTheReceivers) {
   if (!gl::renderer_is_software()) GTEST_SKIP() << "auto draws the shadow maps on this GPU";
   const Scene scene = make_terrain(200000).build();
   const SnowMaps maps = peel(scene, 512, 3);
-  CoverageRenderer renderer(scene);
+  CoverageRenderer renderer(scene, plan::current_gl());
   renderer.compute(maps, CoverageSettings{});
   const CoverageRenderer::Timings& t = renderer.timings();
   ASSERT_EQ(t.method, CoverageMethod::CpuShadowMaps);
@@ -684,7 +687,7 @@ TEST(Coverage, SkyCullSkipsOnlyOpenReceivers) {
   for (const Scene& scene : scenes) {
     const SnowMaps maps = peel(scene, 128);
     CoverageSettings s;
-    CoverageRenderer renderer(scene);
+    CoverageRenderer renderer(scene, plan::current_gl());
     const std::vector<float> gpu = renderer.compute(maps, s);
     const std::vector<float> cpu = reference::compute_coverage(scene, maps, fall_directions(s));
     size_t open = 0;
@@ -717,7 +720,7 @@ TEST(Coverage, UnderSolidCullSkipsOnlyShadedReceivers) {
     for (size_t k = maps.grid.texels(); k < cpu.size(); ++k) {
       shaded_below += size_t(!std::isnan(maps.ground[k]) && cpu[k] == 0.0f);
     }
-    CoverageRenderer renderer(c.scene);
+    CoverageRenderer renderer(c.scene, plan::current_gl());
     const Difference d =
         coverage_by(renderer, maps, s, "cpu-rays", CoverageMethod::CpuRays, cpu, c.name).second;
     EXPECT_LT(d.max, 0.5f / 64.0f);
@@ -734,8 +737,8 @@ TEST(Coverage, SameSeedSameOutputDifferentSeedDifferentJitter) {
   const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
   const SnowMaps maps = peel(scene, 96);
   CoverageSettings s;
-  const std::vector<float> a = compute_coverage(scene, maps, s);
-  CoverageRenderer renderer(scene);  // a second renderer, called twice
+  const std::vector<float> a = compute_coverage(scene, maps, s, plan::current_gl());
+  CoverageRenderer renderer(scene, plan::current_gl());  // a second renderer, called twice
   const std::vector<float> b = renderer.compute(maps, s);
   const std::vector<float> b2 = renderer.compute(maps, s);
   ASSERT_EQ(a.size(), b.size());
@@ -757,12 +760,12 @@ TEST(Coverage, BatchSizeDoesNotChangeTheResult) {
   CoverageSettings s;
   s.directions = 20;
   s.batch = 8;  // 8 + 8 + 4
-  const std::vector<float> a = compute_coverage(scene, maps, s);
+  const std::vector<float> a = compute_coverage(scene, maps, s, plan::current_gl());
   s.batch = 1;
-  const std::vector<float> b = compute_coverage(scene, maps, s);
+  const std::vector<float> b = compute_coverage(scene, maps, s, plan::current_gl());
   EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0);
   s.batch = 0;  // automatic: all 20 in one batch on these small maps
-  const std::vector<float> c = compute_coverage(scene, maps, s);
+  const std::vector<float> c = compute_coverage(scene, maps, s, plan::current_gl());
   EXPECT_EQ(std::memcmp(a.data(), c.data(), a.size() * sizeof(float)), 0);
 }
 
@@ -787,18 +790,20 @@ TEST(Coverage, SnowOnSnowOccludesAndRaisesPoints) {
       reference::compute_coverage(scene, maps, fall_directions(s), &depth);
   for (const char* method : {"rays", "cpu-rays"}) {  // the snow surface in every ray's way
     s.method = method;
-    const Difference rays = compare(maps, compute_coverage(scene, maps, s, &depth), cpu);
+    const Difference rays =
+        compare(maps, compute_coverage(scene, maps, s, plan::current_gl(), &depth), cpu);
     std::printf("snow on snow, %s: mean |rays - reference| %.5f, max %.3f\n", method, rays.mean,
                 rays.max);
     EXPECT_LT(rays.max, 0.5f / 64.0f);
   }
   s.method = "cpu-shadow-maps";  // the snow surface's triangles drawn and cast on the CPU
-  const Difference on_cpu = compare(maps, compute_coverage(scene, maps, s, &depth), cpu);
+  const Difference on_cpu =
+      compare(maps, compute_coverage(scene, maps, s, plan::current_gl(), &depth), cpu);
   std::printf("snow on snow, CPU shadow maps: mean |maps - reference| %.4f, max %.3f\n",
               on_cpu.mean, on_cpu.max);
   EXPECT_LT(on_cpu.mean, 0.02);
   s.method = "shadow-maps";
-  const std::vector<float> gpu = compute_coverage(scene, maps, s, &depth);
+  const std::vector<float> gpu = compute_coverage(scene, maps, s, plan::current_gl(), &depth);
   const Difference d = compare(maps, gpu, cpu);
   std::printf("snow on snow: mean |gpu - cpu| %.4f, max %.3f\n", d.mean, d.max);
   EXPECT_LT(d.mean, 0.02);
@@ -808,7 +813,7 @@ TEST(Coverage, SnowOnSnowOccludesAndRaisesPoints) {
   const glm::ivec2 lee = texel_at(g, 0.0f, 0.75f);  // 0.15 m past the ridge's foot
   EXPECT_LT(gpu[maps.index(0, lee.x, lee.y)], 0.5f);
   // Without the snow surface the plane is open sky everywhere.
-  const std::vector<float> bare = compute_coverage(scene, maps, s);
+  const std::vector<float> bare = compute_coverage(scene, maps, s, plan::current_gl());
   EXPECT_GT(bare[maps.index(0, lee.x, lee.y)], 0.99f);
 }
 
@@ -817,10 +822,10 @@ TEST(Coverage, RejectsMismatchedSnowDepth) {
   const Scene scene = make_open_plane(2.0f);
   const SnowMaps maps = peel(scene, 32, 2);
   std::vector<float> depth(3, 0.0f);
-  EXPECT_THROW(compute_coverage(scene, maps, {}, &depth), InputError);
+  EXPECT_THROW(compute_coverage(scene, maps, {}, plan::current_gl(), &depth), InputError);
   CoverageSettings bad;
   bad.batch = 33;
-  EXPECT_THROW(compute_coverage(scene, maps, bad), InputError);
+  EXPECT_THROW(compute_coverage(scene, maps, bad, plan::current_gl()), InputError);
 }
 
 // Moller-Trumbore in double precision: does the ray from `o` along `d` hit

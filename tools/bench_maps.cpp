@@ -118,7 +118,7 @@ Row run(const std::string& name, const snow::Scene& scene, int side, const Optio
   snow::CoverageSettings cs;
   cs.directions = o.directions;
   cs.method = o.method;
-  snow::CoverageRenderer renderer(scene);
+  snow::CoverageRenderer renderer(scene, snow::plan::current_gl());
   renderer.set_profiling(true);
   // Each stage's best time over the runs (the first run also JIT-compiles
   // the shaders; other processes on the machine only ever add time).

@@ -136,7 +136,7 @@ int main(int argc, char** argv) {
     std::vector<float> depth(size_t(maps.layers) * maps.grid.texels(), 0.0f);
     if (with_coverage) {
       // The snow of a one-step snowfall with the default coverage.
-      depth = compute_coverage(scene, maps, CoverageSettings{});
+      depth = compute_coverage(scene, maps, CoverageSettings{}, plan::current_gl());
       for (float& d : depth) d *= snow_depth;
     } else {
       for (int j = 0; j < maps.grid.height; ++j) {

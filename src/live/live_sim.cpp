@@ -72,8 +72,7 @@ LiveSim::LiveSim(const Scene& scene, const LiveSettings& settings, const plan::G
                  std::vector<uint8_t> receives)
     : scene_(scene), gl_(gl), settings_(settings), receives_(std::move(receives)) {
   check(settings_);
-  shadows_ = std::make_unique<CoverageRenderer>(scene_);
-  shadows_->set_gl(gl_);
+  shadows_ = std::make_unique<CoverageRenderer>(scene_, gl_);
   peel();
 }
 

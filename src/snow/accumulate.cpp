@@ -89,11 +89,10 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   SnowResult result;
   std::optional<CoverageRenderer> shadows;
   if (bvh) {
-    shadows.emplace(scene, std::move(*bvh));
+    shadows.emplace(scene, std::move(*bvh), gl);
   } else {
-    shadows.emplace(scene, &maps);
+    shadows.emplace(scene, gl, &maps);
   }
-  shadows->set_gl(gl);
   result.coverage = shadows->compute(maps, coverage);
   result.coverage_method = shadows->timings().method;
   mask_coverage(maps, receives, result.coverage);

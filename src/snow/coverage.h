@@ -137,10 +137,13 @@ class CoverageRenderer {
   /// (shadow maps, or rays on the GPU) makes the programs and uploads the
   /// triangles in leaf order (the vertex buffer of the one draw call per
   /// shadow map, and the exact pass's storage buffer) and nodes; compute()
-  /// throws GLError when GL fails (GL_OUT_OF_MEMORY included).
-  explicit CoverageRenderer(const Scene& scene, const SnowMaps* maps = nullptr);
+  /// throws GLError when GL fails (GL_OUT_OF_MEMORY included). `gl`: what
+  /// GL renders on and whether it has started, as the caller's plan knows
+  /// it (the method choice and the shadow passes depend on it; set_gl
+  /// updates it).
+  CoverageRenderer(const Scene& scene, const plan::GlFacts& gl, const SnowMaps* maps = nullptr);
   /// The same with the BVH built ahead (build_coverage_bvh over `scene`).
-  CoverageRenderer(const Scene& scene, CoverageBvh bvh);
+  CoverageRenderer(const Scene& scene, CoverageBvh bvh, const plan::GlFacts& gl);
   ~CoverageRenderer();
   CoverageRenderer(const CoverageRenderer&) = delete;
   CoverageRenderer& operator=(const CoverageRenderer&) = delete;
@@ -191,9 +194,8 @@ class CoverageRenderer {
   };
   const Timings& timings() const;
   void set_profiling(bool on);
-  /// What GL renders on and whether it has started, as the caller's plan
-  /// knows it (the method choice and the shadow passes depend on it).
-  /// Without it, each compute asks plan::current_gl().
+  /// Updates what GL renders on and whether it has started (see the
+  /// constructor).
   void set_gl(const plan::GlFacts& gl);
   /// CPU shadow maps: settle runs of neighbouring receivers at once where
   /// their texels bound them, and draw only the triangles near texels that
@@ -215,11 +217,11 @@ class CoverageRenderer {
   std::unique_ptr<Impl> impl_;
 };
 
-/// One-off coverage: CoverageRenderer(scene).compute(maps, settings,
+/// One-off coverage: CoverageRenderer(scene, gl).compute(maps, settings,
 /// snow_depth). Needs a current GL context, or a gl::OnDemandContext, unless
 /// a CPU method runs.
 std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
-                                    const CoverageSettings& settings,
+                                    const CoverageSettings& settings, const plan::GlFacts& gl,
                                     const std::vector<float>* snow_depth = nullptr);
 
 /// Cut of the snow-surface heightfield (texels of height difference within

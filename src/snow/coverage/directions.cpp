@@ -131,4 +131,13 @@ std::vector<glm::vec2> shadow_origin_jitter(const CoverageSettings& s) {
   return out;
 }
 
+int shadow_batch(const CoverageSettings& settings, double shadow_texels) {
+  return plan::choose_shadow_batch(settings.batch, settings.directions, shadow_texels,
+                                   cov::kMaxBatch);
+}
+
+Bvh::Build coverage_bvh_build(size_t triangles, size_t receivers) {
+  return plan::coverage_bvh_morton(triangles, receivers) ? Bvh::Build::Morton : Bvh::Build::Sah;
+}
+
 }  // namespace snow

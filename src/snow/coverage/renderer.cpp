@@ -201,15 +201,6 @@ std::vector<ShadowFrame> shadow_frames(const Job& job, int limit) {
 
 }  // namespace
 
-int shadow_batch(const CoverageSettings& settings, double shadow_texels) {
-  return plan::choose_shadow_batch(settings.batch, settings.directions, shadow_texels,
-                                   cov::kMaxBatch);
-}
-
-Bvh::Build coverage_bvh_build(size_t triangles, size_t receivers) {
-  return plan::coverage_bvh_morton(triangles, receivers) ? Bvh::Build::Morton : Bvh::Build::Sah;
-}
-
 CoverageBvh build_coverage_bvh(const Scene& scene, Bvh::Build build) {
   if (scene.triangle_count() * 3 > size_t(0x7fffffff)) {
     throw InputError("scene has " + std::to_string(scene.triangle_count()) +
@@ -236,7 +227,7 @@ struct CoverageRenderer::Impl {
   // the plan says so (plan::weld_shadow_vertices).
   cov::GpuSide& gpu() {
     if (!gpu_side) {
-      gpu_side = std::make_unique<cov::GpuSide>(bvh, plan::weld_shadow_vertices(gl_now));
+      gpu_side = std::make_unique<cov::GpuSide>(bvh, plan::weld_shadow_vertices(gl));
     }
     return *gpu_side;
   }
@@ -254,8 +245,7 @@ struct CoverageRenderer::Impl {
   std::unique_ptr<cov::GpuSide> gpu_side;
   Timings timings;
   glm::ivec2 shadow_size{0};        // of the last compute's shadow maps (0 without)
-  std::optional<plan::GlFacts> gl;  // as given by set_gl; else plan::current_gl() per compute
-  plan::GlFacts gl_now;             // the facts of the compute running
+  plan::GlFacts gl;  // as the constructor or set_gl gave them
   bool profiling = false;
   bool run_bounds = true;  // CPU shadow maps: runs of receivers settled at once, and only
                            // the triangles they read drawn
@@ -270,9 +260,8 @@ void CoverageRenderer::Impl::cull_and_choose(Job& job) {
   work.triangles = double(triangles);
   for (const glm::ivec4& q : rc.snowy_quads) work.triangles += 2.0 * (q.y - q.x) * (q.w - q.z);
   work.snow = !rc.snowy_layers.empty();
-  gl_now = gl ? *gl : plan::current_gl();
-  work.software = gl_now.software;
-  work.gl_cold = !gl_now.software && !gl_now.started;
+  work.software = gl.software;
+  work.gl_cold = !gl.software && !gl.started;
   job.tan_max = cov::steepest_tan(job.dirs);
   const std::vector<uint8_t> culled = cov::cull_receivers(
       bvh, job.maps, job.snow_depth ? &rc.top : nullptr, rc.recv, rc.recv_index, job.tan_max);
@@ -363,18 +352,22 @@ void CoverageRenderer::Impl::run_gpu(Job& job, const std::vector<ShadowFrame>& f
   cov::count_on_gpu(side, gpu_job, job.coverage, timings, progress);
 }
 
-CoverageRenderer::CoverageRenderer(const Scene& scene, const SnowMaps* maps) {
+CoverageRenderer::CoverageRenderer(const Scene& scene, const plan::GlFacts& gl,
+                                   const SnowMaps* maps) {
   try {
     impl_ = std::make_unique<Impl>(
         scene, build_coverage_bvh(scene, bvh_build_for(scene.triangle_count(), maps)));
+    impl_->gl = gl;
   } catch (const std::bad_alloc&) {
     throw InputError("coverage: out of memory uploading " + std::to_string(scene.triangle_count()) +
                      " triangles");
   }
 }
 
-CoverageRenderer::CoverageRenderer(const Scene& scene, CoverageBvh bvh)
-    : impl_(std::make_unique<Impl>(scene, std::move(bvh))) {}
+CoverageRenderer::CoverageRenderer(const Scene& scene, CoverageBvh bvh, const plan::GlFacts& gl)
+    : impl_(std::make_unique<Impl>(scene, std::move(bvh))) {
+  impl_->gl = gl;
+}
 CoverageRenderer::~CoverageRenderer() = default;
 
 const CoverageRenderer::Timings& CoverageRenderer::timings() const { return impl_->timings; }
@@ -437,9 +430,9 @@ std::vector<float> CoverageRenderer::compute_checked(const SnowMaps& maps,
 }
 
 std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
-                                    const CoverageSettings& settings,
+                                    const CoverageSettings& settings, const plan::GlFacts& gl,
                                     const std::vector<float>* snow_depth) {
-  CoverageRenderer renderer(scene);
+  CoverageRenderer renderer(scene, gl);
   return renderer.compute(maps, settings, snow_depth);
 }
 
