@@ -527,8 +527,11 @@ TEST(Coverage, AutomaticMethodCastsRaysWhereReceiversAreFew) {
   EXPECT_EQ(choose_coverage_method(s, car), CoverageMethod::CpuShadowMaps);
   s.method = "raytrace";
   EXPECT_THROW(fall_directions(s), InputError);
+}
 
-  // A finely tessellated table top (80k triangles) on maps of 24 texels.
+// A finely tessellated table top (80k triangles) on maps of 24 texels: the
+// automatic method casts rays, and every BVH build and method agrees.
+TEST(Coverage, DenseTableTopCastsRaysAndEveryBvhAgrees) {
   REQUIRE_GL();
   SceneBuilder b;
   b.add_plane("Floor", 0.0f, glm::vec2(-2.0f), glm::vec2(2.0f));

@@ -54,16 +54,18 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  snow::tune_heap(argv);  // as snowmodel does, so the timings compare
-  using namespace snow;
+struct Options {
   std::string scene_name = "courtyard";
   int side = 1024, layers = 4, passes = -1, trace = 0;
   float snow_depth = 0.3f;
   std::string backend = "gpu";
   bool with_coverage = false;
   int probe_i = 0, probe_j = 0, probe_r = -1;
-  StabilizeSettings settings;
+  snow::StabilizeSettings settings;
+};
+
+// Parses the command line into `o`; returns -1 to go on, else the exit code.
+int parse_options(int argc, char** argv, Options& o) {
   for (int a = 1; a < argc; a += 2) {
     const std::string key = argv[a];
     if (key == "-h" || key == "--help" || a + 1 == argc) {
@@ -76,53 +78,83 @@ int main(int argc, char** argv) {
       return key == "-h" || key == "--help" ? 0 : 2;
     }
     const char* value = argv[a + 1];
+    const bool on = std::strcmp(value, "off") != 0;
     if (key == "--scene")
-      scene_name = value;
+      o.scene_name = value;
     else if (key == "--side")
-      side = std::atoi(value);
+      o.side = std::atoi(value);
     else if (key == "--layers")
-      layers = std::atoi(value);
+      o.layers = std::atoi(value);
     else if (key == "--depth")
-      snow_depth = float(std::atof(value));
+      o.snow_depth = float(std::atof(value));
     else if (key == "--max-stride")
-      settings.max_stride = std::atoi(value);
+      o.settings.max_stride = std::atoi(value);
     else if (key == "--passes")
-      passes = std::atoi(value);
+      o.passes = std::atoi(value);
     else if (key == "--max-iterations")
-      settings.max_iterations = std::atoi(value);
+      o.settings.max_iterations = std::atoi(value);
     else if (key == "--tiles")
-      settings.active_tiles = std::strcmp(value, "off") != 0;
+      o.settings.active_tiles = on;
     else if (key == "--route")
-      settings.route_steep = std::strcmp(value, "off") != 0;
+      o.settings.route_steep = on;
     else if (key == "--trace")
-      trace = std::atoi(value);
+      o.trace = std::atoi(value);
     else if (key == "--backend")
-      backend = value;
+      o.backend = value;
     else if (key == "--probe")
-      std::sscanf(value, "%d,%d,%d", &probe_i, &probe_j, &probe_r);
+      std::sscanf(value, "%d,%d,%d", &o.probe_i, &o.probe_j, &o.probe_r);
     else if (key == "--coverage")
-      with_coverage = std::strcmp(value, "off") != 0;
+      o.with_coverage = on;
     else if (key == "--count-tiles")
-      settings.count_tiles = std::strcmp(value, "off") != 0;
+      o.settings.count_tiles = on;
     else {
       std::fprintf(stderr, "unknown option %s\n", key.c_str());
       return 2;
     }
   }
+  return -1;
+}
+
+snow::Scene bench_scene(const std::string& name) {
+  using namespace snow;
+  if (name == "courtyard") return make_courtyard().build();
+  if (name == "house60") return make_house_scene(60.0f);
+  if (name == "house30") return make_house_scene(30.0f);
+  if (std::filesystem::exists(name)) return load_scene(name);
+  throw InputError("unknown scene " + name + " (not a built-in scene nor a file)");
+}
+
+// The surfaces and depths of the texels within `o.probe_r` of (probe_i, probe_j).
+void print_probe(const Options& o, const snow::SnowMaps& maps, const std::vector<float>& depth) {
+  for (int jj = std::max(0, o.probe_j - o.probe_r);
+       jj <= std::min(maps.grid.height - 1, o.probe_j + o.probe_r); ++jj) {
+    for (int ii = std::max(0, o.probe_i - o.probe_r);
+         ii <= std::min(maps.grid.width - 1, o.probe_i + o.probe_r); ++ii) {
+      std::fprintf(stderr, "  (%d,%d)", ii, jj);
+      for (int l = 0; l < maps.layers; ++l) {
+        const size_t k = maps.index(l, ii, jj);
+        if (std::isnan(maps.ground[k])) break;
+        std::fprintf(stderr, " [%d g%.3f c%.3f n%.2f d%.4f]", l, maps.ground[k], maps.ceiling[k],
+                     maps.normal[k].y, depth[k]);
+      }
+      std::fprintf(stderr, "\n");
+    }
+  }
+}
+
+int main(int argc, char** argv) {
+  snow::tune_heap(argv);  // as snowmodel does, so the timings compare
+  using namespace snow;
+  Options o;
+  if (const int code = parse_options(argc, argv, o); code >= 0) return code;
+  StabilizeSettings& settings = o.settings;
+  const std::string& scene_name = o.scene_name;
+  const int side = o.side, layers = o.layers, passes = o.passes, trace = o.trace;
+  const float snow_depth = o.snow_depth;
   try {
     set_log_level(LogLevel::Warn);
     auto context = gl::create_context();
-    Scene scene;
-    if (scene_name == "courtyard")
-      scene = make_courtyard().build();
-    else if (scene_name == "house60")
-      scene = make_house_scene(60.0f);
-    else if (scene_name == "house30")
-      scene = make_house_scene(30.0f);
-    else if (std::filesystem::exists(scene_name))
-      scene = load_scene(scene_name);
-    else
-      throw InputError("unknown scene " + scene_name + " (not a built-in scene nor a file)");
+    const Scene scene = bench_scene(scene_name);
 
     PeelSettings peel;
     peel.max_side = side;
@@ -134,7 +166,7 @@ int main(int argc, char** argv) {
     const SnowMaps maps = peel_layers(scene, peel, plan::current_gl());
     const double peel_s = seconds_since(t0);
     std::vector<float> depth(size_t(maps.layers) * maps.grid.texels(), 0.0f);
-    if (with_coverage) {
+    if (o.with_coverage) {
       // The snow of a one-step snowfall with the default coverage.
       depth = compute_coverage(scene, maps, CoverageSettings{}, plan::current_gl());
       for (float& d : depth) d *= snow_depth;
@@ -190,22 +222,7 @@ int main(int argc, char** argv) {
               object >= 0 ? scene.objects[size_t(object)].name.c_str() : "-", maps.ground[most],
               after[most]);
           before = after;
-          if (probe_r >= 0) {
-            for (int jj = std::max(0, probe_j - probe_r);
-                 jj <= std::min(maps.grid.height - 1, probe_j + probe_r); ++jj) {
-              for (int ii = std::max(0, probe_i - probe_r);
-                   ii <= std::min(maps.grid.width - 1, probe_i + probe_r); ++ii) {
-                std::fprintf(stderr, "  (%d,%d)", ii, jj);
-                for (int l = 0; l < maps.layers; ++l) {
-                  const size_t k = maps.index(l, ii, jj);
-                  if (std::isnan(maps.ground[k])) break;
-                  std::fprintf(stderr, " [%d g%.3f c%.3f n%.2f d%.4f]", l, maps.ground[k],
-                               maps.ceiling[k], maps.normal[k].y, after[k]);
-                }
-                std::fprintf(stderr, "\n");
-              }
-            }
-          }
+          if (o.probe_r >= 0) print_probe(o, maps, after);
         }
         r = sum;
       } else {
@@ -213,12 +230,12 @@ int main(int argc, char** argv) {
       }
       total_s = seconds_since(t0);
     };
-    if (backend == "gpu")
+    if (o.backend == "gpu")
       run(std::common_type<Stabilizer>{});
-    else if (backend == "cpu")
+    else if (o.backend == "cpu")
       run(std::common_type<CpuStabilizer>{});
     else
-      throw InputError("unknown backend " + backend + " (gpu or cpu)");
+      throw InputError("unknown backend " + o.backend + " (gpu or cpu)");
     std::printf(
         "renderer: %s\nscene %s, %d x %d texels (%.4f m), %d layers, max_stride %d, tiles %s\n"
         "peel %.2f s, upload %.2f s, routing %d passes %.2f s (%.3f m^3 routed)\n"

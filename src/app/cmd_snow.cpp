@@ -116,7 +116,7 @@ class StageClock {
                   resident_memory_mib(), peak_memory_mib());
     log_debug(line);
   }
-  /// "load 0.01 s, peel 0.02 s, ..." and the total in seconds.
+  /// The stages and their times in one line of text, and the total in seconds.
   std::pair<std::string, double> report() const {
     std::string text;
     double total = 0;
