@@ -18,10 +18,10 @@
 // --- Depth peeling (peel.vert/.frag, src/snow/peel/gpu.cpp) ----------------
 #define SNOW_PEEL_PREV_TEXTURE 0  // usampler2D RG32UI: previous layer (height bits, triangle)
 
-// --- Shadow maps (shadow.vert, shadow_snow.vert, depth_only.frag, coverage.cpp)
+// --- Shadow maps (shadow.vert, shadow_snow.vert, depth_only.frag, coverage/gpu.cpp)
 #define SNOW_SHADOW_SNOW_TEXTURE 0  // sampler2DArray RG32F per layer: (ground + depth, depth)
 
-// --- Coverage counting (coverage_*.comp/.glsl, src/snow/coverage.cpp) ------
+// --- Coverage counting (coverage_*.comp/.glsl, src/snow/coverage/gpu.cpp) --
 #define SNOW_COVERAGE_SHADOW_TEXTURE 0  // sampler2DArray DEPTH32F: the batch's shadow maps
 #define SNOW_COVERAGE_SNOW_TEXTURE 1    // sampler2DArray RG32F: as SNOW_SHADOW_SNOW_TEXTURE
 #define SNOW_COVERAGE_RECEIVERS 0       // SSBO uvec4 per receiver (texel, height, normal)

@@ -1,5 +1,5 @@
 // Shared by the coverage counting passes (coverage_count.glsl and
-// coverage_exact.glsl, src/snow/coverage.cpp; Tokoi 2006, section 4).
+// coverage_exact.glsl, src/snow/coverage/gpu.cpp; Tokoi 2006, section 4).
 // Before including, define COVERAGE_SNOW to 1 when a snow surface was drawn
 // into the shadow maps (their texels then carry the snow layer), else 0.
 //

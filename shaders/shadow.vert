@@ -1,5 +1,5 @@
 #version 450 core
-// Shadow map along one fall direction d (src/snow/coverage.cpp): an
+// Shadow map along one fall direction d (src/snow/coverage/gpu.cpp): an
 // orthographic projection along d onto the horizontal plane (a shear:
 // u = x - y * d.x/d.y, v = z - y * d.z/d.y), so that shadow texels line up
 // with the snow map's; depth grows downwards from y_top, so the depth test

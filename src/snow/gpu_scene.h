@@ -1,5 +1,5 @@
 #pragma once
-// Internal to the GPU passes of stages 1 and 2 (peel.cpp, coverage.cpp): the
+// Internal to the GPU passes of stages 1 and 2 (snow/peel/gpu.cpp, snow/coverage/gpu.cpp): the
 // scene uploaded once and drawn with one call, and a guard that restores
 // the GL state those passes change. Includes GL: not for other modules.
 #include <cstddef>
