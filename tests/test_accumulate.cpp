@@ -16,23 +16,11 @@
 #include "snow/accumulate.h"
 #include "snow/peel.h"
 #include "snow/reference/peel_ref.h"
+#include "support/gl_context.h"
 
 namespace snow {
 namespace {
 
-gl::Context* context() {
-  static std::unique_ptr<gl::Context> ctx = []() -> std::unique_ptr<gl::Context> {
-    try {
-      return gl::create_context();
-    } catch (const Error& e) {
-      std::fprintf(stderr, "no GL context: %s\n", e.what());
-      return nullptr;
-    }
-  }();
-  return ctx.get();
-}
-#define REQUIRE_GL() \
-  if (!context()) GTEST_SKIP() << "no OpenGL context"
 
 SnowMaps scene_maps(const Scene& scene, int side, int layers = 6) {
   PeelSettings settings;

@@ -19,27 +19,13 @@
 #include "snow/coverage.h"
 #include "snow/peel.h"
 #include "snow/reference/coverage_ref.h"
+#include "support/gl_context.h"
 
 namespace snow {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-gl::Context* context() {
-  static std::unique_ptr<gl::Context> ctx = []() -> std::unique_ptr<gl::Context> {
-    try {
-      return gl::create_context();
-    } catch (const GLError& e) {
-      std::fprintf(stderr, "no GL context: %s\n", e.what());
-      return nullptr;
-    }
-  }();
-  if (ctx) ctx->make_current();
-  return ctx.get();
-}
-
-#define REQUIRE_GL() \
-  if (!context()) GTEST_SKIP() << "no OpenGL context"
 
 SnowMaps peel(const Scene& scene, int side, int layers = 6) {
   PeelSettings s;

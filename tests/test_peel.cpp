@@ -16,26 +16,11 @@
 #include "snow/gpu_scene.h"
 #include "snow/peel.h"
 #include "snow/reference/peel_ref.h"
+#include "support/gl_context.h"
 
 namespace snow {
 namespace {
 
-// One headless context for the whole binary; nullptr (tests skip) without GL.
-gl::Context* context() {
-  static std::unique_ptr<gl::Context> ctx = []() -> std::unique_ptr<gl::Context> {
-    try {
-      return gl::create_context();
-    } catch (const GLError& e) {
-      std::fprintf(stderr, "no GL context: %s\n", e.what());
-      return nullptr;
-    }
-  }();
-  if (ctx) ctx->make_current();
-  return ctx.get();
-}
-
-#define REQUIRE_GL() \
-  if (!context()) GTEST_SKIP() << "no OpenGL context"
 
 // The GPU passes unless `device` says otherwise ("auto" would peel these
 // maps on the CPU under llvmpipe).

@@ -175,7 +175,7 @@ TEST(StabilizeReference, RoutingFarFromTheOriginGivesUpNoMoreThanTheSnow) {
   for (float d : cpu) EXPECT_GE(d, 0.0f);
   EXPECT_GT(r.lost_volume, 0.0);
   EXPECT_NEAR(snow_volume(maps, cpu) + r.lost_volume, before, 1e-6 * before);
-  if (!context()) return;
+  if (!test::context()) return;
   std::vector<float> gpu = start;
   stabilize(maps, gpu, settings);
   EXPECT_EQ(gpu, cpu);

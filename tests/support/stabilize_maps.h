@@ -25,6 +25,7 @@
 #include "snow/reference/peel_ref.h"
 #include "snow/stabilize.h"
 #include "snow/stabilize_cpu.h"
+#include "support/gl_context.h"
 
 namespace snow::test {
 
@@ -124,19 +125,6 @@ inline double sum_where(const SnowMaps& maps, const std::vector<float>& depth,
   return sum * double(maps.grid.texel) * double(maps.grid.texel);
 }
 
-inline gl::Context* context() {
-  static std::unique_ptr<gl::Context> ctx = []() -> std::unique_ptr<gl::Context> {
-    try {
-      return gl::create_context();
-    } catch (const Error& e) {
-      std::fprintf(stderr, "no GL context: %s\n", e.what());
-      return nullptr;
-    }
-  }();
-  return ctx.get();
-}
-#define REQUIRE_GL() \
-  if (!context()) GTEST_SKIP() << "no OpenGL context"
 
 // Bumpy terrain with holes (void columns), a floating slab (three layers)
 // and a low shelf, for the property tests.
