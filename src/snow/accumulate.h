@@ -4,7 +4,6 @@
 // With snow on snow, the lying snow is drawn into the shadow maps every few
 // steps, so drifts shade what lies behind them (Fearing 2000, section 4).
 #include <cstdint>
-#include <optional>
 #include <vector>
 
 #include "scene/scene.h"

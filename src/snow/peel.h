@@ -5,7 +5,6 @@
 // (snow/peel/gpu.cpp) and a vertical ray per texel on the CPU
 // (snow/reference/peel_ref.h); snow/peel/internal.h lists the stage's files.
 #include <cstdint>
-#include <optional>
 #include <string>
 
 #include "plan/plan.h"

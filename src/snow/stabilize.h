@@ -63,7 +63,6 @@
 // unless settings.device asks for the GPU (stabilizes_on_cpu).
 #include <cstdint>
 #include <memory>
-#include <optional>
 #include <string>
 #include <vector>
 

@@ -2,7 +2,6 @@
 // files: snow/stabilize.h). Where the passes run, and the one-off
 // stabilize() on the GPU's Stabilizer.
 #include <algorithm>
-#include <optional>
 #include <vector>
 
 #include "plan/rules.h"
