@@ -59,7 +59,8 @@ std::unique_ptr<gl::Context> RunGl::context() {
 
 std::unique_ptr<gl::OnDemandContext> RunGl::stage_context(bool software) {
   wait_for_probe();
-  auto context = std::make_unique<gl::OnDemandContext>([this] { return this->context(); }, software);
+  auto context =
+      std::make_unique<gl::OnDemandContext>([this] { return this->context(); }, software);
   if (!renderer_known_) context->make();
   return context;
 }
@@ -67,14 +68,14 @@ std::unique_ptr<gl::OnDemandContext> RunGl::stage_context(bool software) {
 bool RunGl::learn_renderer() {
   wait_for_probe();
   if (machine_.software) return false;
-  machine_.software = plan::current_renderer_is_software();
+  machine_.software = plan::current_gl_is_software();
   return true;
 }
 
 plan::MachineInfo probe_machine_for_info(const gl::ContextOptions& options, bool context_current) {
   plan::MachineInfo machine = plan::probe_machine(options);
   machine.software = plan::probe_renderer(options);
-  if (!machine.software && context_current) machine.software = plan::current_renderer_is_software();
+  if (!machine.software && context_current) machine.software = plan::current_gl_is_software();
   return machine;
 }
 

@@ -23,6 +23,6 @@ std::optional<bool> probe_renderer(const gl::ContextOptions& options) {
 
 GlFacts current_gl() { return {gl::renderer_is_software(), gl::context_made()}; }
 
-bool current_renderer_is_software() { return gl::renderer_is_software(); }
+bool current_gl_is_software() { return gl::renderer_is_software(); }
 
 }  // namespace snow::plan

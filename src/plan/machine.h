@@ -29,6 +29,6 @@ std::optional<bool> probe_renderer(const gl::ContextOptions& options);
 GlFacts current_gl();
 
 /// Whether the current context renders in software (gl::renderer_is_software).
-bool current_renderer_is_software();
+bool current_gl_is_software();
 
 }  // namespace snow::plan
