@@ -21,7 +21,6 @@
 namespace snow {
 namespace {
 
-
 SnowMaps scene_maps(const Scene& scene, int side, int layers = 6) {
   PeelSettings settings;
   settings.max_side = side;

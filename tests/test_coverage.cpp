@@ -26,7 +26,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-
 SnowMaps peel(const Scene& scene, int side, int layers = 6) {
   PeelSettings s;
   s.max_side = side;

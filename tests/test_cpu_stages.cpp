@@ -29,12 +29,12 @@ TEST(CpuStages, TableSnowStaysOffTheFloorUnderItAndMassIsConserved) {
 
   // The floor's texel under the table's centre sees no sky; the open floor does.
   const size_t texels = maps.grid.texels();
-  const size_t centre = size_t(maps.grid.height / 2) * size_t(maps.grid.width) +
-                        size_t(maps.grid.width / 2);
+  const size_t centre =
+      size_t(maps.grid.height / 2) * size_t(maps.grid.width) + size_t(maps.grid.width / 2);
   const size_t corner = size_t(2) * size_t(maps.grid.width) + 2;
   ASSERT_GE(maps.layers, 2);
-  EXPECT_NEAR(maps.ground[centre], 0.75f, 1e-3f);            // the table top
-  EXPECT_NEAR(maps.ground[texels + centre], 0.70f, 1e-3f);   // its underside's floor is lower
+  EXPECT_NEAR(maps.ground[centre], 0.75f, 1e-3f);           // the table top
+  EXPECT_NEAR(maps.ground[texels + centre], 0.70f, 1e-3f);  // its underside's floor is lower
   EXPECT_FLOAT_EQ(p[centre], 1.0f);
   EXPECT_FLOAT_EQ(p[corner], 1.0f);
   const size_t under = texels * size_t(maps.layers - 1) + centre;  // the floor, lowest layer

@@ -21,7 +21,6 @@
 namespace snow {
 namespace {
 
-
 // The GPU passes unless `device` says otherwise ("auto" would peel these
 // maps on the CPU under llvmpipe).
 PeelSettings settings_with_side(int side, int layers = 8, const char* device = "gpu") {

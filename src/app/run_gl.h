@@ -52,7 +52,7 @@ class RunGl {
 
   const GlobalOptions& global_;
   plan::MachineInfo machine_;
-  bool probed_ = false;      // the probe has been waited for
+  bool probed_ = false;          // the probe has been waited for
   bool renderer_known_ = false;  // the probe told the renderer
   bool warming_ = false;
   bool described_ = false;

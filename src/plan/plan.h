@@ -53,8 +53,8 @@ constexpr uint64_t kWarmUpInputBytes = uint64_t(16) << 20;  // bytes
 /// A large job: maps of this many texel columns or more, or an input of
 /// this many bytes or more. On a machine that hands free memory back to its
 /// host, a large job turns the heap's huge pages off (core/heap.h).
-constexpr size_t kLargeJobColumns = size_t(512) * 512;          // texel columns
-constexpr uint64_t kLargeJobInputBytes = uint64_t(32) << 20;    // bytes
+constexpr size_t kLargeJobColumns = size_t(512) * 512;        // texel columns
+constexpr uint64_t kLargeJobInputBytes = uint64_t(32) << 20;  // bytes
 
 /// What the user asked for, of the settings the plan depends on.
 struct Settings {
@@ -84,9 +84,9 @@ MapPlan plan_maps(const Settings& settings, int grid_side, float grid_texel);
 struct SceneStats {
   uint64_t input_bytes = 0;  // bytes of the input files (gltf_input_bytes)
   size_t triangles = 0;
-  int asked_grid_side = 0;   // texels, the longer side of the grid plan_maps is given
+  int asked_grid_side = 0;        // texels, the longer side of the grid plan_maps is given
   float asked_grid_texel = 0.0f;  // metres, its texel
-  size_t grid_columns = 0;   // texel columns (width x height) of the grid at plan_maps' side
+  size_t grid_columns = 0;        // texel columns (width x height) of the grid at plan_maps' side
 };
 
 /// Whether a throwaway GL context is made beside the load, so that the
@@ -104,15 +104,15 @@ bool huge_pages_off(const MachineInfo& machine, uint64_t input_bytes, size_t col
 /// The choices of a run.
 struct RunPlan {
   MapPlan maps;
-  GlFacts gl;                   // GL as the stages will find it when the peel begins
-  bool bvh_ahead = false;       // build the coverage's BVH on another thread beside the peel
-                                // (on a GPU, whose peel leaves the CPU cores idle)
-  bool bvh_morton = false;      // the coverage BVH's build (coverage_bvh_morton)
-  bool huge_pages_off = false;  // turn the heap's huge pages off once the maps' size is known
-  bool stabilizer_on_cpu = true;          // the batch job's
+  GlFacts gl;                     // GL as the stages will find it when the peel begins
+  bool bvh_ahead = false;         // build the coverage's BVH on another thread beside the peel
+                                  // (on a GPU, whose peel leaves the CPU cores idle)
+  bool bvh_morton = false;        // the coverage BVH's build (coverage_bvh_morton)
+  bool huge_pages_off = false;    // turn the heap's huge pages off once the maps' size is known
+  bool stabilizer_on_cpu = true;  // the batch job's
   bool preview_stabilizer_on_cpu = true;  // the live preview's (StabilizerUse::Live)
-  std::string peel;             // where the peel runs, in words
-  std::string coverage;         // how the coverage is found, in words
+  std::string peel;                       // where the peel runs, in words
+  std::string coverage;                   // how the coverage is found, in words
 };
 
 /// The plan for a run of `settings` on `machine` over a scene with `stats`;

@@ -66,9 +66,9 @@ CoverageMethod choose_coverage_method(const std::string& method, int directions,
 
 int choose_shadow_batch(int requested, int directions, double shadow_texels, int max_batch) {
   const double fit = kAutoShadowBatchBytes / (4.0 * std::max(shadow_texels, 1.0));  // DEPTH32F
-  const int batch =
-      requested > 0 ? requested
-                    : int(std::clamp(fit, double(kMinAutoShadowBatch), double(max_batch)));
+  const int batch = requested > 0
+                        ? requested
+                        : int(std::clamp(fit, double(kMinAutoShadowBatch), double(max_batch)));
   return std::max(1, std::min(batch, directions));
 }
 

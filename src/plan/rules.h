@@ -11,7 +11,6 @@
 #include <cstdint>
 #include <string>
 
-
 namespace snow::plan {
 
 /// What GL renders on, and whether the process has started it, as known
@@ -22,7 +21,6 @@ struct GlFacts {
   bool started = false;   // a GL context has been made in this process: the driver is loaded
                           // and further contexts come cheaply
 };
-
 
 // --- Peel: the GPU's depth passes or a vertical ray per texel on the CPU ---
 
@@ -86,14 +84,14 @@ struct CoverageWork {
 /// shadow map by a software rasterizer; kCostUnitSeconds is that unit on
 /// the machine the costs were fitted on (tools/RESULTS.md, "Constants of
 /// the automatic choices").
-constexpr double kCostUnitSeconds = 80e-9;    // s, the cost unit
+constexpr double kCostUnitSeconds = 80e-9;       // s, the cost unit
 constexpr double kShadowTexelCost = 1.0 / 40.0;  // clearing and sampling one shadow texel
-constexpr double kGpuRayCost = 16.0;          // one ray in the GPU's exact pass
-constexpr double kCpuRayCost = 2.0;           // one CPU ray from 2^16 triangles up (cpu_ray_cost)
-constexpr double kGpuCountCost = 0.28;        // classifying a receiver on a GPU shadow map
-constexpr double kGpuPassCost = 11000.0;      // llvmpipe's fixed cost per direction
-constexpr double kCpuCountCost = 0.155;       // classifying a receiver on a CPU shadow map
-constexpr double kCpuTriangleCost = 0.3;      // a triangle drawn into a CPU shadow map
+constexpr double kGpuRayCost = 16.0;             // one ray in the GPU's exact pass
+constexpr double kCpuRayCost = 2.0;       // one CPU ray from 2^16 triangles up (cpu_ray_cost)
+constexpr double kGpuCountCost = 0.28;    // classifying a receiver on a GPU shadow map
+constexpr double kGpuPassCost = 11000.0;  // llvmpipe's fixed cost per direction
+constexpr double kCpuCountCost = 0.155;   // classifying a receiver on a CPU shadow map
+constexpr double kCpuTriangleCost = 0.3;  // a triangle drawn into a CPU shadow map
 /// CPU shadow maps in flight at once take at most this much memory (a map each).
 constexpr double kCpuShadowBytes = 256.0 * 1024 * 1024;  // bytes
 /// On a GPU whose driver has not started (CoverageWork::gl_cold), "auto"

@@ -373,8 +373,8 @@ Split sah_split(const Bins& bins, const glm::vec3& extent) {
 // and rights go to their places in scratch, then back), so the tree does
 // not depend on the number of cores.
 template <class Prim>
-uint32_t partition_node(const NodeRanges& node, Prim* prims, Prim* scratch,
-                        const Binning& binning, const Split& split) {
+uint32_t partition_node(const NodeRanges& node, Prim* prims, Prim* scratch, const Binning& binning,
+                        const Split& split) {
   const auto left = [&](const Prim& p) { return binning.bin_of(p.c, split.axis) <= split.bin; };
   if (!node.large) {
     return uint32_t(std::partition(prims + node.first, prims + node.first + node.count, left) -

@@ -125,7 +125,6 @@ inline double sum_where(const SnowMaps& maps, const std::vector<float>& depth,
   return sum * double(maps.grid.texel) * double(maps.grid.texel);
 }
 
-
 // Bumpy terrain with holes (void columns), a floating slab (three layers)
 // and a low shelf, for the property tests.
 inline SnowMaps bumpy_maps(int size, int layers) {

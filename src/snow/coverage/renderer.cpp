@@ -243,8 +243,8 @@ struct CoverageRenderer::Impl {
   size_t triangles = 0;
   std::unique_ptr<cov::GpuSide> gpu_side;
   Timings timings;
-  glm::ivec2 shadow_size{0};        // of the last compute's shadow maps (0 without)
-  plan::GlFacts gl;  // as the constructor or set_gl gave them
+  glm::ivec2 shadow_size{0};  // of the last compute's shadow maps (0 without)
+  plan::GlFacts gl;           // as the constructor or set_gl gave them
   bool profiling = false;
   bool run_bounds = true;  // CPU shadow maps: runs of receivers settled at once, and only
                            // the triangles they read drawn

@@ -76,8 +76,7 @@ bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& s
   return box_texels(scene, grid, choice.cpu_box_texels) <= choice.cpu_box_texels;
 }
 
-SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings,
-                     const plan::GlFacts& gl) {
+SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings, const plan::GlFacts& gl) {
   return peel_layers(scene, make_grid(scene.bounds, settings), settings, gl);
 }
 
