@@ -73,8 +73,8 @@ void run_preview(PreviewOptions o) {
 
 void register_preview(CLI::App& app, const GlobalOptions& global) {
   auto o = std::make_shared<PreviewOptions>();
-  o->settings.peel.max_side = 512;       // interactive default; --max-side overrides
-  o->settings.coverage.directions = 32;  // recomputed on every change of the fall settings
+  o->settings.peel.max_side = plan::kPreviewMaxSide;  // --max-side overrides
+  o->settings.coverage.directions = plan::kPreviewDirections;
   CLI::App* cmd = app.add_subcommand(
       "preview",
       "Open a window in which snow falls, piles up and slides while you orbit and tweak");

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/trimesh.h"
+#include "plan/plan.h"
 #include "scene/scene.h"
 #include "snow/maps.h"
 
@@ -44,8 +45,9 @@ struct PolygonizeSettings {
   /// along x, on all cores; the seams between pieces keep their full-grid
   /// vertices. 0: never split. Same patch, same pieces on any machine.
   /// Smaller pieces decimate faster and spread over more cores, for a few
-  /// per cent more triangles out (--piece-triangles).
-  size_t piece_triangles = 25000;
+  /// per cent more triangles out (--piece-triangles; the default is the
+  /// planner's).
+  size_t piece_triangles = plan::kPieceTriangles;
 };
 
 /// One connected snow patch as a mesh.

@@ -56,6 +56,19 @@ constexpr uint64_t kWarmUpInputBytes = uint64_t(16) << 20;  // bytes
 constexpr size_t kLargeJobColumns = size_t(512) * 512;        // texel columns
 constexpr uint64_t kLargeJobInputBytes = uint64_t(32) << 20;  // bytes
 
+/// Decimation in pieces: a snow patch whose top has more triangles than
+/// this is decimated in pieces of about this many on all cores
+/// (PolygonizeSettings::piece_triangles; the same pieces on any machine).
+/// Smaller pieces spread over more cores for a few per cent more triangles.
+constexpr size_t kPieceTriangles = 25000;  // triangles
+
+/// The live preview's defaults, coarser than the batch job's so that it
+/// stays interactive: maps of this many texels on the longer side, and
+/// this many fall directions (recomputed on every change of the fall
+/// settings).
+constexpr int kPreviewMaxSide = 512;    // texels
+constexpr int kPreviewDirections = 32;  // fall directions
+
 /// What the user asked for, of the settings the plan depends on.
 struct Settings {
   float fall_depth = 0.3f;               // metres of fresh snow
