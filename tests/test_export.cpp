@@ -3,6 +3,7 @@
 // validator (tools/validator, installed with `npm ci` there) when node and the
 // validator are installed.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <tiny_gltf.h>
 #include <unistd.h>
 #include <nlohmann/json.hpp>
@@ -10,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <set>
 #include <sstream>
@@ -781,6 +783,75 @@ TEST(Export, CombinedGlbOfOddInputsIsWrittenOrRefused) {
     for (const auto& e : fs::directory_iterator(dir / "out")) files += e.path() != out;
     EXPECT_EQ(files, 0u) << "a temporary file was left";
   }
+}
+
+/// A deep nest of arrays: `levels` '[' then as many ']'.
+std::string nested_arrays(size_t levels) {
+  return std::string(levels, '[') + std::string(levels, ']');
+}
+
+// The combined writer reads the input again, and applies the same input
+// policy as the loader (scene/input_policy.h) on both of its paths: the
+// streamed one (to a .glb) and tinygltf's (to a .gltf).
+TEST(Export, CombinedInputFollowsTheInputPolicy) {
+  const CombinedSetup setup;
+  const auto& [patches, test_dir, dir, png, gltf] = setup;
+  const fs::path inner = dir / "inner";
+  fs::create_directories(inner);
+  fs::copy_file(dir / "input.bin", inner / "input.bin");
+  fs::copy_file(dir / "checker.png", inner / "checker.png");
+  fs::create_symlink(dir / "checker.png", inner / "link.png");
+  fs::create_symlink(dir / "input.bin", inner / "link.bin");
+  const nlohmann::json good = nlohmann::json::parse(read_text(gltf));
+  const std::string bin = read_text(dir / "input.bin");
+  struct Case {
+    std::string name;
+    std::function<void(nlohmann::json&)> change;
+    std::string needle;
+  };
+  const std::vector<Case> cases = {
+      {"image_dotdot", [](auto& j) { j["images"][0]["uri"] = "../checker.png"; }, "refused"},
+      {"image_percent", [](auto& j) { j["images"][0]["uri"] = "%2e%2e/checker.png"; }, "refused"},
+      {"image_absolute", [&](auto& j) { j["images"][0]["uri"] = (dir / "checker.png").string(); },
+       "refused"},
+      {"image_symlink", [](auto& j) { j["images"][0]["uri"] = "link.png"; }, "symlink"},
+      {"buffer_symlink", [](auto& j) { j["buffers"][0]["uri"] = "link.bin"; }, "symlink"},
+      {"deep_extras", [](auto& j) { j["extras"] = nlohmann::json::parse(nested_arrays(600)); },
+       "JSON nested deeper than 512 levels"},
+  };
+  fs::create_directories(dir / "out");
+  const fs::path out = dir / "out" / "x.glb";
+  for (const Case& c : cases) {
+    nlohmann::json j = good;
+    c.change(j);
+    const fs::path input = inner / (c.name + ".gltf");
+    std::ofstream(input) << j.dump();
+    for (const fs::path& to : {dir / "out" / "x.glb", dir / "out" / "x.gltf"}) {
+      SCOPED_TRACE(c.name + " to " + to.filename().string());
+      try {
+        write_combined_gltf(read_combined_input(input, to), patches, to);
+        ADD_FAILURE() << "not refused";
+      } catch (const InputError& e) {
+        const std::string message = e.what();
+        EXPECT_NE(message.find(c.needle), std::string::npos) << message;
+        EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+      }
+      EXPECT_TRUE(fs::is_empty(dir / "out"));
+      fs::remove_all(dir / "out");
+      fs::create_directories(dir / "out");
+    }
+  }
+  // JSON far deeper than any stack holds (tinygltf's parser recursed into it).
+  const std::string deep = R"({"asset":{"version":"2.0"},"extras":)" + nested_arrays(30000) + "}";
+  std::ofstream(inner / "deep.gltf") << deep;
+  EXPECT_THROW(read_combined_input(inner / "deep.gltf", out), InputError);
+  write_glb_file(inner / "deep.glb", deep, bin);
+  EXPECT_THROW(read_combined_input(inner / "deep.glb", out), InputError);
+  EXPECT_THROW(read_combined_input(inner / "deep.glb", dir / "out" / "x.gltf"), InputError);
+  // A FIFO as the input is refused, not opened (which would wait for a writer).
+  ASSERT_EQ(mkfifo((inner / "fifo.gltf").c_str(), 0600), 0);
+  for (const char* target : {"x.glb", "x.gltf"})
+    EXPECT_THROW(read_combined_input(inner / "fifo.gltf", dir / "out" / target), InputError);
 }
 
 // The input is read at the start of a run and its files copied at the end:

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <tiny_gltf.h>
 #include <unistd.h>
@@ -249,6 +250,97 @@ TEST_F(Hostile, HundredThousandDeepHierarchyRuns) {
   const RunResult r = run("snow " + q(scene) + kTiny + " --snow-only -o " + q(out_ / "deep.obj"));
   EXPECT_EQ(r.code, 0) << r.output.substr(0, 2000);
   EXPECT_TRUE(fs::exists(out_ / "deep.obj"));
+}
+
+// --- the input policy (scene/input_policy.h) through every command ------------------------
+
+TEST_F(Hostile, DeeplyNestedJsonExitsTwoThroughTheCombinedWriter) {
+  // 30,000 levels in `extras`: tinygltf's recursive parser, which the
+  // combined writer used to read the input again, ran out of stack.
+  const fs::path scene = write_triangle_gltf(dir_ / "deep.gltf", [](json&) {});
+  std::string text;
+  {
+    std::ifstream in(scene);
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  text.insert(text.rfind('}'), ",\"extras\":" + std::string(30000, '[') + std::string(30000, ']'));
+  std::ofstream(scene) << text;
+  for (const std::string& command :
+       {"snow " + q(scene) + kTiny + " -o " + q(out_ / "x.glb"),
+        "snow " + q(scene) + kTiny + " -o " + q(out_ / "x.gltf"), "info " + q(scene)}) {
+    expect_refused(run(command), 2, "JSON nested deeper than 512 levels", out_, command);
+  }
+}
+
+TEST_F(Hostile, FilesOutsideTheSceneFolderAreNeverRead) {
+  // The secret lies beside the scene's folder; the scene names it in every
+  // way that leads out of the folder.
+  const fs::path folder = dir_ / "scene";
+  fs::create_directories(folder);
+  std::ofstream(dir_ / "secret.png", std::ios::binary) << "\x89PNG\r\n\x1a\nSECRET";
+  fs::create_symlink(dir_ / "secret.png", folder / "link.png");
+  fs::create_symlink(dir_ / "secret.png", folder / "link.bin");
+  const std::vector<std::string> image_uris = {"../secret.png", "%2e%2e/secret.png",
+                                               (dir_ / "secret.png").string(), "link.png"};
+  std::vector<fs::path> scenes;
+  for (size_t i = 0; i < image_uris.size(); ++i) {
+    scenes.push_back(
+        write_triangle_gltf(folder / ("image" + std::to_string(i) + ".gltf"), [&](json& d) {
+          d["images"] = {{{"uri", image_uris[i]}}};
+          d["textures"] = {{{"source", 0}}};
+          d["materials"] = {{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}};
+          d["meshes"][0]["primitives"][0]["material"] = 0;
+        }));
+  }
+  scenes.push_back(write_triangle_gltf(folder / "buffer_link.gltf",
+                                       [](json& d) { d["buffers"][0]["uri"] = "link.bin"; }));
+  for (const fs::path& scene : scenes) {
+    for (const char* target : {"x.glb", "x.gltf"}) {
+      const RunResult r = run("snow " + q(scene) + kTiny + " -o " + q(out_ / target));
+      expect_refused(r, 2, "refused", out_, scene.filename().string() + " to " + target);
+      fs::remove_all(out_);
+      fs::create_directories(out_);
+    }
+  }
+}
+
+TEST_F(Hostile, FifosAreRefusedNotWaitedOn) {
+  ASSERT_EQ(mkfifo((dir_ / "pipe.gltf").c_str(), 0600), 0);
+  ASSERT_EQ(mkfifo((dir_ / "pipe.bin").c_str(), 0600), 0);
+  const fs::path buffer_pipe = write_triangle_gltf(
+      dir_ / "buffer_pipe.gltf", [](json& d) { d["buffers"][0]["uri"] = "pipe.bin"; });
+  // `timeout` ends a run that waits (exit 124) instead of the test.
+  const std::string exe = "timeout 60 " + std::string(SNOWMODEL_EXE) + " ";
+  for (const fs::path& scene : {dir_ / "pipe.gltf", buffer_pipe}) {
+    for (const std::string& args :
+         {"snow " + q(scene) + kTiny + " -o " + q(out_ / "x.glb"), "info " + q(scene),
+          "render " + q(scene) + " -o " + q(out_ / "x.png")}) {
+      const RunResult r = snow::test::run_command(exe + args);
+      expect_refused(r, 2, "regular file", out_, args);
+    }
+  }
+}
+
+TEST_F(Hostile, DecodedImagesOverTheMemoryBudgetExitTwo) {
+  // Three images of 256 x 256 pixels (PPM: stb decodes it without a
+  // compressor here), 256 KiB each decoded; the preview decodes them.
+  const fs::path scene = write_triangle_gltf(dir_ / "images.gltf", [&](json& d) {
+    d["meshes"][0]["primitives"] = json::array();
+    for (int i = 0; i < 3; ++i) {
+      const std::string name = "image" + std::to_string(i) + ".ppm";
+      std::ofstream(dir_ / name, std::ios::binary) << "P6\n256 256\n255\n"
+                                                   << std::string(256 * 256 * 3, '\x80');
+      d["images"].push_back({{"uri", name}});
+      d["textures"].push_back({{"source", i}});
+      d["materials"].push_back({{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", i}}}}}});
+      d["meshes"][0]["primitives"].push_back({{"attributes", {{"POSITION", 0}}}, {"material", i}});
+    }
+  });
+  // 0.0006 GiB (629 KiB): each image alone fits, not the three.
+  const RunResult r = run("snow " + q(scene) + kTiny + " --memory-budget 0.0006 --preview " +
+                          q(out_ / "x.png") + " -o " + q(out_ / "x.glb"));
+  expect_refused(r, 2, "--memory-budget", out_, "three images");
+  EXPECT_NE(r.output.find("image 1"), std::string::npos) << r.output;
 }
 
 // --- GL failures ------------------------------------------------------------------------------

@@ -41,6 +41,7 @@ void run_preview(PreviewOptions o) {
   if (!std::isfinite(s.memory_budget_gib) || s.memory_budget_gib <= 0)
     throw InputError("--memory-budget must be a positive number of GiB");
   s.peel.memory_budget = uint64_t(double(s.memory_budget_gib) * double(1ull << 30));
+  s.load.limits.memory_budget = s.peel.memory_budget;  // the scene's data, images included
   s.stabilize.seed = uint32_t(s.coverage.seed);
   v.input = o.input;
   v.sim.peel = s.peel;

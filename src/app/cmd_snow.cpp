@@ -147,6 +147,7 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
     throw InputError("--memory-budget must be a positive number of GiB");
   }
   s.peel.memory_budget = uint64_t(double(s.memory_budget_gib) * double(1ull << 30));
+  s.load.limits.memory_budget = s.peel.memory_budget;  // the scene's data, images included
   s.stabilize.seed = uint32_t(s.coverage.seed);
   format = MeshFormat::Glb;
   if (!o.output.empty()) {

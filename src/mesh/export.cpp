@@ -7,6 +7,7 @@
 #include <tiny_gltf.h>
 
 #include <algorithm>
+#include <cctype>
 #include <optional>
 #include <sstream>
 #include <system_error>
@@ -18,6 +19,8 @@
 #include "mesh/gltf_writer.h"
 #include "mesh/obj_writer.h"
 #include "mesh/ply_writer.h"
+#include "scene/input_policy.h"
+#include "scene/load_gltf.h"
 
 namespace snow {
 namespace fs = std::filesystem;
@@ -110,6 +113,13 @@ void check_output_path(const fs::path& path) {
     throw IOError("cannot write " + path.string() + ": it is a folder");
 }
 
+/// True when `s` starts with `prefix` ignoring ASCII case; `prefix` is lower case.
+bool starts_with_ci(const std::string& s, const char* prefix) {
+  for (size_t i = 0; prefix[i]; ++i)
+    if (i >= s.size() || std::tolower(static_cast<unsigned char>(s[i])) != prefix[i]) return false;
+  return true;
+}
+
 /// First line of a tinygltf message.
 std::string first_line(const std::string& text) {
   const size_t end = text.find('\n');
@@ -199,14 +209,96 @@ void check_combined_output(const fs::path& out) {
 
 namespace {
 
+/// The input policy (scene/input_policy.h) for the files tinygltf reads
+/// (its FsCallbacks' user data): only regular files inside the scene's
+/// folder, never the working folder tinygltf also searches.
+struct TinyGltfFiles {
+  fs::path folder;      // absolute
+  std::string refused;  // the first file refused, why
+  uint64_t max_file_bytes = LoadLimits{}.max_file_bytes;
+};
+
+bool policy_file_exists(const std::string& path, void* user) {
+  auto& files = *static_cast<TinyGltfFiles*>(user);
+  const fs::path file(path);
+  std::error_code ec;
+  // tinygltf's second guess is the working folder: "./<uri>".
+  if (!file.is_absolute() || !fs::exists(file, ec)) return false;
+  if (!inside_folder(files.folder, file)) {
+    if (files.refused.empty()) files.refused = "'" + path + "' is outside the scene's folder";
+    return false;
+  }
+  return true;
+}
+
+bool policy_read_file(std::vector<unsigned char>* out, std::string* err, const std::string& path,
+                      void* user) {
+  auto& files = *static_cast<TinyGltfFiles*>(user);
+  const fs::path file(path);
+  std::string why;
+  std::error_code ec;
+  if (!inside_folder(files.folder, file)) {
+    why = "is outside the scene's folder";
+  } else if (why = regular_file_problem(file); why.empty()) {
+    const uint64_t size = fs::file_size(file, ec);
+    if (ec) {
+      why = "cannot be read";
+    } else if (size > files.max_file_bytes) {
+      why = "is over the limit of " + std::to_string(files.max_file_bytes) +
+            " bytes (LoadLimits::max_file_bytes)";
+    } else {
+      out->resize(size_t(size));
+      if (read_regular_file(file, size, out->data(), &why)) return true;
+    }
+  }
+  if (files.refused.empty()) files.refused = "'" + path + "' " + why;
+  if (err) *err = why;
+  return false;
+}
+
 void read_with_tinygltf(CombinedInput& input) {
+  const uint64_t limit = LoadLimits{}.max_file_bytes;
+  std::error_code ec;
+  const uint64_t size = fs::file_size(input.path, ec);
+  if (ec) throw IOError("cannot read " + input.path.string());
+  if (size > limit || size > UINT32_MAX)  // tinygltf takes the size as 32 bits
+    throw InputError(input.path.string() + ": over the limit of " + std::to_string(limit) +
+                     " bytes (LoadLimits::max_file_bytes)");
+  std::vector<unsigned char> bytes(static_cast<size_t>(size));
+  std::string why;
+  if (!read_regular_file(input.path, size, bytes.data(), &why))
+    throw IOError("cannot read " + input.path.string() + ": " + why);
+  check_json_depth(scene_json_text(bytes.data(), bytes.size()), input.path.string());
+
+  TinyGltfFiles files;
+  files.folder = fs::absolute(input.path).parent_path();
   tinygltf::TinyGLTF loader;
   loader.SetImageLoader(keep_image_bytes, nullptr);
+  loader.SetFsCallbacks({policy_file_exists, tinygltf::ExpandFilePath, policy_read_file,
+                         tinygltf::WriteWholeFile, &files});
   std::string err;
   const bool binary = lower_extension(input.path) == ".glb";
-  const bool ok =
-      binary ? loader.LoadBinaryFromFile(&input.model, &err, &input.warnings, input.path.string())
-             : loader.LoadASCIIFromFile(&input.model, &err, &input.warnings, input.path.string());
+  const std::string base = files.folder.string();
+  const bool ok = binary ? loader.LoadBinaryFromMemory(&input.model, &err, &input.warnings,
+                                                       bytes.data(), unsigned(bytes.size()), base)
+                         : loader.LoadASCIIFromString(&input.model, &err, &input.warnings,
+                                                      reinterpret_cast<const char*>(bytes.data()),
+                                                      unsigned(bytes.size()), base);
+  if (!files.refused.empty())
+    throw InputError(input.path.string() + ": " + files.refused + " (refused)");
+  // What tinygltf did not look for (an absolute path it read as relative)
+  // is refused as the loader refuses it.
+  const auto check_uri = [&](const std::string& uri, const std::string& what) {
+    std::string why;
+    if (!uri.empty() && !starts_with_ci(uri, "data:") &&
+        !resolve_relative_uri(fs::path(base), uri, &why))
+      throw InputError(input.path.string() + ": " + what + ": uri '" + first_line(uri) + "' " +
+                       why);
+  };
+  for (size_t i = 0; i < input.model.buffers.size(); ++i)
+    check_uri(input.model.buffers[i].uri, "buffer " + std::to_string(i));
+  for (size_t i = 0; i < input.model.images.size(); ++i)
+    check_uri(input.model.images[i].uri, "image " + std::to_string(i));
   if (!ok) {
     throw InputError(input.path.string() + ": " +
                      (err.empty() ? std::string("not a valid glTF file") : first_line(err)));
@@ -216,10 +308,11 @@ void read_with_tinygltf(CombinedInput& input) {
 }  // namespace
 
 CombinedInputPtr read_combined_input(const fs::path& input_scene, const fs::path& out) {
-  std::error_code ec;
-  if (!fs::is_regular_file(input_scene, ec)) {
+  // Looked at before anything opens it: a FIFO would block the open.
+  const std::string problem = regular_file_problem(input_scene);
+  if (problem == "does not exist" || problem == "is a folder")
     throw IOError("cannot read " + input_scene.string() + ": no such file");
-  }
+  if (!problem.empty()) throw InputError(input_scene.string() + ": " + problem);
   CombinedInputPtr input(new CombinedInput);
   input->path = input_scene;
   if (lower_extension(out) == ".glb") input->plan = plan_streamed_glb(input_scene);

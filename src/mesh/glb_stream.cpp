@@ -3,10 +3,12 @@
 #include "mesh/glb_stream.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <tiny_gltf.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -16,6 +18,7 @@
 #include "core/log.h"
 #include "mesh/export.h"
 #include "mesh/gltf_writer.h"
+#include "scene/input_policy.h"
 #include "scene/load_gltf.h"
 
 namespace snow {
@@ -49,6 +52,24 @@ uint32_t u32_at(const unsigned char* p) {
 }
 
 bool is_index(const json& v) { return v.is_number_unsigned(); }
+
+/// `text` with control characters as spaces, cut at 200 bytes: for a
+/// one-line message.
+std::string one_line(std::string text) {
+  if (text.size() > 200) text = text.substr(0, 200) + "...";
+  for (char& c : text)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) c = ' ';
+  return text;
+}
+
+/// A data: URI (RFC 2397; the scheme is case-insensitive).
+bool starts_with_data(const std::string& uri) {
+  static const char kData[] = "data:";
+  if (uri.size() < 5) return false;
+  for (size_t i = 0; i < 5; ++i)
+    if (std::tolower(static_cast<unsigned char>(uri[i])) != kData[i]) return false;
+  return true;
+}
 bool is_array_or_absent(const json& j, const char* key) {
   return !j.contains(key) || j[key].is_array();
 }
@@ -99,6 +120,7 @@ std::optional<StreamPlan> plan_streamed_glb(const fs::path& input) {
     if (!in.read(text.data(), std::streamsize(file_size))) return std::nullopt;
   }
   StreamPlan plan;
+  check_json_depth(text, input.string());  // before any parser sees it
   try {
     plan.gltf = json::parse(text);
   } catch (const json::exception&) {
@@ -130,8 +152,11 @@ std::optional<StreamPlan> plan_streamed_glb(const fs::path& input) {
       const uint64_t length = b["byteLength"].get<uint64_t>();
       if (b.contains("uri")) {
         if (bin || !b["uri"].is_string()) return std::nullopt;
-        const std::optional<fs::path> file =
-            resolve_relative_uri(folder, b["uri"].get<std::string>());
+        const std::string uri = b["uri"].get<std::string>();
+        std::string why;
+        const std::optional<fs::path> file = resolve_relative_uri(folder, uri, &why);
+        if (!file && !starts_with_data(uri))
+          throw InputError(input.string() + ": buffer 0: uri '" + one_line(uri) + "' " + why);
         if (file) plan.buffer = file_bytes(*file, 0, length);
         if (!plan.buffer || plan.buffer->file_size < length) return std::nullopt;
       } else if (length > 0) {
@@ -150,10 +175,12 @@ std::optional<StreamPlan> plan_streamed_glb(const fs::path& input) {
       if (!image["uri"].is_string()) return std::nullopt;
       const std::string uri = image["uri"].get<std::string>();
       const std::string what = input.string() + ": image " + std::to_string(i) + " ('" + uri + "')";
-      const std::optional<fs::path> file = resolve_relative_uri(folder, uri);
-      if (!file && uri.compare(0, 5, "data:") == 0) return std::nullopt;  // tinygltf decodes it
-      const auto keep_uri = [&](const char* why) {
-        plan.kept_by_uri.push_back(what + why + "; the output refers to it by its URI as it is");
+      std::string why;
+      const std::optional<fs::path> file = resolve_relative_uri(folder, uri, &why);
+      if (!file && starts_with_data(uri)) return std::nullopt;  // tinygltf decodes it
+      if (!file) throw InputError(one_line(what) + ": uri " + why);
+      const auto keep_uri = [&](const char* reason) {
+        plan.kept_by_uri.push_back(what + reason + "; the output refers to it by its URI as it is");
       };
       // The whole file, and its first bytes for its format.
       std::optional<FileBytes> bytes = file ? file_bytes(*file, 0, 0) : std::nullopt;
@@ -199,12 +226,17 @@ void write_all(int fd, const void* data, size_t size, const fs::path& out) {
 /// Appends `src`'s bytes to `fd`: copy_file_range (in the kernel), else
 /// reads and writes.
 void copy_bytes(const FileBytes& src, int fd, const fs::path& out) {
-  const int in = ::open(src.file.c_str(), O_RDONLY | O_CLOEXEC);
+  // Without blocking: a file swapped for a FIFO since the plan is refused,
+  // not waited on (scene/input_policy.h).
+  const int in = ::open(src.file.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   if (in < 0) throw IOError("cannot read " + src.file.string() + ": " + std::strerror(errno));
   struct Closer {
     int fd;
     ~Closer() { ::close(fd); }
   } closer{in};
+  struct stat st {};
+  if (::fstat(in, &st) != 0 || !S_ISREG(st.st_mode))
+    throw IOError("cannot read " + src.file.string() + ": not a regular file");
   loff_t at = loff_t(src.offset);
   uint64_t left = src.length;
   bool in_kernel = true;

@@ -45,6 +45,10 @@ struct StreamPlan {
 /// The plan for `input`, or nullopt where the input is not of that form
 /// (several buffers, data URIs, a GLB or JSON that is not as expected):
 /// tinygltf's path then writes it, and reports what is wrong with it.
+/// Throws InputError where the input policy (scene/input_policy.h) refuses
+/// the input: JSON nested too deep, a buffer or image uri that names a file
+/// outside the input's folder. Files that are not regular files are not
+/// planned (images stay at their uri; a buffer goes to tinygltf's path).
 std::optional<StreamPlan> plan_streamed_glb(const std::filesystem::path& input);
 
 /// Writes the plan's input plus `snow` (append_meshes' nodes, meshes and

@@ -21,6 +21,7 @@
 #include "core/error.h"
 #include "core/fs.h"
 #include "scene/gltf/internal.h"
+#include "scene/input_policy.h"
 
 namespace snow {
 namespace gltf {
@@ -33,6 +34,7 @@ GltfLoader::GltfLoader(const std::filesystem::path& path, const LoadSettings& se
 
 Scene GltfLoader::load() {
   read_document();
+  check_uris();
   check_extensions();
   read_materials();
   std::vector<Instance> instances = traverse();
@@ -53,6 +55,7 @@ uint64_t gltf_input_bytes(const std::filesystem::path& path) {
   const auto extension_is = [](const std::filesystem::path& p, const char* ext) {
     return lower_extension(p) == ext;
   };
+  if (!regular_file_problem(path).empty()) return 0;
   std::error_code error;
   uintmax_t bytes = std::filesystem::file_size(path, error);
   if (error) return 0;

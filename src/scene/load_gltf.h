@@ -25,6 +25,12 @@ struct LoadLimits {
   // Pixels (width * height) of one decoded image; larger ones are skipped
   // with a warning (pixels).
   uint64_t max_image_pixels = uint64_t(1) << 26;
+  // The scene's data held in memory, summed: the file, the buffers (data:
+  // URIs decoded, files as far as their byteLength), each image while it is
+  // decoded and each decoded image (RGBA8: width * height * 4), checked
+  // before each is allocated (bytes). The commands set it from
+  // --memory-budget.
+  uint64_t memory_budget = uint64_t(4) << 30;
 };
 
 struct LoadSettings {
@@ -39,7 +45,9 @@ struct LoadSettings {
 /// percent-decoded, '\\' read as '/', relative to `folder`. nullopt, with
 /// the reason in *why (e.g. "is an absolute path (refused)"), for a
 /// malformed or empty uri, one with a scheme (data:, http:, a drive), an
-/// absolute path, or one that leaves the folder.
+/// absolute path, or one that leaves the folder: by "..", or through a
+/// symlink (the file, symlinks followed, must lie inside the folder,
+/// symlinks followed: scene/input_policy.h).
 std::optional<std::filesystem::path> resolve_relative_uri(const std::filesystem::path& folder,
                                                           const std::string& uri,
                                                           std::string* why = nullptr);
@@ -75,9 +83,14 @@ std::optional<std::filesystem::path> resolve_relative_uri(const std::filesystem:
 /// hostile input: bad GLB header/chunks, broken JSON, missing or short
 /// buffers, out-of-range views/accessors/indices, counts beyond the limits,
 /// non-finite positions or transforms, node cycles or shared children,
-/// URIs that are absolute or leave the scene's folder ("../"), unsupported
-/// required extensions, a scene without triangles. Throws IOError when the
-/// scene file itself cannot be read.
+/// any buffer or image URI that is absolute or leaves the scene's folder
+/// ("../", or a symlink out of it; used by the scene or not), files that are
+/// not regular files (FIFOs, devices: refused before they are opened), JSON
+/// nested deeper than kMaxJsonDepth, data over LoadLimits::memory_budget
+/// (the input policy: scene/input_policy.h), unsupported required
+/// extensions, a scene without triangles. Buffer files are read only as far
+/// as their byteLength. Throws IOError when the scene file itself does not
+/// exist, is a folder or cannot be read.
 Scene load_scene(const std::filesystem::path& path, const LoadSettings& settings = {});
 
 /// The bytes load_scene reads from `path`, near enough, without reading

@@ -2,7 +2,8 @@
 // src/scene/builder.h as .glb (through the glTF writer) and as single-file
 // .gltf JSON (data-URI buffer), plus crafted bad files like the ones of
 // tests/test_scene_load.cpp (broken containers, out-of-range references,
-// absurd counts, cycles, non-finite values, refused extensions).
+// absurd counts, cycles, non-finite values, refused extensions, JSON nested
+// too deep, files outside the scene's folder).
 //   snowmodel_fuzz_corpus <out_dir>
 #include <tiny_gltf.h>
 
@@ -278,6 +279,26 @@ int main(int argc, char** argv) {
     d["meshes"][0]["primitives"][0]["material"] = 0;
   });
   variant("uri_escape", [](json& d, auto&) { d["buffers"][0]["uri"] = "../outside.bin"; });
+  // The input policy (scene/input_policy.h): JSON nested past kMaxJsonDepth,
+  // image files outside the scene's folder ("..", percent-encoded, absolute).
+  // Symlinks and FIFOs are no seeds: the fuzz targets read bytes, not folders.
+  {
+    std::string deep = to_gltf_text(doc, bin);
+    deep.insert(deep.rfind('}'),
+                ",\"extras\":" + std::string(30000, '[') + std::string(30000, ']'));
+    emit("bad_deep_json.gltf", std::vector<uint8_t>(deep.begin(), deep.end()));
+  }
+  for (const auto& [name, uri] : {std::pair<const char*, const char*>{"dotdot", "../x.png"},
+                                  {"percent", "%2e%2e/x.png"},
+                                  {"absolute", "/etc/hostname"}}) {
+    variant(std::string("bad_image_") + name, [uri = uri](json& d, auto&) {
+      d["images"] = json::array({{{"uri", uri}}});
+      d["textures"] = json::array({{{"source", 0}}});
+      d["materials"] =
+          json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
+      d["meshes"][0]["primitives"][0]["material"] = 0;
+    });
+  }
   std::cout << "wrote " << written << " seed files to " << out.string() << "\n";
   return 0;
 }

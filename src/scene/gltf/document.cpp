@@ -2,12 +2,14 @@
 // The GLB container (glTF 2.0 section 4.4), buffers and bufferViews (3.6),
 // URIs relative to the scene's folder, data: URIs (RFC 2397) with base64
 // (RFC 4648), and the JSON accessors that validate every value.
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <optional>
 #include <system_error>
 
@@ -15,6 +17,7 @@
 #include "core/fs.h"
 #include "core/log.h"
 #include "scene/gltf/internal.h"
+#include "scene/input_policy.h"
 
 namespace snow {
 namespace gltf {
@@ -278,7 +281,7 @@ std::string GltfLoader::node_label(int node) const {
 // --- files and URIs ------------------------------------------------------------
 
 Bytes GltfLoader::read_file(const fs::path& file, const std::string& what, bool missing_ok,
-                            bool* missing) const {
+                            bool* missing, uint64_t at_most) {
   std::error_code ec;
   const auto status = fs::status(file, ec);
   if (ec || !fs::exists(status)) {
@@ -287,18 +290,35 @@ Bytes GltfLoader::read_file(const fs::path& file, const std::string& what, bool 
     fail(what + ": file '" + one_line(file.string()) + "' does not exist");
   }
   if (!fs::is_regular_file(status))
-    fail(what + ": '" + one_line(file.string()) + "' is not a file");
-  const uint64_t size = fs::file_size(file, ec);
+    fail(what + ": '" + one_line(file.string()) + "' is not a regular file");
+  const uint64_t size = std::min<uint64_t>(fs::file_size(file, ec), at_most);
   if (ec) fail(what + ": cannot read '" + one_line(file.string()) + "'");
   if (size > settings_.limits.max_file_bytes)
     fail(what + ": '" + one_line(file.string()) + "' is " + std::to_string(size) +
          " bytes, over the limit of " + std::to_string(settings_.limits.max_file_bytes) +
          " (LoadLimits::max_file_bytes)");
+  charge(size, what);
   Bytes bytes(size);
-  std::ifstream in(file, std::ios::binary);
-  if (!in || !in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(size)))
-    fail(what + ": cannot read '" + one_line(file.string()) + "'");
+  std::string why;
+  if (!read_regular_file(file, size, bytes.data(), &why))
+    fail(what + ": '" + one_line(file.string()) + "' " + why);
   return bytes;
+}
+
+void GltfLoader::charge(uint64_t bytes, const std::string& what) {
+  const uint64_t budget = settings_.limits.memory_budget;
+  if (bytes <= budget && loaded_bytes_ <= budget - bytes) {
+    loaded_bytes_ += bytes;
+    return;
+  }
+  const auto gib = [](uint64_t b) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.3g GiB", double(b) / double(uint64_t(1) << 30));
+    return std::string(text);
+  };
+  fail(what + ": " + gib(bytes) + " more would bring the scene's data in memory to " +
+       gib(loaded_bytes_ + std::min(bytes, UINT64_MAX - loaded_bytes_)) +
+       ", over the memory budget of " + gib(budget) + " (--memory-budget)");
 }
 
 fs::path GltfLoader::resolve_uri(const std::string& uri, const std::string& what) const {
@@ -333,11 +353,12 @@ Bytes GltfLoader::decode_data_uri(const std::string& uri, const std::string& wha
 
 void GltfLoader::read_document() {
   {
-    std::error_code ec;
-    if (!fs::exists(path_, ec)) throw IOError(label_ + ": file does not exist");
-    if (fs::is_directory(path_, ec)) throw IOError(label_ + ": is a folder, not a glTF file");
-    std::ifstream probe(path_, std::ios::binary);
-    if (!probe) throw IOError(label_ + ": cannot open file");
+    // Looked at, not opened: a FIFO would block the open.
+    const std::string problem = regular_file_problem(path_);
+    if (problem == "does not exist") throw IOError(label_ + ": file does not exist");
+    if (problem == "is a folder") throw IOError(label_ + ": is a folder, not a glTF file");
+    if (!problem.empty()) fail(problem);
+    if (::access(path_.c_str(), R_OK) != 0) throw IOError(label_ + ": cannot open file");
   }
   file_ = read_file(path_, "scene file", false, nullptr);
   const std::string extension = lower_extension(path_);
@@ -354,6 +375,8 @@ void GltfLoader::read_document() {
   if (json_size > settings_.limits.max_json_bytes)
     fail("JSON is " + std::to_string(json_size) + " bytes, over the limit of " +
          std::to_string(settings_.limits.max_json_bytes) + " (LoadLimits::max_json_bytes)");
+  check_json_depth(std::string_view(reinterpret_cast<const char*>(json_begin), size_t(json_size)),
+                   label_);
   try {
     doc_ = json::parse(json_begin, json_begin + json_size);
   } catch (const json::exception& e) {
@@ -442,6 +465,19 @@ void GltfLoader::check_extensions() {
   }
 }
 
+void GltfLoader::check_uris() const {
+  for (const char* key : {"buffers", "images"}) {
+    const json& array = top_array(key);
+    for (size_t i = 0; i < array.size(); ++i) {
+      const json* uri = member(array[i], "uri");
+      if (!uri || !uri->is_string() || starts_with_ci(uri->get_ref<const std::string&>(), "data:"))
+        continue;  // the element's reader checks the rest
+      resolve_uri(uri->get<std::string>(),
+                  std::string(key).substr(0, std::strlen(key) - 1) + " " + std::to_string(i));
+    }
+  }
+}
+
 // --- buffers and views -----------------------------------------------------------
 
 const BufferSlot& GltfLoader::buffer(uint64_t index) {
@@ -475,9 +511,12 @@ const BufferSlot& GltfLoader::buffer(uint64_t index) {
     const std::string uri = uri_value->get<std::string>();
     if (starts_with_ci(uri, "data:")) {
       slot.owned = decode_data_uri(uri, what, nullptr);
+      charge(slot.owned.size(), what);
     } else {
       const fs::path file = resolve_uri(uri, what);
-      slot.owned = read_file(file, what + " ('" + one_line(uri, 60) + "')", false, nullptr);
+      // Only the declared bytes: a larger file's rest is never read.
+      slot.owned =
+          read_file(file, what + " ('" + one_line(uri, 60) + "')", false, nullptr, slot.size);
     }
     if (slot.owned.size() < slot.size)
       fail(what + " ('" + one_line(starts_with_ci(uri, "data:") ? "data uri" : uri, 60) +
@@ -542,7 +581,11 @@ std::optional<std::filesystem::path> resolve_relative_uri(const std::filesystem:
   for (const auto& part : relative) {
     if (part == "..") return refuse("leaves the scene's folder (refused)");
   }
-  return folder / relative;
+  // A symlink on the way may still lead out of the folder.
+  const std::filesystem::path file = folder / relative;
+  if (!inside_folder(folder, file))
+    return refuse("leads out of the scene's folder through a symlink (refused)");
+  return file;
 }
 
 }  // namespace snow

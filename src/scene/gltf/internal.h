@@ -150,10 +150,18 @@ class GltfLoader {
 
   // --- files, URIs, document, buffers (document.cpp) --------------------------
 
-  /// The bytes of `file`, at most LoadLimits::max_file_bytes. A missing file
-  /// sets *missing and returns nothing when `missing_ok`, else fails.
+  /// The first `at_most` bytes of `file` (all when it is shorter), at most
+  /// LoadLimits::max_file_bytes, charged to the budget (charge) before they
+  /// are allocated. A missing file sets *missing and returns nothing when
+  /// `missing_ok`, else fails; anything but a regular file fails
+  /// (scene/input_policy.h).
   Bytes read_file(const std::filesystem::path& file, const std::string& what, bool missing_ok,
-                  bool* missing) const;
+                  bool* missing, uint64_t at_most = UINT64_MAX);
+  /// Counts `bytes` more of the scene's data held in memory (the file,
+  /// buffers, encoded and decoded images) against
+  /// LoadLimits::memory_budget; fails, naming `what` and the budget, when
+  /// they would exceed it.
+  void charge(uint64_t bytes, const std::string& what);
   /// Resolves a relative URI inside the scene's folder; refuses anything else.
   std::filesystem::path resolve_uri(const std::string& uri, const std::string& what) const;
   /// Bytes of a data: URI; its media type in *mime.
@@ -163,6 +171,10 @@ class GltfLoader {
   /// GLB container (glTF 2.0 section 4.4): the JSON chunk's bytes, and the
   /// BIN chunk into glb_bin_.
   void parse_glb_container(const uint8_t*& json_begin, uint64_t& json_size);
+  /// Fails on any buffer or image uri that names a file outside the scene's
+  /// folder (resolve_uri), used or not: every command refuses such a scene
+  /// before reading anything more (scene/input_policy.h).
+  void check_uris() const;
   /// Fails on required extensions this build cannot honour; warns on unknown ones.
   void check_extensions();
   const BufferSlot& buffer(uint64_t index);
@@ -255,6 +267,7 @@ class GltfLoader {
   std::filesystem::path folder_;
   LoadSettings settings_;
   std::string label_;
+  uint64_t loaded_bytes_ = 0;  // what charge() has counted (bytes)
   Bytes file_;
   bool is_glb_ = false;
   bool has_glb_bin_ = false;

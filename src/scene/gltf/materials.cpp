@@ -100,7 +100,12 @@ int GltfLoader::decode_image(int index) {
   const json& object = element(top_array("images"), uint64_t(index), what);
   const std::string name = opt_string(object, "name");
   std::string mime = opt_string(object, "mimeType");
-  Bytes owned;
+  Bytes owned;  // an image file or data: URI, charged while it is held
+  struct Refund {
+    uint64_t& loaded;
+    const Bytes& owned;
+    ~Refund() { loaded -= owned.size(); }
+  } refund{loaded_bytes_, owned};
   const uint8_t* data = nullptr;
   uint64_t size = 0;
   std::string label = what;
@@ -109,6 +114,7 @@ int GltfLoader::decode_image(int index) {
     const std::string uri = uri_value->get<std::string>();
     if (starts_with_ci(uri, "data:")) {
       owned = decode_data_uri(uri, what, &mime);
+      charge(owned.size(), what);
     } else {
       label = what + " ('" + one_line(uri, 60) + "')";
       const fs::path file = resolve_uri(uri, what);
@@ -146,8 +152,11 @@ int GltfLoader::decode_image(int index) {
          " pixels, over LoadLimits::max_image_pixels; base color texture ignored");
     return -1;
   }
+  charge(uint64_t(width) * uint64_t(height) * 4,
+         label + " (" + std::to_string(width) + "x" + std::to_string(height) + " pixels decoded)");
   stbi_uc* pixels = stbi_load_from_memory(data, int(size), &width, &height, &channels, 4);
   if (!pixels) {
+    loaded_bytes_ -= uint64_t(width) * uint64_t(height) * 4;
     warn(label + ": decoding failed (" +
          one_line(stbi_failure_reason() ? stbi_failure_reason() : "?", 60) +
          "); base color texture ignored");
