@@ -569,9 +569,10 @@ TEST_F(SceneLoad, UnknownOptionalExtensionWarns) {
   EXPECT_NE(s.warnings[0].find("VENDOR_sparkles"), std::string::npos);
 }
 
-TEST_F(SceneLoad, Draco) {
 #ifdef SNOW_TEST_DRACO_ENCODER
-  // Two triangles of a unit quad facing +Y, encoded with Draco.
+/// Two triangles of a unit quad facing +Y, encoded with Draco; the
+/// POSITION attribute's unique id in `unique_id`.
+std::vector<char> draco_quad(int* unique_id) {
   draco::TriangleSoupMeshBuilder builder;
   builder.Start(2);
   const int pos_att =
@@ -580,25 +581,43 @@ TEST_F(SceneLoad, Draco) {
   builder.SetAttributeValuesForFace(pos_att, draco::FaceIndex(0), q[0], q[1], q[2]);
   builder.SetAttributeValuesForFace(pos_att, draco::FaceIndex(1), q[0], q[2], q[3]);
   std::unique_ptr<draco::Mesh> draco_mesh = builder.Finalize();
-  ASSERT_TRUE(draco_mesh);
-  const int unique_id =
+  if (!draco_mesh) return {};
+  *unique_id =
       int(draco_mesh->attribute(draco_mesh->GetNamedAttributeId(draco::GeometryAttribute::POSITION))
               ->unique_id());
   draco::Encoder encoder;
   encoder.SetSpeedOptions(5, 5);
   draco::EncoderBuffer encoded;
-  ASSERT_TRUE(encoder.EncodeMeshToBuffer(*draco_mesh, &encoded).ok());
+  if (!encoder.EncodeMeshToBuffer(*draco_mesh, &encoded).ok()) return {};
+  return {encoded.data(), encoded.data() + encoded.size()};
+}
+
+/// A glTF whose one primitive is draco_quad, 1 m up; with `indexed`, the
+/// primitive has an indices accessor without a bufferView, as the
+/// extension's files usually do (Draco provides the indices).
+Gltf draco_quad_gltf(bool indexed) {
+  int unique_id = 0;
+  const std::vector<char> encoded = draco_quad(&unique_id);
+  EXPECT_FALSE(encoded.empty());
   Gltf g;
   const int view = g.view(encoded.data(), encoded.size());
   const int pos = g.accessor(-1, kFloat, 4, "VEC3");
-  const int mesh = g.mesh(
-      json::array({{{"attributes", {{"POSITION", pos}}},
+  json primitive = {{"attributes", {{"POSITION", pos}}},
                     {"extensions",
                      {{"KHR_draco_mesh_compression",
-                       {{"bufferView", view}, {"attributes", {{"POSITION", unique_id}}}}}}}}}));
+                       {{"bufferView", view}, {"attributes", {{"POSITION", unique_id}}}}}}}};
+  if (indexed) primitive["indices"] = g.accessor(-1, kUShort, 6, "SCALAR");
+  const int mesh = g.mesh(json::array({primitive}));
   g.scene({g.node({{"mesh", mesh}, {"translation", {0, 1, 0}}})});
   g.doc["extensionsUsed"] = {"KHR_draco_mesh_compression"};
   g.doc["extensionsRequired"] = {"KHR_draco_mesh_compression"};
+  return g;
+}
+#endif
+
+TEST_F(SceneLoad, Draco) {
+#ifdef SNOW_TEST_DRACO_ENCODER
+  Gltf g = draco_quad_gltf(false);
   const fs::path path = g.write_glb(dir_, "draco");
   if (!snow::gltf_draco_supported()) {
     expect_input_error(path, "KHR_draco_mesh_compression");
@@ -613,6 +632,27 @@ TEST_F(SceneLoad, Draco) {
   // Corrupt Draco data is an InputError, not a crash.
   g.bin.assign(g.bin.size(), 0x5A);
   expect_input_error(g.write_glb(dir_, "draco_bad"), "Draco");
+#else
+  GTEST_SKIP() << "Draco encoder headers not available";
+#endif
+}
+
+// The usual Draco file: the primitive's indices accessor has no bufferView
+// (KHR_draco_mesh_compression: Draco provides the indices). It loads, as
+// GLB, .gltf with a .bin and .gltf with a data URI.
+TEST_F(SceneLoad, DracoWithIndices) {
+#ifdef SNOW_TEST_DRACO_ENCODER
+  if (!snow::gltf_draco_supported()) GTEST_SKIP() << "this build has no Draco decoder";
+  Gltf g = draco_quad_gltf(true);
+  for (const fs::path& path : {g.write_glb(dir_, "draco_indexed"),
+                               g.write_gltf(dir_, "draco_indexed"),
+                               g.write_data_uri(dir_, "draco_indexed_data")}) {
+    const snow::Scene s = snow::load_scene(path);
+    ASSERT_EQ(s.triangle_count(), 2u) << path;
+    EXPECT_NEAR(total_area(s), 1.0, 1e-5) << path;
+    expect_near(s.bounds.min, {0, 1, 0});
+    expect_near(s.bounds.max, {1, 1, 1});
+  }
 #else
   GTEST_SKIP() << "Draco encoder headers not available";
 #endif
