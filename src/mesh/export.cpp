@@ -18,6 +18,7 @@
 #include "mesh/gltf_writer.h"
 #include "mesh/obj_writer.h"
 #include "mesh/ply_writer.h"
+#include "mesh/tinygltf_input.h"
 
 namespace snow {
 namespace fs = std::filesystem;
@@ -204,13 +205,24 @@ void read_with_tinygltf(CombinedInput& input) {
   loader.SetImageLoader(keep_image_bytes, nullptr);
   std::string err;
   const bool binary = lower_extension(input.path) == ".glb";
+  // What tinygltf would refuse or change in a valid file is mended or
+  // refused first (mesh/tinygltf_input.h).
+  const TinygltfInput prepared = prepare_for_tinygltf(input.path, binary);
+  if (prepared.bytes.size() > UINT32_MAX)
+    throw InputError(input.path.string() + ": over 4 GiB, more than tinygltf reads");
+  const std::string base_dir = input.path.parent_path().string();
   const bool ok =
-      binary ? loader.LoadBinaryFromFile(&input.model, &err, &input.warnings, input.path.string())
-             : loader.LoadASCIIFromFile(&input.model, &err, &input.warnings, input.path.string());
+      binary ? loader.LoadBinaryFromMemory(&input.model, &err, &input.warnings,
+                                           prepared.bytes.data(), unsigned(prepared.bytes.size()),
+                                           base_dir)
+             : loader.LoadASCIIFromString(&input.model, &err, &input.warnings,
+                                          reinterpret_cast<const char*>(prepared.bytes.data()),
+                                          unsigned(prepared.bytes.size()), base_dir);
   if (!ok) {
     throw InputError(input.path.string() + ": " +
                      (err.empty() ? std::string("not a valid glTF file") : first_line(err)));
   }
+  restore_after_tinygltf(prepared, input.model);
 }
 
 }  // namespace
