@@ -430,6 +430,69 @@ TEST(Cli, ExitCodesAndNoPartialOutputs) {
   EXPECT_EQ(file_count(out), 0u);
 }
 
+// Every numeric option has a range (issue 48): out of it, from a flag or a
+// --config file, is one error line naming the option and the bound, exit 2,
+// before any work; no count runs for minutes, no seed wraps.
+TEST(Cli, OptionsOutsideTheirRangesAreRefused) {
+  const fs::path dir = temp_dir("ranges");
+  const fs::path out = dir / "x.glb";
+  struct Case {
+    std::string args;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {"--smooth 1000000", "--smooth (mesh.smooth_iterations) must be in 0..100, got 1000000"},
+      {"--smooth -1", "--smooth (mesh.smooth_iterations) must be in 0..100, got -1"},
+      {"--steps 100000", "--steps (snow.steps) must be in 1..1000, got 100000"},
+      {"--min-thickness -1", "--min-thickness (mesh.min_thickness) must be in 0..100, got -1"},
+      {"--bottom-offset 1e9", "--bottom-offset (mesh.bottom_offset) must be in 0..10, got 1000000000"},
+      {"--depth inf", "--depth (snow.depth) must be in 0..1000, got inf"},
+      {"--wind 300,0", "--wind (coverage.wind) must be in -100..100, got 300"},
+      {"--margin nan", "--margin (maps.margin) must be negative (automatic) or in 0..10000"},
+      {"--max-iterations 1000000", "--max-iterations (snow.max_iterations) must be in 0..100000"},
+      {"--memory-budget 0", "--memory-budget (maps.memory_budget_gib) must be in 0.01..1048576"},
+      {"--seed 18446744073709551616",
+       "--seed: expected a whole number up to 18446744073709551615, got '18446744073709551616'"},
+      {"--steps 99999999999", "--steps"},
+  };
+  for (const Case& c : cases) {
+    const RunResult r = run("snow " + q(kCourtyard) + " " + c.args + " -o " + q(out));
+    EXPECT_EQ(r.code, 2) << c.args << ": " << r.output;
+    EXPECT_NE(r.output.find(c.message), std::string::npos) << c.args << ": " << r.output;
+    EXPECT_EQ(r.output.find("peel"), std::string::npos) << c.args << ": " << r.output;
+    EXPECT_FALSE(fs::exists(out)) << c.args;
+  }
+  // The largest seed is a seed; a negative margin is automatic.
+  const RunResult largest =
+      run("snow " + q(kCourtyard) + kFast + " --seed 18446744073709551615 --margin -5 -o " + q(out));
+  EXPECT_EQ(largest.code, 0) << largest.output;
+  // The same bounds hold for a --config file, and a whole number its field
+  // cannot hold is not wrapped into one.
+  write_all(dir / "smooth.json", R"({"mesh": {"smooth_iterations": 1000000}})");
+  write_all(dir / "wrap.json", R"({"mesh": {"smooth_iterations": 4294967298}})");
+  write_all(dir / "seed.json", R"({"coverage": {"seed": 18446744073709551616}})");
+  for (const auto& [file, message] :
+       std::vector<std::pair<std::string, std::string>>{
+           {"smooth.json", "--smooth (mesh.smooth_iterations) must be in 0..100, got 1000000"},
+           {"wrap.json", "'mesh.smooth_iterations' has a value of the wrong type (4294967298"},
+           {"seed.json", "'coverage.seed' has a value of the wrong type"}}) {
+    const RunResult r =
+        run("snow " + q(kCourtyard) + " --config " + q(dir / file) + " -o " + q(dir / "y.glb"));
+    EXPECT_EQ(r.code, 2) << file << ": " << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << file << ": " << r.output;
+  }
+  // The preview's own options too, before a window opens.
+  const RunResult zoom = run("preview " + q(kCourtyard) + " --zoom 0");
+  EXPECT_EQ(zoom.code, 2) << zoom.output;
+  EXPECT_NE(zoom.output.find("--zoom must be in 0.01..100, got 0"), std::string::npos)
+      << zoom.output;
+  // The help states the ranges.
+  const RunResult help = run("snow --help");
+  EXPECT_NE(help.output.find("Smoothing passes over the snow top [0..100]"), std::string::npos)
+      << help.output;
+  EXPECT_NE(help.output.find("[1..1000]"), std::string::npos) << help.output;
+}
+
 TEST(Cli, SharedScenesSnow) {
   const fs::path shared = SNOW_SHARED_SCENES;
   if (!fs::exists(shared)) GTEST_SKIP() << "../shared/scenes is absent";

@@ -25,6 +25,7 @@
 #include "mesh/gltf_writer.h"
 #include "mesh/polygonize.h"
 #include "scene/load_gltf.h"
+#include "support/draco_quad.h"
 
 namespace snow {
 namespace {
@@ -857,6 +858,72 @@ TEST(Export, CombinedInputFollowsTheInputPolicy) {
 // The input is read at the start of a run and its files copied at the end:
 // a .bin that changed in between no longer matches the JSON read first, and
 // the write says so instead of mixing the two.
+// The usual Draco file (issue 48): its primitive's indices accessor has no
+// bufferView, which tinygltf refuses ("accessor[1] invalid bufferView").
+// Read by tinygltf (a data URI to a .glb; a .glb to a .gltf), the scene plus
+// snow keeps the primitive and its indices.
+TEST(Export, CombinedKeepsADracoPrimitiveWithIndices) {
+#ifdef SNOW_TEST_DRACO_ENCODER
+  if (!gltf_draco_supported()) GTEST_SKIP() << "this build has no Draco decoder";
+  const fs::path dir = fs::temp_directory_path() / "snow_export_draco_indices";
+  fs::remove_all(dir);
+  fs::create_directories(dir / "out");
+  test::Gltf g = test::draco_quad_gltf(true);
+  const std::vector<SnowPatch> no_snow;
+  for (const auto& [input, out] : std::vector<std::pair<fs::path, fs::path>>{
+           {g.write_data_uri(dir, "data"), dir / "out" / "data.glb"},
+           {g.write_glb(dir, "binary"), dir / "out" / "binary.gltf"}}) {
+    SCOPED_TRACE(input.string());
+    ASSERT_NO_THROW(write_combined_gltf(input, no_snow, out));
+    const Scene s = load_scene(out);
+    EXPECT_EQ(s.triangle_count(), 2u);
+    const nlohmann::json json = out.extension() == ".glb"
+                                     ? glb_json_of(out)
+                                     : nlohmann::json::parse(read_text(out));
+    EXPECT_EQ(json["meshes"][0]["primitives"][0]["indices"], 1) << json.dump();
+    EXPECT_FALSE(json["accessors"][1].contains("bufferView")) << json.dump();
+  }
+  fs::remove_all(dir);
+#else
+  GTEST_SKIP() << "Draco encoder headers not available";
+#endif
+}
+
+// A whole number beyond int (a texCoord of 2^31) is kept where the input's
+// JSON is copied (a .gltf with a .bin into a .glb), and refused, naming the
+// file and the number, where tinygltf would write it wrapped to -2^31 (a
+// data URI): never written changed (issue 48).
+TEST(Export, CombinedKeepsOrRefusesAWholeNumberBeyondInt) {
+  const fs::path dir = fs::temp_directory_path() / "snow_export_wide_texcoord";
+  fs::remove_all(dir);
+  fs::create_directories(dir / "out");
+  test::Gltf g = test::triangle_gltf();
+  g.doc["textures"] = nlohmann::json::array({nlohmann::json::object()});
+  g.doc["materials"] = {{{"pbrMetallicRoughness",
+                          {{"baseColorTexture", {{"index", 0}, {"texCoord", 2147483648u}}}}}}};
+  g.doc["meshes"][0]["primitives"][0]["material"] = 0;
+  const std::vector<SnowPatch> no_snow;
+  const fs::path kept = dir / "out" / "kept.glb";
+  write_combined_gltf(g.write_gltf(dir, "bin"), no_snow, kept);
+  const nlohmann::json json = glb_json_of(kept);
+  EXPECT_EQ(json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"],
+            2147483648u)
+      << json.dump();
+  const fs::path refused = dir / "out" / "refused.glb";
+  try {
+    write_combined_gltf(g.write_data_uri(dir, "data"), no_snow, refused);
+    ADD_FAILURE() << "a texCoord of 2^31 was not refused";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "data.gltf: /materials/0/pbrMetallicRoughness/baseColorTexture/texCoord is "
+                  "2147483648"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(fs::exists(refused));
+  fs::remove_all(dir);
+}
+
 TEST(Export, CombinedGlbRefusesAnInputThatChangedMeanwhile) {
   const CombinedSetup setup;
   const auto& [patches, test_dir, dir, png, input] = setup;

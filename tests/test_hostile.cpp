@@ -19,6 +19,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -344,6 +345,43 @@ TEST_F(Hostile, DecodedImagesOverTheMemoryBudgetExitTwo) {
 }
 
 // --- GL failures ------------------------------------------------------------------------------
+
+// A texCoord of 2^31 (issue 48): the scene plus snow never writes it
+// wrapped to -2^31. Rewritten by tinygltf (a data-URI buffer), the input is
+// refused with one line naming it and the number; copied as written (a .bin
+// beside it), the value is kept.
+TEST_F(Hostile, TexCoordBeyondIntIsKeptOrRefusedNeverWrapped) {
+  auto wide = [](json& doc) {
+    doc["textures"] = json::array({json::object()});
+    doc["materials"] = {{{"pbrMetallicRoughness",
+                          {{"baseColorTexture", {{"index", 0}, {"texCoord", 2147483648u}}}}}}};
+    doc["meshes"][0]["primitives"][0]["material"] = 0;
+  };
+  const fs::path data = write_triangle_gltf(dir_ / "data.gltf", wide);
+  expect_refused(run("snow " + q(data) + kTiny + " -o " + q(out_ / "x.glb")), 2,
+                 "/materials/0/pbrMetallicRoughness/baseColorTexture/texCoord is 2147483648", out_,
+                 "texCoord 2^31 through tinygltf");
+  // The same document with its buffer in a .bin file.
+  json doc = json::parse(std::ifstream(data));
+  const std::string uri = doc["buffers"][0]["uri"];
+  const std::string base64 = uri.substr(uri.find(',') + 1);
+  ASSERT_EQ(base64, "AAAAAAAAAAAAAAAAAAAAAAAAAAAAAIA/AACAPwAAAAAAAAAA");
+  const float xyz[9] = {0, 0, 0, 0, 0, 1, 1, 0, 0};  // what the base64 holds
+  std::ofstream(dir_ / "tri.bin", std::ios::binary)
+      .write(reinterpret_cast<const char*>(xyz), sizeof xyz);
+  doc["buffers"][0]["uri"] = "tri.bin";
+  std::ofstream(dir_ / "bin.gltf") << doc.dump();
+  const RunResult kept = run("snow " + q(dir_ / "bin.gltf") + kTiny + " -o " + q(out_ / "y.glb"));
+  ASSERT_EQ(kept.code, 0) << kept.output;
+  std::ifstream glb(out_ / "y.glb", std::ios::binary);
+  std::vector<char> bytes((std::istreambuf_iterator<char>(glb)), std::istreambuf_iterator<char>());
+  ASSERT_GT(bytes.size(), 20u);
+  uint32_t length = 0;
+  std::memcpy(&length, bytes.data() + 12, 4);
+  const json out = json::parse(std::string(bytes.data() + 20, length));
+  EXPECT_EQ(out["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"],
+            2147483648u);
+}
 
 TEST_F(Hostile, GlAllocationFailureAndContextLossExitThree) {
   struct Case {

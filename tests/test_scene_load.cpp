@@ -15,14 +15,9 @@
 #include <glm/glm.hpp>
 #include <nlohmann/json.hpp>
 
-#if __has_include(<draco/compression/encode.h>)
-#include <draco/compression/encode.h>
-#include <draco/mesh/triangle_soup_mesh_builder.h>
-#define SNOW_TEST_DRACO_ENCODER 1
-#endif
-
 #include "core/error.h"
 #include "scene/load_gltf.h"
+#include "support/draco_quad.h"
 #include "support/gltf_scene.h"
 
 namespace snow::test {
@@ -571,34 +566,7 @@ TEST_F(SceneLoad, UnknownOptionalExtensionWarns) {
 
 TEST_F(SceneLoad, Draco) {
 #ifdef SNOW_TEST_DRACO_ENCODER
-  // Two triangles of a unit quad facing +Y, encoded with Draco.
-  draco::TriangleSoupMeshBuilder builder;
-  builder.Start(2);
-  const int pos_att =
-      builder.AddAttribute(draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32);
-  const float q[4][3] = {{0, 0, 0}, {0, 0, 1}, {1, 0, 1}, {1, 0, 0}};
-  builder.SetAttributeValuesForFace(pos_att, draco::FaceIndex(0), q[0], q[1], q[2]);
-  builder.SetAttributeValuesForFace(pos_att, draco::FaceIndex(1), q[0], q[2], q[3]);
-  std::unique_ptr<draco::Mesh> draco_mesh = builder.Finalize();
-  ASSERT_TRUE(draco_mesh);
-  const int unique_id =
-      int(draco_mesh->attribute(draco_mesh->GetNamedAttributeId(draco::GeometryAttribute::POSITION))
-              ->unique_id());
-  draco::Encoder encoder;
-  encoder.SetSpeedOptions(5, 5);
-  draco::EncoderBuffer encoded;
-  ASSERT_TRUE(encoder.EncodeMeshToBuffer(*draco_mesh, &encoded).ok());
-  Gltf g;
-  const int view = g.view(encoded.data(), encoded.size());
-  const int pos = g.accessor(-1, kFloat, 4, "VEC3");
-  const int mesh = g.mesh(
-      json::array({{{"attributes", {{"POSITION", pos}}},
-                    {"extensions",
-                     {{"KHR_draco_mesh_compression",
-                       {{"bufferView", view}, {"attributes", {{"POSITION", unique_id}}}}}}}}}));
-  g.scene({g.node({{"mesh", mesh}, {"translation", {0, 1, 0}}})});
-  g.doc["extensionsUsed"] = {"KHR_draco_mesh_compression"};
-  g.doc["extensionsRequired"] = {"KHR_draco_mesh_compression"};
+  Gltf g = draco_quad_gltf(false);
   const fs::path path = g.write_glb(dir_, "draco");
   if (!snow::gltf_draco_supported()) {
     expect_input_error(path, "KHR_draco_mesh_compression");
@@ -613,6 +581,27 @@ TEST_F(SceneLoad, Draco) {
   // Corrupt Draco data is an InputError, not a crash.
   g.bin.assign(g.bin.size(), 0x5A);
   expect_input_error(g.write_glb(dir_, "draco_bad"), "Draco");
+#else
+  GTEST_SKIP() << "Draco encoder headers not available";
+#endif
+}
+
+// The usual Draco file: the primitive's indices accessor has no bufferView
+// (KHR_draco_mesh_compression: Draco provides the indices). It loads, as
+// GLB, .gltf with a .bin and .gltf with a data URI.
+TEST_F(SceneLoad, DracoWithIndices) {
+#ifdef SNOW_TEST_DRACO_ENCODER
+  if (!snow::gltf_draco_supported()) GTEST_SKIP() << "this build has no Draco decoder";
+  Gltf g = draco_quad_gltf(true);
+  for (const fs::path& path : {g.write_glb(dir_, "draco_indexed"),
+                               g.write_gltf(dir_, "draco_indexed"),
+                               g.write_data_uri(dir_, "draco_indexed_data")}) {
+    const snow::Scene s = snow::load_scene(path);
+    ASSERT_EQ(s.triangle_count(), 2u) << path;
+    EXPECT_NEAR(total_area(s), 1.0, 1e-5) << path;
+    expect_near(s.bounds.min, {0, 1, 0});
+    expect_near(s.bounds.max, {1, 1, 1});
+  }
 #else
   GTEST_SKIP() << "Draco encoder headers not available";
 #endif

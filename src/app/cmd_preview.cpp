@@ -24,6 +24,43 @@ struct PreviewOptions {
   live::ViewerOptions viewer;
 };
 
+// The ranges of the preview's own numeric options (app/settings.h, Range):
+// stated in their help texts and checked by check_viewer_options, like the
+// pipeline settings' by check_settings. The simulation's match
+// live::LiveSimulation's own checks.
+constexpr Range kFrames{0, 1e9};
+constexpr Range kAzimuth{-360, 360};
+constexpr Range kElevation{-89, 89};
+constexpr Range kZoom{0.01, 100};
+constexpr Range kFov{1, 170};
+constexpr Range kFallRate{0, 1000};
+constexpr Range kFrameTime{1e-4, 3600};
+constexpr Range kAddEvery{1, 100000};
+constexpr Range kPassesPerFrame{0, 100000};
+constexpr Range kSnowStride{0, 4096};
+constexpr Range kFlakes{0, 1e6};
+
+/// `help` with the range appended, as visit_settings' options print it.
+std::string ranged(const char* help, const Range& range) {
+  return std::string(help) + " " + range_text(range);
+}
+
+/// InputError naming the option unless every numeric option of `v` is in
+/// its range.
+void check_viewer_options(const live::ViewerOptions& v) {
+  check_range("--frames", "", v.frames, kFrames);
+  check_range("--azimuth", "", v.azimuth, kAzimuth);
+  check_range("--elevation", "", v.elevation, kElevation);
+  check_range("--zoom", "", v.zoom, kZoom);
+  check_range("--fov", "", v.fov, kFov);
+  check_range("--fall-rate", "", v.sim.fall_rate, kFallRate);
+  check_range("--frame-time", "", v.sim.frame_time, kFrameTime);
+  check_range("--add-every", "", v.sim.add_every, kAddEvery);
+  check_range("--passes-per-frame", "", v.sim.passes_per_frame, kPassesPerFrame);
+  check_range("--snow-stride", "", v.snow_stride, kSnowStride);
+  check_range("--flakes", "", v.view.flakes, kFlakes);
+}
+
 void run_preview(PreviewOptions o) {
   live::ViewerOptions& v = o.viewer;
   PipelineSettings& s = o.settings;
@@ -38,8 +75,8 @@ void run_preview(PreviewOptions o) {
   v.view.overlay = o.overlay == "coverage" ? live::Overlay::Coverage
                    : o.overlay == "depth"  ? live::Overlay::Depth
                                            : live::Overlay::None;
-  if (!std::isfinite(s.memory_budget_gib) || s.memory_budget_gib <= 0)
-    throw InputError("--memory-budget must be a positive number of GiB");
+  check_settings(s);  // flags and --config alike
+  check_viewer_options(v);
   s.peel.memory_budget = uint64_t(double(s.memory_budget_gib) * double(1ull << 30));
   s.load.limits.memory_budget = s.peel.memory_budget;  // the scene's data, images included
   s.stabilize.seed = uint32_t(s.coverage.seed);
@@ -85,7 +122,7 @@ void register_preview(CLI::App& app, const GlobalOptions& global) {
       ->check(CLI::ExistingFile);
   cmd->add_option("input", o->input, "glTF 2.0 scene (.gltf or .glb)")->required();
   live::ViewerOptions& v = o->viewer;
-  cmd->add_option("--frames", v.frames, "Quit after this many frames (0 = when closed)");
+  cmd->add_option("--frames", v.frames, ranged("Quit after this many frames (0 = when closed)", kFrames));
   cmd->add_option("--screenshot", v.screenshot,
                   "PNG of the last frame (scene and snow, no panel), written at exit");
   cmd->add_flag("--screenshot-panel", v.screenshot_panel,
@@ -93,33 +130,34 @@ void register_preview(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--export", v.export_path,
                   "Snow meshes at exit: .glb/.gltf (scene plus snow), .obj/.ply (snow only)");
   cmd->add_flag("--export-snow-only", v.snow_only, "Export only the snow, also to .glb/.gltf");
-  cmd->add_option("--size", o->size, "Window size WIDTHxHEIGHT in pixels")->capture_default_str();
+  cmd->add_option("--size", o->size, "Window size WIDTHxHEIGHT in pixels [1..16384 each]")->capture_default_str();
   cmd->add_option("--view", o->view, "Start camera: orbit (perspective) or top (orthographic)")
       ->check(CLI::IsMember({"orbit", "top"}))
       ->capture_default_str();
-  cmd->add_option("--azimuth", v.azimuth, "Start camera: degrees from south (+Z) towards east (+X)")
+  cmd->add_option("--azimuth", v.azimuth, ranged("Start camera: degrees from south (+Z) towards east (+X)", kAzimuth))
       ->capture_default_str();
-  cmd->add_option("--elevation", v.elevation, "Start camera: degrees above the horizon")
+  cmd->add_option("--elevation", v.elevation, ranged("Start camera: degrees above the horizon", kElevation))
       ->capture_default_str();
-  cmd->add_option("--zoom", v.zoom, "Start camera: the framed distance divided by this")
+  cmd->add_option("--zoom", v.zoom, ranged("Start camera: the framed distance divided by this", kZoom))
       ->capture_default_str();
-  cmd->add_option("--fov", v.fov, "Vertical field of view in degrees")->capture_default_str();
+  cmd->add_option("--fov", v.fov, ranged("Vertical field of view in degrees", kFov))->capture_default_str();
   cmd->add_option("--fall-rate", v.sim.fall_rate,
-                  "Fresh snow per simulated second on open flat ground, metres (--depth in all)")
+                  ranged("Fresh snow per simulated second on open flat ground, metres (--depth in all)", kFallRate))
       ->capture_default_str();
-  cmd->add_option("--frame-time", v.sim.frame_time, "Simulated seconds per frame")
+  cmd->add_option("--frame-time", v.sim.frame_time, ranged("Simulated seconds per frame", kFrameTime))
       ->capture_default_str();
   cmd->add_option("--add-every", v.sim.add_every,
-                  "Add snow every N frames, N frames' worth at once (cheaper on slow GPUs)")
+                  ranged("Add snow every N frames, N frames' worth at once (cheaper on slow GPUs)", kAddEvery))
       ->capture_default_str();
   cmd->add_option("--passes-per-frame", v.sim.passes_per_frame,
-                  "Stabilizer relaxation passes per frame")
+                  ranged("Stabilizer relaxation passes per frame", kPassesPerFrame))
       ->capture_default_str();
   cmd->add_option("--snow-stride", v.snow_stride,
-                  "Texels between drawn snow grid vertices (0 = automatic: at most 768 per side, "
-                  "256 on a software renderer)")
+                  ranged("Texels between drawn snow grid vertices (0 = automatic: at most 768 per "
+                         "side, 256 on a software renderer)",
+                         kSnowStride))
       ->capture_default_str();
-  cmd->add_option("--flakes", v.view.flakes, "Falling flakes drawn (0 = none)")
+  cmd->add_option("--flakes", v.view.flakes, ranged("Falling flakes drawn (0 = none)", kFlakes))
       ->capture_default_str();
   cmd->add_option("--overlay", o->overlay, "Snow drawn as: snow, coverage or depth")
       ->check(CLI::IsMember({"snow", "coverage", "depth"}))

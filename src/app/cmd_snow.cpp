@@ -143,9 +143,7 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
     throw InputError("nothing to write: give -o OUT, --snow-output, --maps or --preview");
   }
   PipelineSettings s = o.settings;
-  if (!std::isfinite(s.memory_budget_gib) || s.memory_budget_gib <= 0) {
-    throw InputError("--memory-budget must be a positive number of GiB");
-  }
+  check_settings(s);  // flags and --config alike
   s.peel.memory_budget = uint64_t(double(s.memory_budget_gib) * double(1ull << 30));
   s.load.limits.memory_budget = s.peel.memory_budget;  // the scene's data, images included
   s.stabilize.seed = uint32_t(s.coverage.seed);

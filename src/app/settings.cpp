@@ -1,6 +1,11 @@
 #include "app/settings.h"
 
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "core/error.h"
@@ -37,11 +42,37 @@ template <class T>
 void from_json_value(const json& j, T& v) {
   if (!j.is_number()) throw json::type_error::create(302, "expected a number", &j);
   if constexpr (std::is_integral_v<T>) {
-    if (!j.is_number_integer() || (std::is_unsigned_v<T> && j.get<long long>() < 0)) {
-      throw json::type_error::create(302, "expected a whole number", &j);
-    }
+    // A whole number that T holds: nlohmann's get<T> would wrap the others.
+    const bool fits =
+        j.is_number_unsigned()  ? j.get<uint64_t>() <= uint64_t(std::numeric_limits<T>::max())
+        : j.is_number_integer() ? std::is_signed_v<T> &&
+                                      j.get<int64_t>() >= int64_t(std::numeric_limits<T>::min())
+                                : false;
+    if (!fits) throw json::type_error::create(302, "expected a whole number", &j);
   }
   v = j.get<T>();
+}
+
+/// The number as the messages print it: up to 15 significant digits.
+std::string number_text(double v) {
+  char text[40];
+  std::snprintf(text, sizeof text, "%.15g", v);
+  return text;
+}
+
+/// CLI11 reads unsigned options with strtoull, which takes "-1" as its
+/// largest value and saturates past it: "" for a whole number within
+/// uint64_t, else the reason.
+std::string unsigned_text_error(const std::string& text) {
+  if (text.find('-') != std::string::npos)
+    return "expected a whole number >= 0, got '" + text + "'";
+  errno = 0;
+  char* end = nullptr;
+  std::strtoull(text.c_str(), &end, 0);
+  if (errno == ERANGE)
+    return "expected a whole number up to " +
+           std::to_string(std::numeric_limits<uint64_t>::max()) + ", got '" + text + "'";
+  return {};
 }
 
 // CLI11 parses "X,Z" into glm::vec2 through this lexical cast.
@@ -55,6 +86,40 @@ bool parse_vec2(const std::string& text, glm::vec2& out) {
 }
 
 }  // namespace
+
+std::string range_text(const Range& range) {
+  if (!(range.hi > range.lo)) return {};
+  return std::string("[") + (range.negative_auto ? "negative, or " : "") + number_text(range.lo) +
+         ".." + number_text(range.hi) + "]";
+}
+
+void check_range(const std::string& flag, const std::string& key, double value,
+                 const Range& range) {
+  if (!(range.hi > range.lo)) return;
+  if (std::isfinite(value) && ((value >= range.lo && value <= range.hi) ||
+                               (range.negative_auto && value < 0))) {
+    return;
+  }
+  throw InputError(flag + (key.empty() ? "" : " (" + key + ")") + " must be " +
+                   (range.negative_auto ? "negative (automatic) or " : "") + "in " +
+                   number_text(range.lo) + ".." + number_text(range.hi) + ", got " +
+                   number_text(value));
+}
+
+void check_settings(const PipelineSettings& settings) {
+  PipelineSettings copy = settings;
+  visit_settings(
+      [&](const char* key, const char* flag, const char*, const auto& field, const Range& range) {
+        using T = std::decay_t<decltype(field)>;
+        if constexpr (std::is_same_v<T, glm::vec2>) {
+          check_range(flag, key, field.x, range);
+          check_range(flag, key, field.y, range);
+        } else if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+          check_range(flag, key, double(field), range);
+        }
+      },
+      copy);
+}
 
 plan::Settings plan_settings(const PipelineSettings& settings) {
   plan::Settings out;
@@ -71,7 +136,7 @@ json settings_to_json(const PipelineSettings& settings) {
   json out = json::object();
   PipelineSettings copy = settings;
   visit_settings(
-      [&](const char* key, const char*, const char*, auto& field) {
+      [&](const char* key, const char*, const char*, auto& field, const Range&) {
         auto [group, name] = split_key(key);
         out[group][name] = to_json_value(field);
       },
@@ -94,14 +159,18 @@ void settings_from_json(const json& input, PipelineSettings& settings) {
     }
   }
   visit_settings(
-      [&](const char* key, const char*, const char*, auto& field) {
+      [&](const char* key, const char*, const char*, auto& field, const Range&) {
         auto [group, name] = split_key(key);
         if (!root.contains(group) || !root[group].contains(name)) return;
         try {
           from_json_value(root[group][name], field);
-        } catch (const json::exception&) {
+        } catch (const json::exception& e) {
+          // e.what() is "[json.exception...] what was expected".
+          const std::string why = e.what();
+          const size_t at = why.find("] ");
           throw InputError(std::string("settings: '") + key + "' has a value of the wrong type (" +
-                           root[group][name].dump() + ")");
+                           root[group][name].dump() + "; " +
+                           (at == std::string::npos ? why : why.substr(at + 2)) + ")");
         }
       },
       settings);
@@ -132,8 +201,11 @@ bool is_developer_setting(const std::string& key) {
 
 void add_settings_options(CLI::App& cmd, PipelineSettings& settings, bool show_developer) {
   visit_settings(
-      [&](const char* key, const char* flag, const char* help, auto& field) {
+      [&](const char* key, const char* flag, const char* help_text, auto& field,
+          const Range& range) {
         using T = std::decay_t<decltype(field)>;
+        const std::string bounds = range_text(range);
+        const std::string help = bounds.empty() ? help_text : help_text + (" " + bounds);
         const std::string group = split_key(key).first;
         const std::string section = is_developer_setting(key)
                                         ? (show_developer ? "Developer (backends and speed-ups)" : "")
@@ -156,15 +228,10 @@ void add_settings_options(CLI::App& cmd, PipelineSettings& settings, bool show_d
           opt->default_str(std::to_string(field.x) + "," + std::to_string(field.y));
         } else {
           opt = cmd.add_option(flag, field, help)->capture_default_str();
-          // CLI11 would take "-1" for an unsigned field, as its largest value.
+          // CLI11 would take "-1" for an unsigned field as its largest
+          // value, and 2^64 as 2^64 - 1.
           if constexpr (std::is_unsigned_v<T> && !std::is_same_v<T, bool>) {
-            opt->check(CLI::Validator(
-                [](const std::string& text) {
-                  return text.find('-') == std::string::npos
-                             ? std::string()
-                             : "expected a whole number >= 0, got '" + text + "'";
-                },
-                "NONNEGATIVE"));
+            opt->check(CLI::Validator(unsigned_text_error, "NONNEGATIVE"));
           }
         }
         opt->group(section);

@@ -30,110 +30,153 @@ struct PipelineSettings {
   std::vector<std::string> ignore;      // name globs: neither receive nor shelter
 };
 
-/// One entry per setting: JSON key ("peel.texel"), CLI flag ("--texel") and
-/// help text with the unit. Calls v(key, flag, help, field) for each.
+/// The values a numeric setting accepts: lo..hi, both included, every value
+/// finite; where `negative_auto`, any negative value too (it asks for the
+/// automatic choice). The bounds keep every accepted run finite (no count
+/// that runs for hours, no distance that makes an absurd mesh); the help
+/// text states them (range_text) and check_settings enforces them.
+struct Range {
+  double lo = 0.0;
+  double hi = 0.0;
+  bool negative_auto = false;
+};
+
+/// Range of a setting that is not a number (names, switches, globs): none.
+inline constexpr Range kNoRange{};
+
+/// One entry per setting: JSON key ("peel.texel"), CLI flag ("--texel"),
+/// help text with the unit, the field and its Range. Calls
+/// v(key, flag, help, field, range) for each.
 template <class Visitor>
 void visit_settings(Visitor&& v, PipelineSettings& s) {
   // Maps (peel).
   v("maps.texel", "--texel", "Map texel size in metres (0 = automatic from --max-side)",
-    s.peel.texel);
+    s.peel.texel, Range{0, 1000});
   v("maps.max_side", "--max-side",
     "Longest map side in texels when --texel is 0 (snow: 0 = automatic, 1024, or where the snow "
     "would lie over 64 texels deep on those, the side that makes it 32)",
-    s.peel.max_side);
-  v("maps.layers", "--layers", "Surfaces kept per map column, top down (L)", s.peel.layers);
+    s.peel.max_side, Range{0, 65536});
+  v("maps.layers", "--layers", "Surfaces kept per map column, top down (L)", s.peel.layers,
+    Range{1, 64});
   v("maps.margin", "--margin", "Border around the scene in metres (negative = automatic)",
-    s.peel.margin);
+    s.peel.margin, Range{0, 10000, true});
   v("maps.merge_distance", "--merge-distance",
-    "Surfaces closer than this in metres count as one layer", s.peel.merge_distance);
+    "Surfaces closer than this in metres count as one layer", s.peel.merge_distance,
+    Range{0, 100});
   v("maps.device", "--peel-device",
     "Where the maps are peeled: gpu (depth passes), cpu (a vertical ray per texel) or auto (the "
     "planner's choice, as `snowmodel info` prints it)",
-    s.peel.device);
+    s.peel.device, kNoRange);
   v("maps.memory_budget_gib", "--memory-budget",
-    "Memory budget in GiB; larger runs stop before allocating", s.memory_budget_gib);
+    "Memory budget in GiB; larger runs stop before allocating", s.memory_budget_gib,
+    Range{0.01, 1048576});
   // Coverage.
   v("coverage.directions", "--directions", "Fall directions sampled (K shadow maps)",
-    s.coverage.directions);
+    s.coverage.directions, Range{1, 4096});
   v("coverage.flutter_deg", "--flutter",
-    "Flake flutter: half-angle of the cone of fall directions, degrees", s.coverage.flutter_deg);
+    "Flake flutter: half-angle of the cone of fall directions, degrees", s.coverage.flutter_deg,
+    Range{0, 60});
   v("coverage.wind", "--wind",
-    "Horizontal wind X,Z in m/s (tilts the fall by atan(wind/fall speed))", s.coverage.wind);
+    "Horizontal wind X,Z in m/s, each (tilts the fall by atan(wind/fall speed))",
+    s.coverage.wind, Range{-100, 100});
   v("coverage.fall_speed", "--fall-speed", "Flakes' still-air fall speed in m/s",
-    s.coverage.fall_speed);
-  v("coverage.seed", "--seed", "Seed of all jitter; same seed, same output", s.coverage.seed);
+    s.coverage.fall_speed, Range{0.01, 100});
+  // Every uint64_t is a seed (the CLI refuses what does not fit, not wraps it).
+  v("coverage.seed", "--seed",
+    "Seed of all jitter; same seed, same output [0..18446744073709551615]", s.coverage.seed,
+    kNoRange);
   v("coverage.batch", "--shadow-batch",
-    "Shadow maps rendered per GPU batch (1..32; 0 = automatic: as many as fit in 64 MiB, 8 at "
-    "least)",
-    s.coverage.batch);
+    "Shadow maps rendered per GPU batch (0 = automatic: as many as fit in 64 MiB, 8 at least)",
+    s.coverage.batch, Range{0, 32});
   v("coverage.bias", "--shadow-bias", "Shadow depth bias in metres (negative = automatic)",
-    s.coverage.bias);
+    s.coverage.bias, Range{0, 100, true});
   v("coverage.method", "--coverage-method",
     "How lines of fall are tested: shadow-maps, cpu-shadow-maps (the same on the CPU cores), rays "
     "(each cast exactly on the GPU), cpu-rays (the same on the CPU cores) or auto (the planner's "
     "choice: the cheapest for the scene and the renderer); same results",
-    s.coverage.method);
+    s.coverage.method, kNoRange);
   // Accumulation and stabilizer.
-  v("snow.depth", "--depth", "Fresh snow that falls, metres", s.accumulate.fall_depth);
+  v("snow.depth", "--depth", "Fresh snow that falls, metres", s.accumulate.fall_depth,
+    Range{0, 1000});
   v("snow.steps", "--steps", "Time steps of snowfall, each followed by stabilizing",
-    s.accumulate.steps);
+    s.accumulate.steps, Range{1, kMaxSnowSteps});
   v("snow.snow_on_snow_every", "--snow-on-snow-every",
     "Re-render shadows with the lying snow every N steps (0 = off)",
-    s.accumulate.snow_on_snow_every);
-  v("snow.repose_deg", "--repose", "Angle of repose of the snow, degrees", s.stabilize.repose_deg);
-  v("snow.repose_jitter_deg", "--repose-jitter", "Per-texel jitter of the repose angle, +- degrees",
-    s.stabilize.repose_jitter_deg);
+    s.accumulate.snow_on_snow_every, Range{0, kMaxSnowSteps});
+  v("snow.repose_deg", "--repose", "Angle of repose of the snow, degrees", s.stabilize.repose_deg,
+    Range{5, 85});
+  v("snow.repose_jitter_deg", "--repose-jitter",
+    "Per-texel jitter of the repose angle, +- degrees (repose +- jitter within 1..89)",
+    s.stabilize.repose_jitter_deg, Range{0, 40});
   v("snow.tolerance", "--tolerance", "Stabilizer stops when the largest move is below this, metres",
-    s.stabilize.tolerance);
+    s.stabilize.tolerance, Range{0, 10});
   v("snow.min_move", "--min-move",
     "Stabilizer moves smaller than this are not made, metres (0 = every move; negative = "
     "automatic: 0.1 x --tolerance)",
-    s.stabilize.min_move);
+    s.stabilize.min_move, Range{0, 10, true});
   v("snow.max_iterations", "--max-iterations", "Stabilizer passes at most per step",
-    s.stabilize.max_iterations);
+    s.stabilize.max_iterations, Range{0, 100000});
   v("snow.max_stride", "--max-stride",
-    "Longest stabilizer move in texels (a power of two, 1..64; 1 = single steps)",
-    s.stabilize.max_stride);
+    "Longest stabilizer move in texels (a power of two; 1 = single steps)",
+    s.stabilize.max_stride, Range{1, 64});
   v("snow.adaptive_stride", "--adaptive-stride",
     "Start with single steps, longer moves only where the snow creeps (true/false)",
-    s.stabilize.adaptive_stride);
+    s.stabilize.adaptive_stride, kNoRange);
   v("snow.device", "--stabilizer",
     "Where the stabilizer runs: gpu, cpu or auto (the planner's choice, as `snowmodel info` "
     "prints it); same results",
-    s.stabilize.device);
+    s.stabilize.device, kNoRange);
   v("snow.route_steep", "--route-steep",
-    "Route snow off supports steeper than repose in one go (true/false)", s.stabilize.route_steep);
+    "Route snow off supports steeper than repose in one go (true/false)", s.stabilize.route_steep,
+    kNoRange);
   v("snow.deposit_piles", "--deposit-piles",
     "Lay routed snow as a pile at the angle of repose where it comes to rest, not on one texel "
     "(true/false)",
-    s.stabilize.deposit_piles);
+    s.stabilize.deposit_piles, kNoRange);
   v("snow.drain_edges", "--drain-edges",
     "Once snow creeps off an edge into the void, drain what will leave in one go (true/false)",
-    s.stabilize.drain_edges);
+    s.stabilize.drain_edges, kNoRange);
   // Meshes.
   v("mesh.min_thickness", "--min-thickness", "Snow thinner than this is no snow, metres",
-    s.polygonize.min_thickness);
+    s.polygonize.min_thickness, Range{0, 100});
   v("mesh.decimate_error", "--decimate-error",
-    "Decimation error bound in metres (negative = half a texel)", s.polygonize.decimate_error);
+    "Decimation error bound in metres (negative = half a texel)", s.polygonize.decimate_error,
+    Range{0, 100, true});
   v("mesh.smooth_iterations", "--smooth", "Smoothing passes over the snow top",
-    s.polygonize.smooth_iterations);
+    s.polygonize.smooth_iterations, Range{0, 100});
   v("mesh.min_patch_area", "--min-patch-area", "Drop snow patches smaller than this, square metres",
-    s.polygonize.min_patch_area);
+    s.polygonize.min_patch_area, Range{0, 1e6});
   v("mesh.closed", "--closed", "Closed snow solids (true) or open top surfaces only (false)",
-    s.polygonize.closed);
+    s.polygonize.closed, kNoRange);
   v("mesh.bottom_offset", "--bottom-offset", "Snow bottom lies this far under its support, metres",
-    s.polygonize.bottom_offset);
+    s.polygonize.bottom_offset, Range{0, 10});
   v("mesh.piece_triangles", "--piece-triangles",
     "A snow patch whose top has more triangles than this is decimated in pieces of about this "
     "many, side by side, on all cores (0 = whole); smaller pieces keep more cores busy, and each "
     "seam keeps its full-grid triangles",
-    s.polygonize.piece_triangles);
+    s.polygonize.piece_triangles, Range{0, 1e9});
   // Object filters.
   v("filters.no_snow_on", "--no-snow-on",
-    "Name glob of objects that receive no snow but still shelter (repeatable)", s.no_snow_on);
+    "Name glob of objects that receive no snow but still shelter (repeatable)", s.no_snow_on,
+    kNoRange);
   v("filters.ignore", "--ignore",
-    "Name glob of objects that neither receive nor shelter (repeatable)", s.ignore);
+    "Name glob of objects that neither receive nor shelter (repeatable)", s.ignore, kNoRange);
 }
+
+/// The range as the help texts print it: "[0..100]", "[negative, or
+/// 0..10000]"; empty for kNoRange.
+std::string range_text(const Range& range);
+
+/// InputError "FLAG (KEY) must be in LO..HI, got VALUE" unless `value` is
+/// finite and in `range` (one line, naming the option and its bound).
+void check_range(const std::string& flag, const std::string& key, double value,
+                 const Range& range);
+
+/// Every numeric setting of `settings` in its Range (check_range), whether
+/// it came from a flag or a --config file; run before the long work starts.
+/// The stages check the combinations (repose +- jitter, strides that are
+/// powers of two, wind against fall speed) themselves.
+void check_settings(const PipelineSettings& settings);
 
 /// What the planner needs of `settings` (plan::plan_run).
 plan::Settings plan_settings(const PipelineSettings& settings);
@@ -144,7 +187,8 @@ nlohmann::json settings_to_json(const PipelineSettings& settings);
 /// Overwrites the fields named in `json` (same layout as settings_to_json;
 /// a top-level "settings" member is also accepted, as written beside
 /// outputs). Throws InputError naming the key for an unknown key or a value
-/// of the wrong type.
+/// of the wrong type (a whole number its field cannot hold included); the
+/// ranges are check_settings' job.
 void settings_from_json(const nlohmann::json& json, PipelineSettings& settings);
 
 /// Reads a JSON settings file into `settings`; InputError/IOError naming it.

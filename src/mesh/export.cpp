@@ -19,6 +19,7 @@
 #include "mesh/gltf_writer.h"
 #include "mesh/obj_writer.h"
 #include "mesh/ply_writer.h"
+#include "mesh/tinygltf_input.h"
 #include "scene/input_policy.h"
 #include "scene/load_gltf.h"
 
@@ -279,11 +280,18 @@ void read_with_tinygltf(CombinedInput& input) {
   std::string err;
   const bool binary = lower_extension(input.path) == ".glb";
   const std::string base = files.folder.string();
-  const bool ok = binary ? loader.LoadBinaryFromMemory(&input.model, &err, &input.warnings,
-                                                       bytes.data(), unsigned(bytes.size()), base)
-                         : loader.LoadASCIIFromString(&input.model, &err, &input.warnings,
-                                                      reinterpret_cast<const char*>(bytes.data()),
-                                                      unsigned(bytes.size()), base);
+  // What tinygltf would refuse or change in a valid file is mended or
+  // refused first (mesh/tinygltf_input.h).
+  const TinygltfInput prepared = prepare_for_tinygltf(std::move(bytes), input.path, binary);
+  if (prepared.bytes.size() > UINT32_MAX)
+    throw InputError(input.path.string() + ": over 4 GiB, more than tinygltf reads");
+  const bool ok =
+      binary ? loader.LoadBinaryFromMemory(&input.model, &err, &input.warnings,
+                                           prepared.bytes.data(), unsigned(prepared.bytes.size()),
+                                           base)
+             : loader.LoadASCIIFromString(&input.model, &err, &input.warnings,
+                                          reinterpret_cast<const char*>(prepared.bytes.data()),
+                                          unsigned(prepared.bytes.size()), base);
   if (!files.refused.empty())
     throw InputError(input.path.string() + ": " + files.refused + " (refused)");
   // What tinygltf did not look for (an absolute path it read as relative)
@@ -303,6 +311,7 @@ void read_with_tinygltf(CombinedInput& input) {
     throw InputError(input.path.string() + ": " +
                      (err.empty() ? std::string("not a valid glTF file") : first_line(err)));
   }
+  restore_after_tinygltf(prepared, input.model);
 }
 
 }  // namespace

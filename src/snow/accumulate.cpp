@@ -78,12 +78,14 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
     throw InputError("snow depth must be between 0 and 1000 m, got " +
                      std::to_string(settings.fall_depth));
   }
-  if (settings.steps < 1 || settings.steps > 100000) {
-    throw InputError("snow steps must be between 1 and 100000, got " +
-                     std::to_string(settings.steps));
+  if (settings.steps < 1 || settings.steps > kMaxSnowSteps) {
+    throw InputError("snow steps must be between 1 and " + std::to_string(kMaxSnowSteps) +
+                     ", got " + std::to_string(settings.steps));
   }
-  if (settings.snow_on_snow_every < 0) {
-    throw InputError("snow-on-snow interval must be 0 (off) or a positive number of steps");
+  if (settings.snow_on_snow_every < 0 || settings.snow_on_snow_every > kMaxSnowSteps) {
+    throw InputError("snow-on-snow interval must be 0 (off) or 1.." +
+                     std::to_string(kMaxSnowSteps) + " steps, got " +
+                     std::to_string(settings.snow_on_snow_every));
   }
 
   SnowResult result;

@@ -13,11 +13,18 @@
 
 namespace snow {
 
+/// Most time steps of a run: each step stabilizes the maps (up to
+/// StabilizeSettings::max_iterations passes), so the count bounds the run.
+constexpr int kMaxSnowSteps = 1000;
+
 struct AccumulateSettings {
   float fall_depth = 0.3f;     // metres of fresh snow on open flat ground, all steps together
-  int steps = 1;               // time steps (1..100000); each adds fall_depth/steps * coverage
-  int snow_on_snow_every = 0;  // steps between coverage updates that include the lying snow;
-                               // 0 = off (coverage computed once, from the bare scene)
+                               // (0..1000)
+  int steps = 1;               // time steps (1..kMaxSnowSteps); each adds fall_depth/steps *
+                               // coverage
+  int snow_on_snow_every = 0;  // steps between coverage updates that include the lying snow
+                               // (0..kMaxSnowSteps); 0 = off (coverage computed once, from the
+                               // bare scene)
 };
 
 struct SnowResult {

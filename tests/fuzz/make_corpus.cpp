@@ -211,6 +211,14 @@ int main(int argc, char** argv) {
     const float nan = std::nanf("");
     std::memcpy(b.data() + 24, &nan, 4);
   });
+  // Issue 48: a texCoord beyond int (kept or refused by the combined writer,
+  // never wrapped).
+  variant("wide_texcoord", [](json& d, auto&) {
+    d["textures"] = json::array({json::object()});
+    d["materials"] = {{{"pbrMetallicRoughness",
+                        {{"baseColorTexture", {{"index", 0}, {"texCoord", 2147483648u}}}}}}};
+    d["meshes"][0]["primitives"][0]["material"] = 0;
+  });
   variant("bad_inf_scale", [](json& d, auto&) { d["nodes"][0]["scale"] = {1e39, 1, 1}; });
   variant("bad_quat", [](json& d, auto&) { d["nodes"][0]["rotation"] = {0, 0, 0, 0}; });
   variant("bad_matrix", [](json& d, auto&) { d["nodes"][0]["matrix"] = {1, 0, 0}; });
