@@ -1,8 +1,6 @@
 // The output policy (mesh/output_policy.h): which paths a command may write.
 #include "mesh/output_policy.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cctype>
 #include <system_error>
