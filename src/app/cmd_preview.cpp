@@ -11,6 +11,7 @@
 #include "core/log.h"
 #include "live/viewer.h"
 #include "mesh/export.h"
+#include "mesh/output_policy.h"
 
 namespace snow::app {
 namespace {
@@ -87,7 +88,15 @@ void run_preview(PreviewOptions o) {
   v.sim.total_depth = s.accumulate.fall_depth;
   v.sim.snow_on_snow_every = s.accumulate.snow_on_snow_every;
   v.mesh = s.polygonize;
-  if (!v.export_path.empty()) format_from_path(v.export_path);  // fail before the window opens
+  // Fail before the window opens.
+  std::vector<OutputPath> outputs;
+  if (!v.screenshot.empty())
+    outputs.push_back({"--screenshot", v.screenshot, OutputKind::File, {}, {}});
+  if (!v.export_path.empty()) {
+    outputs.push_back(
+        {"--export", v.export_path, OutputKind::Mesh, format_from_path(v.export_path), {}});
+  }
+  check_output_paths(o.input, outputs);
 
   // Ignored objects are neither simulated nor drawn (a sky dome would hide
   // the scene from the orbit camera).

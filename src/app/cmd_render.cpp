@@ -1,6 +1,7 @@
 // `snowmodel render SCENE -o OUT.png`: a headless preview image of a scene.
 #include "app/commands.h"
 #include "core/log.h"
+#include "mesh/output_policy.h"
 #include "render/preview.h"
 #include "scene/load_gltf.h"
 
@@ -28,6 +29,7 @@ void register_render(CLI::App& app, const GlobalOptions& global) {
       ->check(CLI::Range(16, 8192))
       ->capture_default_str();
   cmd->callback([options, &global] {
+    check_output_paths(options->scene, {{"-o", options->output, OutputKind::File, {}, {}}});
     const Scene scene = load_scene(options->scene);
     auto context = make_headless_context(global);
     render::PreviewSettings settings;

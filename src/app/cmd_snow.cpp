@@ -27,6 +27,7 @@
 #include "core/heap.h"
 #include "core/log.h"
 #include "mesh/export.h"
+#include "mesh/output_policy.h"
 #include "mesh/write_maps.h"
 #include "render/preview.h"
 #include "scene/builder.h"
@@ -134,6 +135,34 @@ class StageClock {
   std::vector<std::pair<std::string, double>> times_;
 };
 
+/// Where the settings of the run are written: beside the first output.
+fs::path settings_path(const SnowOptions& o) {
+  const fs::path first = !o.output.empty()        ? fs::path(o.output)
+                         : !o.snow_output.empty() ? fs::path(o.snow_output)
+                         : !o.maps_dir.empty()    ? fs::path(o.maps_dir) / "snow"
+                                                  : fs::path(o.preview);
+  return first.string() + ".settings.json";
+}
+
+/// The outputs of a run for the output policy (mesh/output_policy.h);
+/// `format` is that of --output.
+std::vector<OutputPath> snow_outputs(const SnowOptions& o, MeshFormat format) {
+  std::vector<OutputPath> outputs;
+  if (!o.output.empty()) outputs.push_back({"-o", o.output, OutputKind::Mesh, format, {}});
+  if (!o.snow_output.empty()) {
+    outputs.push_back(
+        {"--snow-output", o.snow_output, OutputKind::Mesh, format_from_path(o.snow_output), {}});
+  }
+  if (!o.maps_dir.empty()) outputs.push_back({"--maps", o.maps_dir, OutputKind::Maps, {}, {}});
+  if (!o.preview.empty()) outputs.push_back({"--preview", o.preview, OutputKind::File, {}, {}});
+  // The settings file goes beside the first file output; in the maps
+  // folder, it is written after the folder is in place.
+  if (!outputs.empty() && outputs.front().kind != OutputKind::Maps) {
+    outputs.front().beside.push_back(settings_path(o));
+  }
+  return outputs;
+}
+
 /// The pipeline settings of a run, checked before the long work starts
 /// (bad settings and output paths fail in milliseconds, not after minutes
 /// of peeling and shadows). Returns the settings with the derived fields
@@ -166,7 +195,7 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
     if (!fs::is_directory(folder))
       throw IOError("cannot write " + path + ": folder " + folder.string() + " does not exist");
   }
-  if (!o.snow_output.empty()) format_from_path(o.snow_output);
+  check_output_paths(o.input, snow_outputs(o, format));
   check_stabilize_settings(s.stabilize);
   fall_directions(s.coverage);  // checks the coverage settings
   return s;
@@ -195,15 +224,11 @@ void write_outputs(const SnowOptions& o, MeshFormat format,
     write_maps(o.maps_dir, maps, &snow.coverage, &snow.depth);
     log_info("wrote maps to " + o.maps_dir);
   }
-  const fs::path first = !o.output.empty()        ? fs::path(o.output)
-                         : !o.snow_output.empty() ? fs::path(o.snow_output)
-                         : !o.maps_dir.empty()    ? fs::path(o.maps_dir) / "snow"
-                                                  : fs::path(o.preview);
   nlohmann::json record;
   record["snowmodel"] = "0.1.0";
   record["input"] = o.input;
   record["settings"] = settings_to_json(o.settings);
-  write_text_atomically(first.string() + ".settings.json", record.dump(2) + "\n");
+  write_text_atomically(settings_path(o), record.dump(2) + "\n");
 }
 
 /// The closing summary line.

@@ -1,7 +1,10 @@
 #include "core/fs.h"
 
 #include <fcntl.h>
+#include <sys/syscall.h>
 #include <unistd.h>
+
+#include <climits>
 
 #include <algorithm>
 #include <atomic>
@@ -19,19 +22,51 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// Temporary files being written, so that SIGINT/SIGTERM/SIGHUP can remove them
-// before the process dies (SIGKILL cannot be caught: a killed run may leave
-// a ".<name>.tmp<pid>_<n>" file, never a partial file under the target name).
-// The handler only reads these slots and calls unlink(2) (async-signal-safe).
+// Temporary files and folders being written, so that SIGINT/SIGTERM/SIGHUP
+// can remove them before the process dies (SIGKILL cannot be caught: a killed
+// run may leave a ".<name>.tmp<pid>_<n>" file or folder, never a partial one
+// under the target name). The handler only reads these slots and calls
+// unlink(2), open(2), getdents64(2), unlinkat(2) and rmdir(2) (async-signal-safe
+// system calls); a folder's entries are plain files, removed one level deep.
 constexpr int kTempSlots = 16;
 constexpr size_t kTempPathMax = 4096;
 char g_temp_paths[kTempSlots][kTempPathMax];
 std::atomic<bool> g_temp_used[kTempSlots];
 std::atomic<bool> g_temp_claimed[kTempSlots];
+std::atomic<bool> g_temp_folder[kTempSlots];
+
+/// Empties the folder `path` of its files (one level) and removes it, with
+/// system calls alone (for the signal handler).
+void remove_flat_folder(const char* path) {
+  const int fd = open(path, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd >= 0) {
+    alignas(8) char buffer[4096];
+    for (;;) {
+      const long n = syscall(SYS_getdents64, fd, buffer, sizeof buffer);
+      if (n <= 0) break;
+      for (long at = 0; at < n;) {
+        // struct linux_dirent64: d_ino (8), d_off (8), d_reclen (2), d_type (1), d_name.
+        unsigned short length = 0;
+        std::memcpy(&length, buffer + at + 16, sizeof length);
+        const char* name = buffer + at + 19;
+        if (std::strcmp(name, ".") != 0 && std::strcmp(name, "..") != 0) unlinkat(fd, name, 0);
+        if (length == 0) break;
+        at += length;
+      }
+    }
+    close(fd);
+  }
+  rmdir(path);
+}
 
 extern "C" void remove_temporaries_and_reraise(int signal_number) {
   for (int i = 0; i < kTempSlots; ++i) {
-    if (g_temp_used[i].load()) unlink(g_temp_paths[i]);
+    if (!g_temp_used[i].load()) continue;
+    if (g_temp_folder[i].load()) {
+      remove_flat_folder(g_temp_paths[i]);
+    } else {
+      unlink(g_temp_paths[i]);
+    }
   }
   std::signal(signal_number, SIG_DFL);
   std::raise(signal_number);
@@ -55,10 +90,11 @@ void install_signal_cleanup() {
   (void)installed;
 }
 
-/// Registers `tmp` for removal on a signal while alive.
+/// Registers `tmp` (a file, or a folder of files) for removal on a signal
+/// while alive.
 class TempRegistration {
  public:
-  explicit TempRegistration(const fs::path& tmp) {
+  explicit TempRegistration(const fs::path& tmp, bool folder = false) {
     install_signal_cleanup();
     const std::string& text = tmp.native();
     if (text.size() >= kTempPathMax) return;
@@ -66,6 +102,7 @@ class TempRegistration {
       bool expected = false;
       if (g_temp_claimed[i].compare_exchange_strong(expected, true)) {
         std::memcpy(g_temp_paths[i], text.c_str(), text.size() + 1);
+        g_temp_folder[i].store(folder);
         g_temp_used[i].store(true);
         slot_ = i;
         return;
@@ -100,10 +137,35 @@ int replace_file(const fs::path& tmp, const fs::path& path) {
   return std::rename(tmp.c_str(), path.c_str()) == 0 ? 0 : errno;
 }
 
+/// A name beside `path` for writing it: ".<name>.tmp<pid>_<n>", or
+/// ".snowmodel.tmp<pid>_<n>" where that would be longer than the folder
+/// allows a name to be (NAME_MAX), so that every name the system takes as
+/// an output can be written. Unique within the process (n counts).
 fs::path temporary_name(const fs::path& path) {
   static std::atomic<unsigned> counter{0};
-  return path.parent_path() / ("." + path.filename().string() + ".tmp" + std::to_string(getpid()) +
-                               "_" + std::to_string(counter++));
+  const std::string suffix = ".tmp" + std::to_string(getpid()) + "_" + std::to_string(counter++);
+  const std::string long_name = "." + path.filename().string() + suffix;
+  const fs::path folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
+  if (long_name.size() <= name_max(folder)) return path.parent_path() / long_name;
+  return path.parent_path() / (".snowmodel" + suffix);
+}
+
+/// What `type` is, for an error message ("a character device").
+const char* file_type_name(fs::file_type type) {
+  switch (type) {
+    case fs::file_type::directory:
+      return "a folder";
+    case fs::file_type::character:
+      return "a character device";
+    case fs::file_type::block:
+      return "a block device";
+    case fs::file_type::fifo:
+      return "a FIFO";
+    case fs::file_type::socket:
+      return "a socket";
+    default:
+      return "not a regular file";
+  }
 }
 }  // namespace
 
@@ -125,6 +187,10 @@ void write_file_atomically(const fs::path& path,
   if (fs::is_directory(path, ec)) {
     throw IOError("cannot write " + path.string() + ": it is a folder");
   }
+  // The rename would replace a device node or FIFO by a regular file.
+  if (const std::string why = not_a_regular_file(path); !why.empty()) {
+    throw IOError("cannot write " + path.string() + ": " + why);
+  }
   const fs::path tmp = temporary_name(path.parent_path().empty() ? fs::path(".") / path : path);
   const TempRegistration registration(tmp);
   try {
@@ -138,6 +204,73 @@ void write_file_atomically(const fs::path& path,
     fs::remove(tmp, ec);
     throw IOError("cannot write " + path.string() + ": " + reason);
   }
+}
+
+size_t name_max(const fs::path& folder) {
+  const long limit = pathconf(folder.empty() ? "." : folder.c_str(), _PC_NAME_MAX);
+  return limit > 0 ? size_t(limit) : size_t(NAME_MAX);
+}
+
+std::string not_a_regular_file(const fs::path& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (ec || !fs::exists(status) || fs::is_regular_file(status)) return {};
+  const std::string what = file_type_name(status.type());
+  return what == "not a regular file" ? what : "not a regular file (" + what + ")";
+}
+
+void write_folder_atomically(const fs::path& path_as_given,
+                             const std::function<void(const fs::path&)>& write) {
+  // "maps/" names the folder "maps".
+  const fs::path path = path_as_given.has_filename() ? path_as_given : path_as_given.parent_path();
+  const fs::path folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
+  std::error_code ec;
+  fs::create_directories(folder, ec);
+  if (!fs::is_directory(folder)) {
+    throw IOError("cannot create the folder " + path.string() +
+                  (ec ? ": " + ec.message() : std::string()));
+  }
+  if (fs::exists(path, ec) && !fs::is_directory(path, ec)) {
+    throw IOError("cannot create the folder " + path.string() + ": " +
+                  file_type_name(fs::status(path, ec).type()) + " is there");
+  }
+  const fs::path tmp = temporary_name(folder / path.filename());
+  const TempRegistration registration(tmp, true);
+  if (!fs::create_directory(tmp, ec)) {
+    throw IOError("cannot create the folder " + path.string() + ": " + ec.message());
+  }
+  try {
+    write(tmp);
+  } catch (...) {
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+  // Swap with the folder there, then remove the old one (now at tmp).
+  if (renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, path.c_str(), RENAME_EXCHANGE) == 0) {
+    fs::remove_all(tmp, ec);
+    return;
+  }
+  // No swap (no folder there, or a file system without it): a rename onto a
+  // missing or empty folder; onto a full one, the old folder is renamed
+  // away first (for that moment `path` is absent) and removed after.
+  if (std::rename(tmp.c_str(), path.c_str()) == 0) return;
+  int error = errno;
+  if (error == ENOTEMPTY || error == EEXIST) {
+    const fs::path old = temporary_name(folder / path.filename());
+    const TempRegistration old_registration(old, true);
+    if (std::rename(path.c_str(), old.c_str()) == 0) {
+      if (std::rename(tmp.c_str(), path.c_str()) == 0) {
+        fs::remove_all(old, ec);
+        return;
+      }
+      error = errno;
+      std::rename(old.c_str(), path.c_str());  // put the old folder back
+    } else {
+      error = errno;
+    }
+  }
+  fs::remove_all(tmp, ec);
+  throw IOError("cannot write the folder " + path.string() + ": " + std::strerror(error));
 }
 
 void write_bytes_atomically(const fs::path& path, const void* data, size_t size) {

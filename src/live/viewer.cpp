@@ -22,6 +22,7 @@
 #include "gl/gl.h"
 #include "live/orbit.h"
 #include "mesh/export.h"
+#include "mesh/output_policy.h"
 #include "mesh/write_maps.h"
 #include "plan/rules.h"
 #include "render/image.h"
@@ -75,6 +76,7 @@ render::ImageRGBA8 read_back_buffer(int width, int height) {
 std::string export_snow(const Scene& scene, const LiveSim& sim, const ViewerOptions& options,
                         const std::string& path, bool snow_only) {
   const MeshFormat format = format_from_path(path);
+  check_output_paths(options.input, {{"export", path, OutputKind::Mesh, format, {}}});
   const std::vector<SnowPatch> patches = polygonize(sim.maps(), sim.depth(), scene, options.mesh);
   const bool combined = !snow_only && (format == MeshFormat::Glb || format == MeshFormat::Gltf);
   if (combined && !options.input.empty()) {
@@ -114,6 +116,11 @@ class Viewer {
 
  private:
   void sync_view();
+  /// The output policy for the screenshot's path (mesh/output_policy.h).
+  void check_screenshot_path() const {
+    check_output_paths(options_.input,
+                       {{"screenshot", screenshot_path_, OutputKind::File, {}, {}}});
+  }
   void handle_input(GLFWwindow* window, int fb_height);
   void draw_panel(double frame_ms);
   // Draws the scene, the snow and the panel into the window's back buffer,
@@ -323,6 +330,7 @@ void Viewer::draw_panel(double frame_ms) {
   ImGui::SameLine();
   if (ImGui::Button("Export maps")) {
     try {
+      check_output_paths(options_.input, {{"maps", maps_path_, OutputKind::Maps, {}, {}}});
       const std::vector<float> depth = sim.depth();
       write_maps(maps_path_, maps, &sim.coverage(), &depth);
       set_status(std::string("wrote maps to ") + maps_path_);
@@ -365,6 +373,7 @@ void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
   if (want_screenshot_ || (shot_at_exit && !options_.screenshot_panel)) {
     want_screenshot_ = false;
     try {
+      check_screenshot_path();
       render::write_png(read_back_buffer(fb_w, fb_h), screenshot_path_);
       set_status(std::string("wrote ") + screenshot_path_);
     } catch (const Error& e) {
@@ -377,6 +386,7 @@ void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
   ImGui::Render();
   if (panel_) ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
   if (shot_at_exit && options_.screenshot_panel) {
+    check_screenshot_path();
     render::write_png(read_back_buffer(fb_w, fb_h), screenshot_path_);
   }
 }

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <limits>
 #include <system_error>
 
@@ -27,6 +28,10 @@ namespace snow {
 namespace {
 
 constexpr int kFormatVersion = 1;
+
+const char* const kNotMapsFolder =
+    "the folder holds files and no snowmodel manifest.json; a maps folder is replaced whole: "
+    "name a new or empty folder, or one written by --maps";
 
 uint32_t crc32(const uint8_t* data, size_t size, uint32_t crc = 0) {
   static const std::array<uint32_t, 256> table = [] {
@@ -159,6 +164,12 @@ std::vector<uint8_t> encode_exr(const std::vector<float>& values, int width, int
   return out;
 }
 
+namespace {
+/// The files of write_maps, written into the existing folder `dir`.
+void write_maps_into(const std::filesystem::path& dir, const SnowMaps& maps,
+                     const std::vector<float>* coverage, const std::vector<float>* depth);
+}  // namespace
+
 void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
                 const std::vector<float>* coverage, const std::vector<float>* depth) {
   const MapGrid& g = maps.grid;
@@ -175,11 +186,34 @@ void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
     }
   }
   std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec || !std::filesystem::is_directory(dir)) {
-    throw IOError("cannot create the maps folder " + dir.string() +
-                  (ec ? ": " + ec.message() : std::string()));
+  if (std::filesystem::exists(dir, ec) && !std::filesystem::is_directory(dir, ec)) {
+    throw IOError("cannot create the maps folder " + dir.string() + ": a file is there");
   }
+  if (!replaceable_maps_folder(dir)) {
+    throw InputError(dir.string() + ": " + kNotMapsFolder);
+  }
+  write_folder_atomically(
+      dir, [&](const std::filesystem::path& tmp) { write_maps_into(tmp, maps, coverage, depth); });
+}
+
+bool replaceable_maps_folder(const std::filesystem::path& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) return true;
+  if (!fs::is_directory(dir, ec)) return false;
+  if (fs::is_empty(dir, ec) && !ec) return true;
+  std::ifstream in(dir / "manifest.json", std::ios::binary);
+  if (!in) return false;
+  const nlohmann::json manifest = nlohmann::json::parse(in, nullptr, false);
+  return manifest.is_object() && manifest.value("format", nlohmann::json()) == "snowmodel-maps";
+}
+
+namespace {
+
+void write_maps_into(const std::filesystem::path& dir, const SnowMaps& maps,
+                     const std::vector<float>* coverage, const std::vector<float>* depth) {
+  const MapGrid& g = maps.grid;
+  const size_t texels = g.texels();
 
   struct Kind {
     const char* name;
@@ -251,5 +285,7 @@ void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
   manifest["files"] = files;
   write_text_atomically(dir / "manifest.json", manifest.dump(2) + "\n");
 }
+
+}  // namespace
 
 }  // namespace snow

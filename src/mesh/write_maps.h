@@ -12,22 +12,34 @@
 
 namespace snow {
 
-/// Writes into `dir` (created if missing), for every layer l that holds a
-/// surface somewhere: layer<l>_height.exr (world Y in metres, NaN where no
-/// surface), layer<l>_coverage.exr (in [0,1], 0 where no surface; only when
-/// coverage is given), layer<l>_depth.exr (snow depth in metres, 0 where no
-/// surface; only when depth is given), a .png 16-bit grey preview of each
-/// (heights and depths scaled over their range across all layers, coverage
-/// over [0,1]; 0 where no surface), and manifest.json. Images are single
-/// channel "Y", 32-bit float, ZIP compressed; row r holds grid row j = r
-/// (smallest z first) and column i grid column i, i.e. the scene seen from
-/// +Y with +X to the right and +Z down. coverage and depth, when given, have
-/// the maps' layout (maps.layers * maps.grid.texels() values).
-/// Every file is written atomically. Throws InputError for arrays of the
-/// wrong size, IOError when the folder or a file cannot be written.
+/// Writes the folder `dir` (its parents created if missing) holding, for
+/// every layer l that holds a surface somewhere: layer<l>_height.exr (world
+/// Y in metres, NaN where no surface), layer<l>_coverage.exr (in [0,1], 0
+/// where no surface; only when coverage is given), layer<l>_depth.exr (snow
+/// depth in metres, 0 where no surface; only when depth is given), a .png
+/// 16-bit grey preview of each (heights and depths scaled over their range
+/// across all layers, coverage over [0,1]; 0 where no surface), and
+/// manifest.json. Images are single channel "Y", 32-bit float, ZIP
+/// compressed; row r holds grid row j = r (smallest z first) and column i
+/// grid column i, i.e. the scene seen from +Y with +X to the right and +Z
+/// down. coverage and depth, when given, have the maps' layout (maps.layers
+/// * maps.grid.texels() values).
+/// The folder is written whole under a temporary name beside `dir` and then
+/// put in place in one step (write_folder_atomically): a reader, or a run
+/// killed at any moment, sees no folder, the old one or the whole new one,
+/// never layers without their manifest. A folder already at `dir` is
+/// replaced whole (what it held is deleted), so it must be empty or one
+/// written by write_maps (replaceable_maps_folder); anything else is an
+/// InputError. Throws InputError for arrays of the wrong size, IOError when
+/// the folder or a file cannot be written.
 void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
                 const std::vector<float>* coverage = nullptr,
                 const std::vector<float>* depth = nullptr);
+
+/// True when write_maps may replace what is at `dir`: nothing, an empty
+/// folder, or a folder with a manifest.json whose "format" is
+/// "snowmodel-maps".
+bool replaceable_maps_folder(const std::filesystem::path& dir);
 
 /// A 16-bit greyscale PNG (big-endian samples, Sub filter, zlib from
 /// stb_image_write) of `width` x `height` samples, rows top to bottom.

@@ -11,7 +11,9 @@
 // value is validated there: the file is untrusted.
 #include "scene/load_gltf.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <new>
 #include <stdexcept>
 #include <system_error>
@@ -73,6 +75,77 @@ uint64_t gltf_input_bytes(const std::filesystem::path& path) {
     }
   }
   return uint64_t(bytes);
+}
+
+namespace {
+
+/// The JSON text of the glTF at `path` (a .glb's JSON chunk, by its magic),
+/// at most `limit` bytes; empty where it cannot be read.
+std::string gltf_json_text(const std::filesystem::path& path, uint64_t limit) {
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (!file) return {};
+  std::string text;
+  unsigned char header[20] = {};
+  const size_t got = std::fread(header, 1, sizeof header, file);
+  const auto u32 = [&](size_t at) {
+    return uint32_t(header[at]) | uint32_t(header[at + 1]) << 8 | uint32_t(header[at + 2]) << 16 |
+           uint32_t(header[at + 3]) << 24;
+  };
+  uint64_t size = limit;
+  if (got >= 4 && std::memcmp(header, "glTF", 4) == 0) {
+    // GLB (glTF 2.0, 4.4): a 12-byte header, then the JSON chunk's length
+    // and type.
+    if (got == sizeof header && u32(16) == 0x4E4F534Au)
+      size = std::min<uint64_t>(u32(12), limit);
+    else
+      size = 0;
+  } else if (std::fseek(file, 0, SEEK_SET) != 0) {
+    size = 0;
+  }
+  std::vector<char> buffer(1 << 16);
+  while (text.size() < size) {
+    const size_t want = size_t(std::min<uint64_t>(buffer.size(), size - text.size()));
+    const size_t n = std::fread(buffer.data(), 1, want, file);
+    if (n == 0) break;
+    text.append(buffer.data(), n);
+  }
+  std::fclose(file);
+  return text;
+}
+
+}  // namespace
+
+std::vector<std::filesystem::path> gltf_input_files(const std::filesystem::path& path) {
+  std::vector<std::filesystem::path> files = {path};
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error)) return files;  // a FIFO would block
+  try {
+    const std::string text = gltf_json_text(path, LoadLimits{}.max_json_bytes);
+    // Only the top three levels are kept (root, buffers/images, their
+    // members): deep nesting elsewhere costs no memory.
+    const nlohmann::json root = nlohmann::json::parse(
+        text, [](int depth, nlohmann::json::parse_event_t, nlohmann::json&) { return depth <= 3; },
+        false);
+    if (!root.is_object()) return files;
+    std::filesystem::path folder = path.parent_path();
+    if (folder.empty()) folder = ".";
+    for (const char* kind : {"buffers", "images"}) {
+      const auto list = root.find(kind);
+      if (list == root.end() || !list->is_array()) continue;
+      for (const nlohmann::json& item : *list) {
+        if (!item.is_object()) continue;
+        const auto uri = item.find("uri");
+        if (uri == item.end() || !uri->is_string()) continue;
+        const std::string& text_uri = uri->get_ref<const std::string&>();
+        if (text_uri.empty() || text_uri.rfind("data:", 0) == 0) continue;
+        const std::optional<std::filesystem::path> file = resolve_relative_uri(folder, text_uri);
+        files.push_back(file ? *file : folder / text_uri);
+      }
+    }
+  } catch (const std::exception&) {
+    // Tolerant: what was listed so far.
+  }
+  return files;
 }
 
 Scene load_scene(const std::filesystem::path& path, const LoadSettings& settings) {

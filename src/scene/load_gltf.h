@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "scene/scene.h"
 
@@ -98,6 +99,16 @@ Scene load_scene(const std::filesystem::path& path, const LoadSettings& settings
 /// the .bin files in its folder, where its buffers usually are. 0 where the
 /// file cannot be read.
 uint64_t gltf_input_bytes(const std::filesystem::path& path);
+
+/// The files that load_scene would read for `path`: `path` itself first,
+/// then the files named by its buffers[].uri and images[].uri (data: URIs
+/// left out), each resolved against the scene's folder as the loader does
+/// (resolve_relative_uri); a URI the loader refuses (absolute, leaving the
+/// folder) is listed as `folder / uri` all the same, as it names a file the
+/// scene points at. For a .glb (by its magic) the JSON chunk is read. Never
+/// throws: a file it cannot read or parse lists only itself. The paths are
+/// not checked for existence. For the output policy (mesh/output_policy.h).
+std::vector<std::filesystem::path> gltf_input_files(const std::filesystem::path& path);
 
 /// True when this build decodes KHR_draco_mesh_compression.
 bool gltf_draco_supported();
