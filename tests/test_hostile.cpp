@@ -323,22 +323,24 @@ TEST_F(Hostile, FifosAreRefusedNotWaitedOn) {
 }
 
 TEST_F(Hostile, DecodedImagesOverTheMemoryBudgetExitTwo) {
-  // Three images of 256 x 256 pixels (PPM: stb decodes it without a
-  // compressor here), 256 KiB each decoded; the preview decodes them.
+  // Three images of 1024 x 1024 pixels (PPM: stb decodes it without a
+  // compressor here), 4 MiB each decoded; the preview decodes them.
   const fs::path scene = write_triangle_gltf(dir_ / "images.gltf", [&](json& d) {
     d["meshes"][0]["primitives"] = json::array();
     for (int i = 0; i < 3; ++i) {
       const std::string name = "image" + std::to_string(i) + ".ppm";
-      std::ofstream(dir_ / name, std::ios::binary) << "P6\n256 256\n255\n"
-                                                   << std::string(256 * 256 * 3, '\x80');
+      std::ofstream(dir_ / name, std::ios::binary) << "P6\n1024 1024\n255\n"
+                                                   << std::string(1024 * 1024 * 3, '\x80');
       d["images"].push_back({{"uri", name}});
       d["textures"].push_back({{"source", i}});
       d["materials"].push_back({{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", i}}}}}});
       d["meshes"][0]["primitives"].push_back({{"attributes", {{"POSITION", 0}}}, {"material", i}});
     }
   });
-  // 0.0006 GiB (629 KiB): each image alone fits, not the three.
-  const RunResult r = run("snow " + q(scene) + kTiny + " --memory-budget 0.0006 --preview " +
+  // 0.01 GiB (10.2 MiB, the smallest budget allowed): the first image
+  // fits while it is decoded (its 3 MiB file and 4 MiB of pixels), the
+  // second does not.
+  const RunResult r = run("snow " + q(scene) + kTiny + " --memory-budget 0.01 --preview " +
                           q(out_ / "x.png") + " -o " + q(out_ / "x.glb"));
   expect_refused(r, 2, "--memory-budget", out_, "three images");
   EXPECT_NE(r.output.find("image 1"), std::string::npos) << r.output;

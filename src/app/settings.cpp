@@ -111,11 +111,18 @@ void check_settings(const PipelineSettings& settings) {
   visit_settings(
       [&](const char* key, const char* flag, const char*, const auto& field, const Range& range) {
         using T = std::decay_t<decltype(field)>;
+        // A float field holds the bound as typed rounded to float ("0.01"
+        // is a little under 0.01): compare with the bound rounded alike.
+        Range bound = range;
+        if constexpr (std::is_same_v<T, float> || std::is_same_v<T, glm::vec2>) {
+          bound.lo = double(float(range.lo));
+          bound.hi = double(float(range.hi));
+        }
         if constexpr (std::is_same_v<T, glm::vec2>) {
-          check_range(flag, key, field.x, range);
-          check_range(flag, key, field.y, range);
+          check_range(flag, key, field.x, bound);
+          check_range(flag, key, field.y, bound);
         } else if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
-          check_range(flag, key, double(field), range);
+          check_range(flag, key, double(field), bound);
         }
       },
       copy);
