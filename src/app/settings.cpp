@@ -94,9 +94,13 @@ std::string range_text(const Range& range) {
 }
 
 void check_range(const std::string& flag, const std::string& key, double value,
-                 const Range& range) {
+                 const Range& range, bool float_field) {
   if (!(range.hi > range.lo)) return;
-  if (std::isfinite(value) && ((value >= range.lo && value <= range.hi) ||
+  // A float field holds a bound typed as it is rounded to float ("0.01" is
+  // a little under 0.01): it is compared with the bound rounded alike.
+  const double lo = float_field ? double(float(range.lo)) : range.lo;
+  const double hi = float_field ? double(float(range.hi)) : range.hi;
+  if (std::isfinite(value) && ((value >= lo && value <= hi) ||
                                (range.negative_auto && value < 0))) {
     return;
   }
@@ -111,18 +115,12 @@ void check_settings(const PipelineSettings& settings) {
   visit_settings(
       [&](const char* key, const char* flag, const char*, const auto& field, const Range& range) {
         using T = std::decay_t<decltype(field)>;
-        // A float field holds the bound as typed rounded to float ("0.01"
-        // is a little under 0.01): compare with the bound rounded alike.
-        Range bound = range;
-        if constexpr (std::is_same_v<T, float> || std::is_same_v<T, glm::vec2>) {
-          bound.lo = double(float(range.lo));
-          bound.hi = double(float(range.hi));
-        }
+        constexpr bool is_float = std::is_same_v<T, float> || std::is_same_v<T, glm::vec2>;
         if constexpr (std::is_same_v<T, glm::vec2>) {
-          check_range(flag, key, field.x, bound);
-          check_range(flag, key, field.y, bound);
+          check_range(flag, key, field.x, range, is_float);
+          check_range(flag, key, field.y, range, is_float);
         } else if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
-          check_range(flag, key, double(field), bound);
+          check_range(flag, key, double(field), range, is_float);
         }
       },
       copy);

@@ -168,9 +168,10 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
 std::string range_text(const Range& range);
 
 /// InputError "FLAG (KEY) must be in LO..HI, got VALUE" unless `value` is
-/// finite and in `range` (one line, naming the option and its bound).
+/// finite and in `range` (one line, naming the option and its bound);
+/// `float_field`: the value came from a float, the bounds are rounded alike.
 void check_range(const std::string& flag, const std::string& key, double value,
-                 const Range& range);
+                 const Range& range, bool float_field = false);
 
 /// Every numeric setting of `settings` in its Range (check_range), whether
 /// it came from a flag or a --config file; run before the long work starts.
