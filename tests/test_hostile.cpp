@@ -347,6 +347,16 @@ TEST_F(Hostile, DecodedImagesOverTheMemoryBudgetExitTwo) {
                           q(out_ / "x.png") + " -o " + q(out_ / "x.glb"));
   expect_refused(r, 2, "--memory-budget", out_, "three images");
   EXPECT_NE(r.output.find("image 1"), std::string::npos) << r.output;
+  // render and info decode the images too, under their own --memory-budget.
+  for (const std::string& command : {"render " + q(scene) + " -o " + q(out_ / "x.png"),
+                                     "info --no-gl " + q(scene)}) {
+    const RunResult small = run(command + " --memory-budget 0.01");
+    expect_refused(small, 2, "--memory-budget", out_, command);
+    EXPECT_NE(small.output.find("image"), std::string::npos) << small.output;
+    EXPECT_EQ(run(command + " --memory-budget 0.005").code, 2) << command;  // out of range
+  }
+  const RunResult fits = run("render " + q(scene) + " -o " + q(out_ / "x.png"));
+  EXPECT_EQ(fits.code, 0) << fits.output;  // the default budget holds them
 }
 
 // --- GL failures ------------------------------------------------------------------------------

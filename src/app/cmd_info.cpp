@@ -35,6 +35,7 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
     std::string scene;
     bool json = false;
     bool no_gl = false;
+    float memory_budget_gib = 4.0f;
   };
   auto options = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
@@ -42,7 +43,11 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("scene", options->scene, "glTF 2.0 scene (.gltf or .glb)");
   cmd->add_flag("--json", options->json, "Print the scene summary as JSON");
   cmd->add_flag("--no-gl", options->no_gl, "Do not create an OpenGL context");
+  cmd->add_option("--memory-budget", options->memory_budget_gib,
+                  "Memory budget in GiB for the scene's data " + range_text(kMemoryBudgetGib))
+      ->capture_default_str();
   cmd->callback([options, &global] {
+    check_range("--memory-budget", "", options->memory_budget_gib, kMemoryBudgetGib, true);
     gl::ContextOptions context_options;
     context_options.backend = gl::parse_backend(global.gl_backend);
     std::unique_ptr<gl::Context> context;
@@ -62,7 +67,9 @@ void register_info(CLI::App& app, const GlobalOptions& global) {
       if (!options->json) print_plan(machine, nullptr, 0);
       return;
     }
-    const Scene scene = load_scene(options->scene);
+    LoadSettings load;
+    load.limits.memory_budget = memory_budget_bytes(options->memory_budget_gib);
+    const Scene scene = load_scene(options->scene, load);
     if (!options->json) print_plan(machine, &scene, gltf_input_bytes(options->scene));
     std::printf("%s\n", options->json ? scene_summary_json(scene).c_str()
                                       : scene_summary_text(scene).c_str());

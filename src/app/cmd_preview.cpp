@@ -78,7 +78,7 @@ void run_preview(PreviewOptions o) {
                                            : live::Overlay::None;
   check_settings(s);  // flags and --config alike
   check_viewer_options(v);
-  s.peel.memory_budget = uint64_t(double(s.memory_budget_gib) * double(1ull << 30));
+  s.peel.memory_budget = memory_budget_bytes(s.memory_budget_gib);
   s.load.limits.memory_budget = s.peel.memory_budget;  // the scene's data, images included
   s.stabilize.seed = uint32_t(s.coverage.seed);
   v.input = o.input;

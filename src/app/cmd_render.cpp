@@ -1,5 +1,6 @@
 // `snowmodel render SCENE -o OUT.png`: a headless preview image of a scene.
 #include "app/commands.h"
+#include "app/settings.h"
 #include "core/log.h"
 #include "mesh/output_policy.h"
 #include "render/preview.h"
@@ -14,6 +15,7 @@ void register_render(CLI::App& app, const GlobalOptions& global) {
     std::string view = "three-quarter";
     int width = 1280;
     int height = 800;
+    float memory_budget_gib = 4.0f;
   };
   auto options = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand("render", "Render a preview PNG of a scene (headless)");
@@ -28,9 +30,16 @@ void register_render(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--height", options->height, "Image height in pixels")
       ->check(CLI::Range(16, 8192))
       ->capture_default_str();
+  cmd->add_option("--memory-budget", options->memory_budget_gib,
+                  "Memory budget in GiB for the scene's data and images " +
+                      range_text(kMemoryBudgetGib))
+      ->capture_default_str();
   cmd->callback([options, &global] {
+    check_range("--memory-budget", "", options->memory_budget_gib, kMemoryBudgetGib, true);
     check_output_paths(options->scene, {{"-o", options->output, OutputKind::File, {}, {}}});
-    const Scene scene = load_scene(options->scene);
+    LoadSettings load;
+    load.limits.memory_budget = memory_budget_bytes(options->memory_budget_gib);
+    const Scene scene = load_scene(options->scene, load);
     auto context = make_headless_context(global);
     render::PreviewSettings settings;
     settings.width = options->width;

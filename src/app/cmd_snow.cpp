@@ -173,7 +173,7 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
   }
   PipelineSettings s = o.settings;
   check_settings(s);  // flags and --config alike
-  s.peel.memory_budget = uint64_t(double(s.memory_budget_gib) * double(1ull << 30));
+  s.peel.memory_budget = memory_budget_bytes(s.memory_budget_gib);
   s.load.limits.memory_budget = s.peel.memory_budget;  // the scene's data, images included
   s.stabilize.seed = uint32_t(s.coverage.seed);
   format = MeshFormat::Glb;

@@ -44,6 +44,14 @@ struct Range {
 /// Range of a setting that is not a number (names, switches, globs): none.
 inline constexpr Range kNoRange{};
 
+/// --memory-budget, GiB, in every command that loads a scene.
+inline constexpr Range kMemoryBudgetGib{0.01, 1048576};
+
+/// Bytes of a --memory-budget of `gib` GiB.
+inline uint64_t memory_budget_bytes(float gib) {
+  return uint64_t(double(gib) * double(uint64_t(1) << 30));
+}
+
 /// One entry per setting: JSON key ("peel.texel"), CLI flag ("--texel"),
 /// help text with the unit, the field and its Range. Calls
 /// v(key, flag, help, field, range) for each.
@@ -69,7 +77,7 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     s.peel.device, kNoRange);
   v("maps.memory_budget_gib", "--memory-budget",
     "Memory budget in GiB; larger runs stop before allocating", s.memory_budget_gib,
-    Range{0.01, 1048576});
+    kMemoryBudgetGib);
   // Coverage.
   v("coverage.directions", "--directions", "Fall directions sampled (K shadow maps)",
     s.coverage.directions, Range{1, 4096});
