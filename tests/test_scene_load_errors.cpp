@@ -179,6 +179,17 @@ TEST_F(SceneLoad, BadAccessorsAndIndices) {
   expect_input_error(sp.write_glb(dir_, "sparse"), "sparse index 9");
 }
 
+// An accessor of count 0 (found by fuzz_load): no elements to convert, no
+// copy from or to a null pointer: the scene has no triangle, said in one line.
+TEST_F(SceneLoad, AnEmptyPositionAccessorGivesNoTriangles) {
+  Gltf g;
+  const int pos = g.positions(kUpTriangle);
+  const int mesh = g.mesh(json::array({{{"attributes", {{"POSITION", pos}}}}}), "Empty");
+  g.scene({g.node({{"mesh", mesh}})});
+  g.doc["accessors"][size_t(pos)]["count"] = 0;
+  expect_input_error(g.write_glb(dir_, "empty"), "the scene has no triangles");
+}
+
 TEST_F(SceneLoad, NonFiniteValues) {
   Gltf g;
   const int pos = g.positions({{0, 0, 0}, {0, 0, 1}, {std::nanf(""), 0, 0}});

@@ -55,6 +55,7 @@ int type_components(const std::string& type) {
 template <typename T>
 void convert_elements(const uint8_t* src, uint64_t stride, uint64_t count, int components,
                       bool normalized, float* out) {
+  if (count == 0) return;  // `out` may be null (an empty vector's data)
   if (std::is_same<T, float>::value && stride == sizeof(float) * size_t(components)) {
     std::memcpy(out, src, count * stride);
     return;
