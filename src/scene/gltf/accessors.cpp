@@ -268,7 +268,7 @@ std::vector<uint32_t> GltfLoader::read_indices(uint64_t accessor, const std::str
   if (info.data) {
     const int csize = component_size(info.component_type);
     if (info.stride == uint64_t(csize) && info.component_type == kUnsignedInt) {
-      std::memcpy(out.data(), info.data, size_t(info.count) * 4);
+      if (!out.empty()) std::memcpy(out.data(), info.data, size_t(info.count) * 4);
     } else if (info.component_type == kUnsignedShort) {
       for (uint64_t i = 0; i < info.count; ++i) {
         uint16_t v;

@@ -62,14 +62,17 @@ void GltfLoader::decode_draco(const json& extension, const std::string& what,
   std::vector<float> values;
   if (!read("POSITION", 3, values)) fail(dwhat + " has no POSITION attribute");
   geometry.positions.resize(size_t(points));
-  std::memcpy(geometry.positions.data(), values.data(), values.size() * sizeof(float));
+  if (!values.empty())
+    std::memcpy(geometry.positions.data(), values.data(), values.size() * sizeof(float));
   if (settings_.shading && read("NORMAL", 3, values)) {
     geometry.normals.resize(size_t(points));
-    std::memcpy(geometry.normals.data(), values.data(), values.size() * sizeof(float));
+    if (!values.empty())
+      std::memcpy(geometry.normals.data(), values.data(), values.size() * sizeof(float));
   }
   if (settings_.shading && read(uv_name.c_str(), 2, values)) {
     geometry.uvs.resize(size_t(points));
-    std::memcpy(geometry.uvs.data(), values.data(), values.size() * sizeof(float));
+    if (!values.empty())
+      std::memcpy(geometry.uvs.data(), values.data(), values.size() * sizeof(float));
   }
   geometry.triangles.resize(size_t(faces) * 3);
   for (uint64_t f = 0; f < faces; ++f) {

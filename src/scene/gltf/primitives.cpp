@@ -147,7 +147,8 @@ bool GltfLoader::read_primitive(const json& prim, const json& attributes, int mo
       read_attribute(uint64_t(position), 3, what + " POSITION", &position_info);
   const size_t vertex_count = values.size() / 3;
   geometry.positions.resize(vertex_count);
-  std::memcpy(geometry.positions.data(), values.data(), values.size() * sizeof(float));
+  if (vertex_count > 0)  // an empty vector's data() may be null
+    std::memcpy(geometry.positions.data(), values.data(), vertex_count * 3 * sizeof(float));
   const int64_t normal =
       settings_.shading ? opt_index(attributes, "NORMAL", accessor_count, what, "accessors") : -1;
   if (normal >= 0) {
@@ -156,7 +157,8 @@ bool GltfLoader::read_primitive(const json& prim, const json& attributes, int mo
       warn(what + ": NORMAL count differs from POSITION count; using flat normals");
     } else {
       geometry.normals.resize(vertex_count);
-      std::memcpy(geometry.normals.data(), values.data(), values.size() * sizeof(float));
+      if (!values.empty())
+        std::memcpy(geometry.normals.data(), values.data(), values.size() * sizeof(float));
     }
   }
   const int64_t uv = settings_.shading
@@ -168,7 +170,8 @@ bool GltfLoader::read_primitive(const json& prim, const json& attributes, int mo
       warn(what + ": " + uv_name + " count differs from POSITION count; ignored");
     } else {
       geometry.uvs.resize(vertex_count);
-      std::memcpy(geometry.uvs.data(), values.data(), values.size() * sizeof(float));
+      if (!values.empty())
+        std::memcpy(geometry.uvs.data(), values.data(), values.size() * sizeof(float));
     }
   }
   std::vector<uint32_t> indices;
