@@ -198,6 +198,7 @@ int main(int argc, char** argv) {
   variant("bad_view_range", [](json& d, auto&) { d["bufferViews"][0]["byteLength"] = 4000; });
   variant("bad_view_buffer", [](json& d, auto&) { d["bufferViews"][0]["buffer"] = 3; });
   variant("bad_count", [](json& d, auto&) { d["accessors"][0]["count"] = 1000000000; });
+  variant("bad_count_zero", [](json& d, auto&) { d["accessors"][0]["count"] = 0; });
   variant("bad_count_noview", [](json& d, auto&) {
     d["accessors"][0]["count"] = 1000000000;
     d["accessors"][0].erase("bufferView");
