@@ -131,7 +131,8 @@ void register_preview(CLI::App& app, const GlobalOptions& global) {
       ->check(CLI::ExistingFile);
   cmd->add_option("input", o->input, "glTF 2.0 scene (.gltf or .glb)")->required();
   live::ViewerOptions& v = o->viewer;
-  cmd->add_option("--frames", v.frames, ranged("Quit after this many frames (0 = when closed)", kFrames));
+  cmd->add_option("--frames", v.frames,
+                  ranged("Quit after this many frames (0 = when closed)", kFrames));
   cmd->add_option("--screenshot", v.screenshot,
                   "PNG of the last frame (scene and snow, no panel), written at exit");
   cmd->add_flag("--screenshot-panel", v.screenshot_panel,
@@ -139,24 +140,33 @@ void register_preview(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--export", v.export_path,
                   "Snow meshes at exit: .glb/.gltf (scene plus snow), .obj/.ply (snow only)");
   cmd->add_flag("--export-snow-only", v.snow_only, "Export only the snow, also to .glb/.gltf");
-  cmd->add_option("--size", o->size, "Window size WIDTHxHEIGHT in pixels [1..16384 each]")->capture_default_str();
+  cmd->add_option("--size", o->size, "Window size WIDTHxHEIGHT in pixels [1..16384 each]")
+      ->capture_default_str();
   cmd->add_option("--view", o->view, "Start camera: orbit (perspective) or top (orthographic)")
       ->check(CLI::IsMember({"orbit", "top"}))
       ->capture_default_str();
-  cmd->add_option("--azimuth", v.azimuth, ranged("Start camera: degrees from south (+Z) towards east (+X)", kAzimuth))
+  cmd->add_option("--azimuth", v.azimuth,
+                  ranged("Start camera: degrees from south (+Z) towards east (+X)", kAzimuth))
       ->capture_default_str();
-  cmd->add_option("--elevation", v.elevation, ranged("Start camera: degrees above the horizon", kElevation))
+  cmd->add_option("--elevation", v.elevation,
+                  ranged("Start camera: degrees above the horizon", kElevation))
       ->capture_default_str();
-  cmd->add_option("--zoom", v.zoom, ranged("Start camera: the framed distance divided by this", kZoom))
+  cmd->add_option("--zoom", v.zoom,
+                  ranged("Start camera: the framed distance divided by this", kZoom))
       ->capture_default_str();
-  cmd->add_option("--fov", v.fov, ranged("Vertical field of view in degrees", kFov))->capture_default_str();
-  cmd->add_option("--fall-rate", v.sim.fall_rate,
-                  ranged("Fresh snow per simulated second on open flat ground, metres (--depth in all)", kFallRate))
+  cmd->add_option("--fov", v.fov, ranged("Vertical field of view in degrees", kFov))
       ->capture_default_str();
-  cmd->add_option("--frame-time", v.sim.frame_time, ranged("Simulated seconds per frame", kFrameTime))
+  cmd->add_option(
+         "--fall-rate", v.sim.fall_rate,
+         ranged("Fresh snow per simulated second on open flat ground, metres (--depth in all)",
+                kFallRate))
+      ->capture_default_str();
+  cmd->add_option("--frame-time", v.sim.frame_time,
+                  ranged("Simulated seconds per frame", kFrameTime))
       ->capture_default_str();
   cmd->add_option("--add-every", v.sim.add_every,
-                  ranged("Add snow every N frames, N frames' worth at once (cheaper on slow GPUs)", kAddEvery))
+                  ranged("Add snow every N frames, N frames' worth at once (cheaper on slow GPUs)",
+                         kAddEvery))
       ->capture_default_str();
   cmd->add_option("--passes-per-frame", v.sim.passes_per_frame,
                   ranged("Stabilizer relaxation passes per frame", kPassesPerFrame))

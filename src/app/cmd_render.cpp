@@ -30,9 +30,9 @@ void register_render(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--height", options->height, "Image height in pixels")
       ->check(CLI::Range(16, 8192))
       ->capture_default_str();
-  cmd->add_option("--memory-budget", options->memory_budget_gib,
-                  "Memory budget in GiB for the scene's data and images " +
-                      range_text(kMemoryBudgetGib))
+  cmd->add_option(
+         "--memory-budget", options->memory_budget_gib,
+         "Memory budget in GiB for the scene's data and images " + range_text(kMemoryBudgetGib))
       ->capture_default_str();
   cmd->callback([options, &global] {
     check_range("--memory-budget", "", options->memory_budget_gib, kMemoryBudgetGib, true);

@@ -29,10 +29,10 @@
 #include "mesh/export.h"
 #include "mesh/output_policy.h"
 #include "mesh/write_maps.h"
+#include "plan/plan.h"
 #include "render/preview.h"
 #include "scene/builder.h"
 #include "scene/load_gltf.h"
-#include "plan/plan.h"
 #include "snow/stabilize.h"
 
 namespace snow::app {

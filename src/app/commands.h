@@ -15,7 +15,7 @@ struct GlobalOptions {
   bool quiet = false;
   bool verbose = false;
   std::string gl_backend = "auto";  // see gl::parse_backend
-  bool help_all = false;             // --help-all: --help with the developer options listed
+  bool help_all = false;            // --help-all: --help with the developer options listed
 };
 
 /// Creates the headless GL context chosen by --gl-backend (or the

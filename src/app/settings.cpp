@@ -44,10 +44,10 @@ void from_json_value(const json& j, T& v) {
   if constexpr (std::is_integral_v<T>) {
     // A whole number that T holds: nlohmann's get<T> would wrap the others.
     const bool fits =
-        j.is_number_unsigned()  ? j.get<uint64_t>() <= uint64_t(std::numeric_limits<T>::max())
-        : j.is_number_integer() ? std::is_signed_v<T> &&
-                                      j.get<int64_t>() >= int64_t(std::numeric_limits<T>::min())
-                                : false;
+        j.is_number_unsigned() ? j.get<uint64_t>() <= uint64_t(std::numeric_limits<T>::max())
+        : j.is_number_integer()
+            ? std::is_signed_v<T> && j.get<int64_t>() >= int64_t(std::numeric_limits<T>::min())
+            : false;
     if (!fits) throw json::type_error::create(302, "expected a whole number", &j);
   }
   v = j.get<T>();
@@ -70,8 +70,8 @@ std::string unsigned_text_error(const std::string& text) {
   char* end = nullptr;
   std::strtoull(text.c_str(), &end, 0);
   if (errno == ERANGE)
-    return "expected a whole number up to " +
-           std::to_string(std::numeric_limits<uint64_t>::max()) + ", got '" + text + "'";
+    return "expected a whole number up to " + std::to_string(std::numeric_limits<uint64_t>::max()) +
+           ", got '" + text + "'";
   return {};
 }
 
@@ -93,15 +93,15 @@ std::string range_text(const Range& range) {
          ".." + number_text(range.hi) + "]";
 }
 
-void check_range(const std::string& flag, const std::string& key, double value,
-                 const Range& range, bool float_field) {
+void check_range(const std::string& flag, const std::string& key, double value, const Range& range,
+                 bool float_field) {
   if (!(range.hi > range.lo)) return;
   // A float field holds a bound typed as it is rounded to float ("0.01" is
   // a little under 0.01): it is compared with the bound rounded alike.
   const double lo = float_field ? double(float(range.lo)) : range.lo;
   const double hi = float_field ? double(float(range.hi)) : range.hi;
-  if (std::isfinite(value) && ((value >= lo && value <= hi) ||
-                               (range.negative_auto && value < 0))) {
+  if (std::isfinite(value) &&
+      ((value >= lo && value <= hi) || (range.negative_auto && value < 0))) {
     return;
   }
   throw InputError(flag + (key.empty() ? "" : " (" + key + ")") + " must be " +
@@ -194,8 +194,8 @@ void load_settings_file(const std::string& path, PipelineSettings& settings) {
 
 bool is_developer_setting(const std::string& key) {
   static const char* const kDeveloper[] = {
-      "maps.merge_distance", "maps.device",      "coverage.batch",    "coverage.bias",
-      "coverage.method",     "snow.min_move",    "snow.max_stride",   "snow.adaptive_stride",
+      "maps.merge_distance", "maps.device",      "coverage.batch",     "coverage.bias",
+      "coverage.method",     "snow.min_move",    "snow.max_stride",    "snow.adaptive_stride",
       "snow.device",         "snow.route_steep", "snow.deposit_piles", "snow.drain_edges",
       "mesh.piece_triangles"};
   for (const char* k : kDeveloper) {
@@ -212,13 +212,13 @@ void add_settings_options(CLI::App& cmd, PipelineSettings& settings, bool show_d
         const std::string bounds = range_text(range);
         const std::string help = bounds.empty() ? help_text : help_text + (" " + bounds);
         const std::string group = split_key(key).first;
-        const std::string section = is_developer_setting(key)
-                                        ? (show_developer ? "Developer (backends and speed-ups)" : "")
-                                    : group == "maps"     ? "Maps"
-                                    : group == "coverage" ? "Coverage"
-                                    : group == "snow"     ? "Snowfall and sliding"
-                                    : group == "mesh"     ? "Meshes"
-                                                          : "Object filters";
+        const std::string section =
+            is_developer_setting(key) ? (show_developer ? "Developer (backends and speed-ups)" : "")
+            : group == "maps"         ? "Maps"
+            : group == "coverage"     ? "Coverage"
+            : group == "snow"         ? "Snowfall and sliding"
+            : group == "mesh"         ? "Meshes"
+                                      : "Object filters";
         CLI::Option* opt = nullptr;
         if constexpr (std::is_same_v<T, glm::vec2>) {
           opt = cmd.add_option_function<std::string>(

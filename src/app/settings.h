@@ -69,8 +69,7 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("maps.margin", "--margin", "Border around the scene in metres (negative = automatic)",
     s.peel.margin, Range{0, 10000, true});
   v("maps.merge_distance", "--merge-distance",
-    "Surfaces closer than this in metres count as one layer", s.peel.merge_distance,
-    Range{0, 100});
+    "Surfaces closer than this in metres count as one layer", s.peel.merge_distance, Range{0, 100});
   v("maps.device", "--peel-device",
     "Where the maps are peeled: gpu (depth passes), cpu (a vertical ray per texel) or auto (the "
     "planner's choice, as `snowmodel info` prints it)",
@@ -85,8 +84,8 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Flake flutter: half-angle of the cone of fall directions, degrees", s.coverage.flutter_deg,
     Range{0, 60});
   v("coverage.wind", "--wind",
-    "Horizontal wind X,Z in m/s, each (tilts the fall by atan(wind/fall speed))",
-    s.coverage.wind, Range{-100, 100});
+    "Horizontal wind X,Z in m/s, each (tilts the fall by atan(wind/fall speed))", s.coverage.wind,
+    Range{-100, 100});
   v("coverage.fall_speed", "--fall-speed", "Flakes' still-air fall speed in m/s",
     s.coverage.fall_speed, Range{0.01, 100});
   // Every uint64_t is a seed (the CLI refuses what does not fit, not wraps it).
@@ -125,8 +124,8 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("snow.max_iterations", "--max-iterations", "Stabilizer passes at most per step",
     s.stabilize.max_iterations, Range{0, 100000});
   v("snow.max_stride", "--max-stride",
-    "Longest stabilizer move in texels (a power of two; 1 = single steps)",
-    s.stabilize.max_stride, Range{1, 64});
+    "Longest stabilizer move in texels (a power of two; 1 = single steps)", s.stabilize.max_stride,
+    Range{1, 64});
   v("snow.adaptive_stride", "--adaptive-stride",
     "Start with single steps, longer moves only where the snow creeps (true/false)",
     s.stabilize.adaptive_stride, kNoRange);
@@ -178,8 +177,8 @@ std::string range_text(const Range& range);
 /// InputError "FLAG (KEY) must be in LO..HI, got VALUE" unless `value` is
 /// finite and in `range` (one line, naming the option and its bound);
 /// `float_field`: the value came from a float, the bounds are rounded alike.
-void check_range(const std::string& flag, const std::string& key, double value,
-                 const Range& range, bool float_field = false);
+void check_range(const std::string& flag, const std::string& key, double value, const Range& range,
+                 bool float_field = false);
 
 /// Every numeric setting of `settings` in its Range (check_range), whether
 /// it came from a flag or a --config file; run before the long work starts.

@@ -286,12 +286,12 @@ void read_with_tinygltf(CombinedInput& input) {
   if (prepared.bytes.size() > UINT32_MAX)
     throw InputError(input.path.string() + ": over 4 GiB, more than tinygltf reads");
   const bool ok =
-      binary ? loader.LoadBinaryFromMemory(&input.model, &err, &input.warnings,
-                                           prepared.bytes.data(), unsigned(prepared.bytes.size()),
-                                           base)
-             : loader.LoadASCIIFromString(&input.model, &err, &input.warnings,
-                                          reinterpret_cast<const char*>(prepared.bytes.data()),
-                                          unsigned(prepared.bytes.size()), base);
+      binary
+          ? loader.LoadBinaryFromMemory(&input.model, &err, &input.warnings, prepared.bytes.data(),
+                                        unsigned(prepared.bytes.size()), base)
+          : loader.LoadASCIIFromString(&input.model, &err, &input.warnings,
+                                       reinterpret_cast<const char*>(prepared.bytes.data()),
+                                       unsigned(prepared.bytes.size()), base);
   if (!files.refused.empty())
     throw InputError(input.path.string() + ": " + files.refused + " (refused)");
   // What tinygltf did not look for (an absolute path it read as relative)

@@ -100,8 +100,8 @@ class WideInteger : public nlohmann::json_sax<json> {
 /// primitive of `g`; true if it took any.
 bool take_draco_indices(json& g, std::vector<TinygltfInput::DracoIndices>& taken) {
   if (!g.is_object() || !g.contains("meshes") || !g["meshes"].is_array()) return false;
-  const json* accessors = g.contains("accessors") && g["accessors"].is_array() ? &g["accessors"]
-                                                                               : nullptr;
+  const json* accessors =
+      g.contains("accessors") && g["accessors"].is_array() ? &g["accessors"] : nullptr;
   for (size_t m = 0; m < g["meshes"].size(); ++m) {
     json& mesh = g["meshes"][m];
     if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array())
