@@ -216,6 +216,17 @@ void GltfLoader::read_sparse(const json& sparse, const std::string& what, uint64
 
 uint64_t GltfLoader::max_elements() const { return settings_.limits.max_triangles * 3 + 2; }
 
+uint32_t GltfLoader::sparse_target(const AccessorInfo& info, uint64_t k,
+                                   const std::string& what) const {
+  const int isize = component_size(info.sparse_index_type);
+  const uint32_t target =
+      read_uint(info.sparse_indices + k * uint64_t(isize), info.sparse_index_type);
+  if (target >= info.count)
+    fail(what + " sparse index " + std::to_string(target) + " is out of range (count " +
+         std::to_string(info.count) + ")");
+  return target;
+}
+
 std::vector<float> GltfLoader::decode_floats(const AccessorInfo& info, const std::string& role) {
   const std::string what = "accessor " + std::to_string(info.index) + " (" + role + ")";
   std::vector<float> out(size_t(info.count) * size_t(info.components), 0.0f);
@@ -224,13 +235,8 @@ std::vector<float> GltfLoader::decode_floats(const AccessorInfo& info, const std
                 info.normalized, out.data());
   const uint64_t element_size =
       uint64_t(component_size(info.component_type)) * uint64_t(info.components);
-  const int isize = component_size(info.sparse_index_type);
   for (uint64_t k = 0; k < info.sparse_count; ++k) {
-    const uint32_t target =
-        read_uint(info.sparse_indices + k * uint64_t(isize), info.sparse_index_type);
-    if (target >= info.count)
-      fail(what + " sparse index " + std::to_string(target) + " is out of range (count " +
-           std::to_string(info.count) + ")");
+    const uint32_t target = sparse_target(info, k, what);
     convert_any(info.component_type, info.sparse_values + k * element_size, element_size, 1,
                 info.components, info.normalized,
                 out.data() + size_t(target) * size_t(info.components));
@@ -280,13 +286,8 @@ std::vector<uint32_t> GltfLoader::read_indices(uint64_t accessor, const std::str
         out[size_t(i)] = read_uint(info.data + i * info.stride, info.component_type);
     }
   }
-  const int isize = component_size(info.sparse_index_type);
   for (uint64_t k = 0; k < info.sparse_count; ++k) {
-    const uint32_t target =
-        read_uint(info.sparse_indices + k * uint64_t(isize), info.sparse_index_type);
-    if (target >= info.count)
-      fail(what + " sparse index " + std::to_string(target) + " is out of range (count " +
-           std::to_string(info.count) + ")");
+    const uint32_t target = sparse_target(info, k, what);
     out[target] = read_uint(info.sparse_values + k * uint64_t(component_size(info.component_type)),
                             info.component_type);
   }

@@ -192,6 +192,9 @@ class GltfLoader {
   uint64_t max_elements() const;
   /// Decodes an attribute accessor to floats (normalization and sparse applied).
   std::vector<float> decode_floats(const AccessorInfo& info, const std::string& role);
+  // The element index of sparse entry k of `info`; fails naming `what`
+  // when it is out of range.
+  uint32_t sparse_target(const AccessorInfo& info, uint64_t k, const std::string& what) const;
   /// Reads a vertex attribute (POSITION, NORMAL, TEXCOORD_n) of `components`
   /// values each, all finite.
   std::vector<float> read_attribute(uint64_t accessor, int components, const std::string& role,
