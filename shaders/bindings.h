@@ -62,5 +62,7 @@
 #define SNOW_STABILIZE_TILE_LAYERS 9
 // usampler2D R8UI per column: its layers with a surface (they are packed from layer 0).
 #define SNOW_STABILIZE_COLUMN 10
+// sampler2DArray R32F: per layer texel, the holding depth of its support (m; snow/cohesion.h).
+#define SNOW_STABILIZE_HOLD 11
 
 #endif  // SNOW_SHADERS_BINDINGS_H

@@ -7,6 +7,7 @@ layout(binding = SNOW_STABILIZE_CELLS) uniform sampler2DArray u_cells;  // groun
 layout(binding = SNOW_STABILIZE_DEPTH) uniform sampler2DArray u_depth;  // r = depth (m), g = lost
 // Routing: the highest snow surface each texel keeps (m), in r.
 layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
+layout(binding = SNOW_STABILIZE_HOLD) uniform sampler2DArray u_hold;  // holding depth (m)
 
 uniform ivec2 u_size;    // map width, height (texels)
 uniform int u_layers;    // L
@@ -15,6 +16,7 @@ uniform vec2 u_distance; // metres to an edge neighbour, to a diagonal one
 uniform float u_rise;    // metres, kSurfaceContinuityTexels * texel
 uniform int u_stride;    // texels, stride of a relaxation pass
 uniform float u_min_move;  // metres, StabilizeSettings::min_move
+uniform float u_stand;     // metres, StabilizeSettings::cohesion.stand_height
 // Routing: 1 in the first erosion pass, which takes the kept heights at their
 // start value (kept_height) rather than from u_stable.
 uniform int u_start;
@@ -49,10 +51,23 @@ bool in_map(ivec2 c) { return all(greaterThanEqual(c, ivec2(0))) && all(lessThan
 // kCeilingClearance under the ceiling.
 float free_top(vec4 cell, float s) { return max(cell.x, min(cell.x + s, cell.y - kCeilingClearance)); }
 
+// The snow of layer texel t (with cell `cell` and depth s) that cohesion
+// holds in place: up to u_stand and its holding depth, never above its free
+// top. Mirrors held_snow of src/snow/stabilize/cpu.cpp.
+float held(ivec3 t, vec4 cell, float s) {
+  return min(min(s, free_top(cell, s) - cell.x), min(u_stand, texelFetch(u_hold, t, 0).r));
+}
+
+// Routing: the kept height layer texel t starts from: its free top, no
+// higher than its holding depth above its ground (CpuStabilizer::start_height).
+float start_height(ivec3 t, vec4 cell) {
+  return min(free_top(cell, texelFetch(u_depth, t, 0).r), cell.x + texelFetch(u_hold, t, 0).r);
+}
+
 // Routing: the highest snow surface layer texel t (with cell `cell`) keeps,
-// from u_stable, or its start value free_top with u_start.
+// from u_stable, or its start value (start_height) with u_start.
 float kept_height(ivec3 t, vec4 cell) {
-  return u_start != 0 ? free_top(cell, texelFetch(u_depth, t, 0).r) : texelFetch(u_stable, t, 0).r;
+  return u_start != 0 ? start_height(t, cell) : texelFetch(u_stable, t, 0).r;
 }
 
 // snow::land_in_column: the layer of column c on which snow at height h,

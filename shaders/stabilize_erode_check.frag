@@ -9,7 +9,7 @@ layout(binding = SNOW_STABILIZE_STABLE_OLD) uniform sampler2DArray u_stable_old;
 
 void main() {
   ivec3 t = ivec3(ivec2(gl_FragCoord.xy), u_layer);
-  float old = u_start != 0 ? free_top(texelFetch(u_cells, t, 0), texelFetch(u_depth, t, 0).r)
+  float old = u_start != 0 ? start_height(t, texelFetch(u_cells, t, 0))
                            : texelFetch(u_stable_old, t, 0).r;
   if (texelFetch(u_stable, t, 0).r == old) discard;
 }

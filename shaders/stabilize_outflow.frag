@@ -31,7 +31,7 @@ int gap_at(ivec2 c, float h) {
 // snow from this texel? Most texels of a late strided pass stay, and this
 // answers for them without walking the paths. Mirrors
 // CpuStabilizer::single_step_moves.
-bool single_step_moves(ivec2 c, vec4 cell, float s, float he, float over) {
+bool single_step_moves(ivec2 c, vec4 cell, float movable, float he, float over) {
   float wmax1 = 0.0;
   for (int n = 0; n < 8; ++n) {
     vec4 mc;
@@ -43,7 +43,7 @@ bool single_step_moves(ivec2 c, vec4 cell, float s, float he, float over) {
       wmax1 = max(wmax1, e);
     }
   }
-  return wmax1 > 0.0 && min(s, max(0.5 * wmax1, over)) >= u_min_move;
+  return wmax1 > 0.0 && min(movable, max(0.5 * wmax1, over)) >= u_min_move;
 }
 
 void main() {
@@ -58,10 +58,12 @@ void main() {
   float s = texelFetch(u_depth, ivec3(c, u_layer), 0).r;
   float he = free_top(cell, s);  // snow above the ceiling is pressed out
   precise float over = (cell.x + s) - he;
+  // What cohesion holds stays (snow/cohesion.h); only the rest moves.
+  precise float movable = s - held(ivec3(c, u_layer), cell, s);
   // A strided pass moves only snow that a single step moves: snow at rest
   // for single steps stays (the active tiles rely on it).
-  if ((int(cell.w) & kCellSurface) != 0 && s > 0.0 &&
-      (u_stride == 1 || single_step_moves(c, cell, s, he, over))) {
+  if ((int(cell.w) & kCellSurface) != 0 && s > 0.0 && movable > 0.0 &&
+      (u_stride == 1 || single_step_moves(c, cell, movable, he, over))) {
     float w[8];
     float wsum = 0.0, wmax = 0.0;
     int voids = 0;
@@ -101,9 +103,10 @@ void main() {
       }
     }
     if (voids > 0) {
-      // An edge of the world: everything falls off, shared by the void directions.
-      float share = divide(s, float(voids));
-      float left = s;
+      // An edge of the world: everything that moves falls off, shared by the
+      // void directions.
+      float share = divide(movable, float(voids));
+      float left = movable;
       int seen = 0;
       for (int n = 0; n < 8; ++n) {
         if (code[n] != kCodeVoid) continue;
@@ -112,7 +115,7 @@ void main() {
         left -= share;
       }
     } else if (wmax > 0.0) {
-      float total = min(s, max(0.5 * wmax, over));  // half the largest excess, split by excess
+      float total = min(movable, max(0.5 * wmax, over));  // half the largest excess, split by excess
       if (total < u_min_move) total = 0.0;
       for (int n = 0; n < 8; ++n) amount[n] = total * divide(w[n], wsum);
     } else if (over > 0.0 && u_stride == 1) {

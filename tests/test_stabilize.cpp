@@ -59,7 +59,7 @@ TEST(Column, LandingRule) {
 // --- CPU reference on analytic maps ------------------------------------------
 
 TEST(StrideSchedule, LengthensOnlyWhereTheSnowCreeps) {
-  StabilizeSettings settings;  // max_stride 4
+  StabilizeSettings settings = loose_settings();  // max_stride 4
   settings.check_every = 16;
   StrideSchedule schedule(settings);
   const auto run = [&](int passes, float residual) {
@@ -139,7 +139,7 @@ TEST(StabilizeReference, MassIsConserved) {
   const SnowMaps maps = bumpy_maps(64, 4);
   std::vector<float> depth = random_snow(maps, 0.5f, 7);
   const double before = snow_volume(maps, depth);
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.tolerance = 0.0f;  // run every pass
   settings.max_iterations = 600;
   const StabilizeResult r = stabilize_cpu(maps, depth, settings);
@@ -166,7 +166,7 @@ TEST(StabilizeReference, RoutingFarFromTheOriginGivesUpNoMoreThanTheSnow) {
   });
   const std::vector<float> start = snow_on_top(maps, 0.3f);
   const double before = snow_volume(maps, start);
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.max_iterations = 50;
   CpuStabilizer stabilizer(maps, settings);
   stabilizer.set_depth(start);
@@ -207,7 +207,7 @@ void expect_volume_sums_change_only_the_sums(const SnowMaps& maps, AnyStabilizer
 
 TEST(StabilizeCpu, VolumeSumsOffChangeOnlyTheSums) {
   const SnowMaps maps = bumpy_maps(64, 4);
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.tolerance = 0.0f;  // run every pass
   CpuStabilizer summed(maps, settings), quiet(maps, settings);
   expect_volume_sums_change_only_the_sums(maps, summed, quiet);
@@ -216,7 +216,7 @@ TEST(StabilizeCpu, VolumeSumsOffChangeOnlyTheSums) {
 TEST(StabilizeGpu, VolumeSumsOffChangeOnlyTheSums) {
   REQUIRE_GL();
   const SnowMaps maps = bumpy_maps(64, 4);
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.tolerance = 0.0f;
   Stabilizer summed(maps, settings), quiet(maps, settings);
   expect_volume_sums_change_only_the_sums(maps, summed, quiet);
@@ -225,7 +225,7 @@ TEST(StabilizeGpu, VolumeSumsOffChangeOnlyTheSums) {
 TEST(StabilizeReference, ConvergedSnowIsAtRest) {
   const SnowMaps maps = bumpy_maps(64, 4);
   std::vector<float> depth = random_snow(maps, 0.5f, 11);
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   const StabilizeResult r = stabilize_cpu(maps, depth, settings);
   ASSERT_TRUE(r.converged) << "residual " << r.residual;
   // The last pass may still bring up to about a tolerance of snow to a texel.
@@ -247,7 +247,7 @@ TEST(StabilizeReference, ConvergedSnowIsAtRest) {
 TEST(StabilizeReference, ConvergenceIsCheckedOnSingleSteps) {
   const SnowMaps maps = bumpy_maps(64, 4);
   const std::vector<float> start = random_snow(maps, 0.5f, 11);
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.max_stride = 8;
   for (int chunk : {2, 3, 5, 64}) {
     CpuStabilizer stabilizer(maps, settings);
@@ -272,7 +272,7 @@ TEST(StabilizeGpu, MatchesReference) {
   REQUIRE_GL();
   const SnowMaps maps = bumpy_maps(64, 4);
   const std::vector<float> start = random_snow(maps, 0.5f, 3);
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.tolerance = 0.0f;
   // Adaptive strides (single steps here) and strides 4, 2, 1 from the start.
   for (const bool adaptive : {true, false})
@@ -293,6 +293,29 @@ TEST(StabilizeGpu, MatchesReference) {
     }
 }
 
+// Cohesive snow (snow/cohesion.h): the GPU holds what the CPU holds, within
+// the stated tolerance of 1 mm per texel and 0.1 % of the volume, on bumpy
+// supports whose slopes shed part of the snow and with snow deeper than the
+// standing height in places.
+TEST(StabilizeGpu, CohesiveSnowMatchesReference) {
+  REQUIRE_GL();
+  const SnowMaps maps = bumpy_maps(64, 4);
+  const std::vector<float> start = random_snow(maps, 0.5f, 3);
+  for (const SnowKind kind : {SnowKind::Powder, SnowKind::Fresh}) {
+    StabilizeSettings settings;
+    settings.cohesion = cohesion_of(kind);
+    std::vector<float> cpu = start, gpu = start;
+    const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
+    const StabilizeResult rg = stabilize(maps, gpu, settings);
+    SCOPED_TRACE(snow_kind_name(kind));
+    EXPECT_TRUE(rc.converged);
+    EXPECT_TRUE(rg.converged);
+    EXPECT_NEAR(rg.volume, rc.volume, 1e-3 * rc.volume);
+    EXPECT_NEAR(rg.lost_volume, rc.lost_volume, 1e-3 * rc.volume);
+    expect_same(gpu, cpu, 1e-3f);
+  }
+}
+
 TEST(StabilizeGpu, RoutingLeavesASlabEdgeAtRest) {
   REQUIRE_GL();
   // A 1.6 m slab, a shallow dish rising 5 % towards its edges, with 0.3 m of
@@ -304,7 +327,7 @@ TEST(StabilizeGpu, RoutingLeavesASlabEdgeAtRest) {
     return std::vector<Surface>{{0.05f * std::max(std::abs(x - 0.8f), std::abs(z - 0.8f)), kUp}};
   });
   const std::vector<float> start = snow_on_top(maps, 0.3f);
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.max_iterations = 0;  // routing only
   std::vector<float> cpu = start, gpu = start;
   stabilize_cpu(maps, cpu, settings);
@@ -333,7 +356,7 @@ TEST(StabilizeGpu, RoutingPressesSnowOutFromUnderACeiling) {
       start[k] = maps.ceiling[k] < 1.0f ? 0.3f : 0.08f;
     }
   }
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.max_iterations = 0;  // routing only
   std::vector<float> cpu = start, tiled = start, full = start;
   const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
@@ -378,7 +401,7 @@ TEST(StabilizeGpu, MovesUnderMinMoveAreNotMade) {
   REQUIRE_GL();
   // Two single-step passes on the bump without routing.
   const Bump bump;
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.route_steep = false;
   settings.max_stride = 1;
   settings.tolerance = 0.0f;
@@ -399,7 +422,7 @@ TEST(StabilizeGpu, MovesUnderMinMoveAreNotMade) {
 // the bump stays, as with min_move 0.002; a tolerance of 1 mm makes it
 // 0.1 mm and the bump moves. An explicit min_move is kept.
 TEST(StabilizeCpu, AutomaticMinMoveIsATenthOfTheTolerance) {
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   EXPECT_LT(settings.min_move, 0.0f);
   EXPECT_FLOAT_EQ(min_move_of(settings), 0.1f * settings.tolerance);
   settings.min_move = 0.0f;
@@ -408,7 +431,7 @@ TEST(StabilizeCpu, AutomaticMinMoveIsATenthOfTheTolerance) {
   EXPECT_THROW(check_stabilize_settings(settings), InputError);
 
   const Bump bump;
-  settings = StabilizeSettings{};
+  settings = loose_settings();
   settings.route_steep = false;
   settings.max_stride = 1;
   settings.max_iterations = 2;
@@ -425,7 +448,7 @@ TEST(StabilizeCpu, AutomaticMinMoveIsATenthOfTheTolerance) {
 // --stabilizer auto: the batch job takes the CPU's passes whatever renders;
 // the live preview takes the GPU's unless the renderer is software.
 TEST(StabilizeDevice, AutoIsTheCpuForTheBatchJobAndTheRendererForThePreview) {
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   EXPECT_EQ(settings.device, "auto");
   for (const bool software : {false, true}) {
     SCOPED_TRACE(software);
@@ -462,7 +485,7 @@ void expect_active_tiles_exact(Run run) {
     // stamped since the last single-step pass.
     for (const auto& [max_stride, adaptive] :
          {std::pair{4, false}, std::pair{32, false}, std::pair{4, true}}) {
-      StabilizeSettings settings;
+      StabilizeSettings settings = loose_settings();
       settings.max_stride = max_stride;
       settings.adaptive_stride = adaptive;
       settings.count_tiles = true;
@@ -532,7 +555,7 @@ void expect_active_tiles_exact_through_time_steps(const SnowMaps& maps, AnyStabi
 }
 
 StabilizeSettings time_step_settings(bool active_tiles) {
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.check_every = 5;
   settings.active_tiles = active_tiles;
   return settings;

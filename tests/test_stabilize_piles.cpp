@@ -68,7 +68,7 @@ TEST(StabilizeReference, RoutedSnowIsPouredAsAConeAtRest) {
   const SnowMaps maps = make_maps(side, side, texel, 2, [](float, float) {
     return std::vector<Surface>{{0.0f, kUp}};
   });
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.repose_jitter_deg = 0.0f;  // tan = 1: the cone's heights are known
   const std::vector<glm::vec4> cells = stabilize_cells(maps, settings);
   const float lying = 0.3f;
@@ -116,7 +116,7 @@ TEST(StabilizeReference, RoutedSnowIsPouredAsAConeAtRest) {
 // them: metres of depth on one texel, squeezed out over a thousand passes).
 TEST(StabilizeReference, RoutedSnowUnderACeilingFillsTheGap) {
   const SnowMaps maps = shelf_maps();  // 0.1 m gap under the shelf
-  const std::vector<glm::vec4> cells = stabilize_cells(maps, StabilizeSettings{});
+  const std::vector<glm::vec4> cells = stabilize_cells(maps, loose_settings());
   std::vector<float> depth(cells.size(), 0.0f), arrive(cells.size(), 0.0f);
   const size_t under = maps.index(2, 24, 24);  // the floor under the shelf's middle
   ASSERT_TRUE(maps.has_surface(2, 24, 24));
@@ -146,7 +146,7 @@ TEST(StabilizeReference, PilesPouredByBandsAreTheSameOnAnyThreads) {
   const SnowMaps maps = make_maps(width, height, texel, 2, [](float, float) {
     return std::vector<Surface>{{0.0f, kUp}};
   });
-  const std::vector<glm::vec4> cells = stabilize_cells(maps, StabilizeSettings{});
+  const std::vector<glm::vec4> cells = stabilize_cells(maps, loose_settings());
   const std::vector<float> lying = snow_on_top(maps, 0.1f);
   const DepositGrid grid{width, height, 2, texel};
   struct Pile {
@@ -215,7 +215,7 @@ TEST(StabilizeReference, SnowCreepingOffAnEdgeIsDrained) {
   const std::vector<float> start = snow_on_top(maps, 0.1f);
   const double fell = snow_volume(maps, start);
   std::vector<float> relaxed = start, drained = start;
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.drain_edges = false;
   const StabilizeResult r0 = stabilize_cpu(maps, relaxed, settings);
   settings.drain_edges = true;
@@ -260,7 +260,7 @@ TEST(StabilizeReference, PressedSnowIsPouredOut) {
   const SnowMaps maps = cellar_maps();
   std::vector<float> depth = cellar_snow(maps);
   const double before = snow_volume(maps, depth);
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.max_iterations = 2000;
   const StabilizeResult r = stabilize_cpu(maps, depth, settings);
   std::printf("cellar: %d passes, %d pours, converged %d\n", r.iterations, r.pours,
@@ -286,7 +286,7 @@ TEST(StabilizeReference, TableEdgesRoundOff) {
   const float texel = 0.05f;
   const SnowMaps maps = make_maps(64, 64, texel, 4, table(1.6f, 1.6f, 0.5f, 0.75f, 0.05f));
   std::vector<float> depth = snow_on_top(maps, 0.3f);
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   const StabilizeResult r = stabilize_cpu(maps, depth, settings);
   ASSERT_TRUE(r.converged);
   // Along the row through the table's centre.
@@ -329,7 +329,7 @@ TEST(StabilizeReference, LowCeilingCapsDepth) {
     if (!std::isnan(maps.ground[k]) && maps.ground[k] == 0.0f) depth[k] = 0.3f;
   }
   const double before = snow_volume(maps, depth);
-  const StabilizeResult r = stabilize_cpu(maps, depth, StabilizeSettings{});
+  const StabilizeResult r = stabilize_cpu(maps, depth, loose_settings());
   ASSERT_TRUE(r.converged);
   float deepest_under = 0.0f;
   for (int j = 0; j < 48; ++j) {
@@ -356,7 +356,7 @@ TEST(StabilizeReference, BowlFillsFromTheBottom) {
   });
   std::vector<float> depth = snow_on_top(maps, 0.3f);
   const double before = snow_volume(maps, depth);
-  const StabilizeResult r = stabilize_cpu(maps, depth, StabilizeSettings{});
+  const StabilizeResult r = stabilize_cpu(maps, depth, loose_settings());
   ASSERT_TRUE(r.converged);
   EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);
   // The snow that fell into the bowl (pi r^2 0.3 m, 0.94 m^3) collects at
@@ -406,7 +406,7 @@ TEST(StabilizeReference, LeanToRoofs) {
       return l == 0 && maps.ground[maps.index(0, i, j)] > 0.5f;
     };
     const double roof_before = sum_where(maps, depth, on_roof);
-    const StabilizeResult r = stabilize_cpu(maps, depth, StabilizeSettings{});
+    const StabilizeResult r = stabilize_cpu(maps, depth, loose_settings());
     const double roof_after = sum_where(maps, depth, on_roof);
     std::printf("%.0f deg lean-to: %d passes (+%d routing), roof %.3f -> %.4f m^3\n", pitch,
                 r.iterations, r.route_passes, roof_before, roof_after);
@@ -440,7 +440,7 @@ TEST(StabilizeGpu, PilesMatchReference) {
   std::vector<float> cpu = snow_on_top(maps, 0.2f);
   cpu[maps.index(0, mid, mid)] += 1.5f;
   std::vector<float> gpu = cpu;
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.max_iterations = 0;
   const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
   const StabilizeResult rg = stabilize(maps, gpu, settings);
@@ -457,7 +457,7 @@ TEST(StabilizeGpu, DrainingMatchesReference) {
   // next passes must compute every tile again.
   const SnowMaps maps = box_on_plate_maps(96);
   std::vector<float> cpu = snow_on_top(maps, 0.1f), gpu = cpu;
-  const StabilizeSettings settings;
+  const StabilizeSettings settings = loose_settings();
   const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
   const StabilizeResult rg = stabilize(maps, gpu, settings);
   EXPECT_GE(rc.drains, 1);
@@ -470,7 +470,7 @@ TEST(StabilizeGpu, PressedSnowPoursMatchReference) {
   REQUIRE_GL();
   const SnowMaps maps = cellar_maps();
   std::vector<float> cpu = cellar_snow(maps), gpu = cpu;
-  StabilizeSettings settings;
+  StabilizeSettings settings = loose_settings();
   settings.max_iterations = 2000;
   const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
   const StabilizeResult rg = stabilize(maps, gpu, settings);
@@ -508,7 +508,7 @@ HouseRun run_house(const HouseDims& dims, int side) {
   run.floor = find_object(scene, "Floor");
   run.before = snow_on_top(run.maps, 0.3f);
   run.after = run.before;
-  run.result = stabilize(run.maps, run.after, StabilizeSettings{});
+  run.result = stabilize(run.maps, run.after, loose_settings());
   return run;
 }
 
@@ -638,7 +638,7 @@ TEST(StabilizeScenes, TableSnowRoundsOffOntoTheFloor) {
   const int top = find_object(scene, "TableTop"), floor = find_object(scene, "Floor");
   std::vector<float> depth = snow_on_top(maps, 0.3f);
   const std::vector<float> before = depth;
-  const StabilizeResult r = stabilize(maps, depth, StabilizeSettings{});
+  const StabilizeResult r = stabilize(maps, depth, loose_settings());
   ASSERT_TRUE(r.converged);
   const float texel = maps.grid.texel;
   auto near_table = [&](glm::vec2 c) {  // outside and under its edges
@@ -689,7 +689,7 @@ TEST(StabilizeScenes, StairTreadsHoldSnow) {
   const int stairs = find_object(scene, "Stairs");
   std::vector<float> depth = snow_on_top(maps, 0.3f);
   const double before = snow_volume(maps, depth);
-  const StabilizeResult r = stabilize(maps, depth, StabilizeSettings{});
+  const StabilizeResult r = stabilize(maps, depth, loose_settings());
   std::printf("stairs: %d passes (+%d routing)\n", r.iterations, r.route_passes);
   ASSERT_TRUE(r.converged);
   EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);

@@ -70,6 +70,7 @@
 
 #include "core/zeroed.h"
 #include "plan/rules.h"
+#include "snow/cohesion.h"
 #include "snow/maps.h"
 
 namespace snow {
@@ -116,7 +117,19 @@ struct StabilizeSettings {
                                    // renderer is a software rasterizer, else the GPU)
   bool count_tiles = false;        // GPU: count the active tiles (a small readback per pass)
                                    // into StabilizeResult::tile_share, for benchmarks
+  Cohesion cohesion = cohesion_of(SnowKind::Fresh);  // what holds where it fell
+                                                     // (snow/cohesion.h; loose_snow(): none)
+  ObjectGrip grip;                 // per scene object, the grip of its surface (empty: normal)
 };
+
+/// Snow without cohesion, as dry sand: nothing stands at edges, and no
+/// slope sheds snow that its surface's repose angle would keep.
+inline Cohesion loose_snow() {
+  Cohesion c;
+  c.stand_height = 0.0f;
+  c.hold_depth = kMaxHoldDepth;
+  return c;
+}
 
 struct StabilizeResult {
   int iterations = 0;          // relaxation passes run (outflow + gather pairs), count
@@ -154,6 +167,13 @@ constexpr float kCellOpenSky = 3.0e38f;
 /// Snow fills a gap up to this far (m) under its ceiling; deeper snow is
 /// squeezed out sideways into the neighbouring columns' gaps.
 constexpr float kCeilingClearance = 1e-4f;
+
+/// The holding depth (m, snow/cohesion.h) of every layer texel with a
+/// surface, from its slope (maps.normal) and its object's grip; 0 elsewhere.
+/// Snow deeper than its texel's holding depth is routed off; snow up to
+/// min(holding depth, cohesion.stand_height) is held: neither erosion nor
+/// relaxation moves it (both stabilizers).
+ZeroedArray<float> stabilize_holds(const SnowMaps& maps, const StabilizeSettings& settings);
 
 /// Throws InputError naming the first setting out of range.
 void check_stabilize_settings(const StabilizeSettings& settings);
@@ -286,7 +306,7 @@ StabilizeResult stabilize(const SnowMaps& maps, std::vector<float>& depth,
 /// current in every call, including destruction.
 class Stabilizer {
  public:
-  /// Uploads the maps (cells) and allocates the pass textures (72 B per
+  /// Uploads the maps (cells) and allocates the pass textures (76 B per
   /// layer texel); the snow starts empty. Throws like stabilize().
   Stabilizer(const SnowMaps& maps, const StabilizeSettings& settings);
   ~Stabilizer();

@@ -89,7 +89,8 @@ class CpuStabilizer {
   /// Whether a single step moves snow from layer texel (i, j) with this cell,
   /// depth s, free top he and snow over the ceiling (the rule strided passes
   /// move by).
-  bool single_step_moves(int i, int j, const glm::vec4& cell, float s, float he, float over) const;
+  bool single_step_moves(int i, int j, const glm::vec4& cell, float movable, float he,
+                         float over) const;
   /// Outflow of one layer texel into out[8] and code[8]; returns the sum of
   /// its amounts, and the sum of those into the void in *to_void.
   /// kStrided: stride > 1 (compiled apart: single steps are most passes).
@@ -99,7 +100,12 @@ class CpuStabilizer {
   bool gather_column(int i, int j, int stride);
   /// Erosion of one layer texel: its next kept height from stable_.
   float erode_texel(int l, int i, int j) const;
-  /// stable_ from free_top, eroded until no texel changes; returns the
+  /// The kept height layer texel k starts the erosion from: its free top,
+  /// no higher than its holding depth above its ground (snow deeper than
+  /// that slides off its slope, snow/cohesion.h). Mirrors column.glsl
+  /// kept_height with u_start.
+  float start_height(size_t k) const;
+  /// stable_ from start_height, eroded until no texel changes; returns the
   /// rounds that changed a texel.
   int erode();
   /// Erosion sweeps over tile t in place until none changes a texel; true
@@ -160,6 +166,8 @@ class CpuStabilizer {
   float distance_[8] = {};              // metres, per direction
   float rise_ = 0.0f;                   // metres, kSurfaceContinuityTexels * texel
   ZeroedArray<glm::vec4> cells_;        // stabilize_surface_cells
+  ZeroedArray<float> hold_;             // metres, stabilize_holds
+  float stand_ = 0.0f;                  // metres, settings_.cohesion.stand_height
   std::vector<uint8_t> column_layers_;  // surfaces per column (layers are packed from the top)
   std::vector<uint8_t> column_sent_;    // per column: its last outflow moved snow
   // Per layer texel arrays that start at zero hold zero pages where the

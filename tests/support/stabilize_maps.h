@@ -31,6 +31,16 @@ namespace snow::test {
 
 inline constexpr float kDeg = 3.14159265358979f / 180.0f;
 
+// The stabilizer's settings for loose snow (no cohesion): the tests of the
+// repose relaxation, the routing, the drains and the piles check those
+// mechanics on their own; test_snow_physics checks cohesive snow, and
+// StabilizeGpu.CohesiveSnowMatchesReference the GPU's cohesion.
+inline StabilizeSettings loose_settings() {
+  StabilizeSettings settings;
+  settings.cohesion = loose_snow();
+  return settings;
+}
+
 // --- Analytic maps -----------------------------------------------------------
 
 struct Surface {

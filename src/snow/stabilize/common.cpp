@@ -39,6 +39,10 @@ void check_stabilize_settings(const StabilizeSettings& s) {
   if (s.max_stride < 1 || s.max_stride > 64 || (s.max_stride & (s.max_stride - 1)) != 0) {
     bad("max_stride must be a power of two in 1..64, got " + std::to_string(s.max_stride));
   }
+  check_cohesion(s.cohesion);
+  for (float g : s.grip) {
+    if (!(g > 0.0f) || !std::isfinite(g)) bad("every object's grip must be a finite number > 0");
+  }
 }
 
 namespace {
@@ -176,6 +180,30 @@ ZeroedArray<glm::vec4> stabilize_surface_cells(const SnowMaps& maps,
   ZeroedArray<glm::vec4> cells(maps.ground.size());
   for_surface_cells(maps, settings, [&](size_t k, const glm::vec4& cell) { cells[k] = cell; });
   return cells;
+}
+
+ZeroedArray<float> stabilize_holds(const SnowMaps& maps, const StabilizeSettings& settings) {
+  check_stabilize_settings(settings);
+  check_maps(maps);
+  ZeroedArray<float> holds(maps.ground.size());
+  const size_t rows = size_t(maps.layers) * size_t(maps.grid.height);
+  parallel_for(rows, [&](size_t row) {
+    const int l = int(row / size_t(maps.grid.height)), j = int(row % size_t(maps.grid.height));
+    for (int i = 0; i < maps.grid.width; ++i) {
+      const size_t k = maps.index(l, i, j);
+      if (!std::isfinite(maps.ground[k])) continue;
+      const glm::vec3 n = maps.normal[k];
+      const float length = glm::length(n);
+      const double up = length > 0.0f ? std::min(1.0, std::abs(double(n.y)) / double(length)) : 1.0;
+      const float slope_deg = float(std::acos(up) * 180.0 / M_PI);
+      const int object = k < maps.object.size() ? maps.object[k] : -1;
+      const float grip = object >= 0 && size_t(object) < settings.grip.size()
+                             ? settings.grip[size_t(object)]
+                             : kGripNormal;
+      holds[k] = holding_depth(settings.cohesion, slope_deg, grip);
+    }
+  });
+  return holds;
 }
 
 void StabilizeResult::add(const StabilizeResult& later) {

@@ -46,6 +46,14 @@ float free_top(const glm::vec4& cell, float s) {
   return std::max(cell.x, std::min(cell.x + s, cell.y - kCeilingClearance));
 }
 
+// The snow of a texel that cohesion holds in place (snow/cohesion.h): its
+// depth s up to the standing height and the texel's holding depth, and never
+// above its free top (snow pressed out from under a ceiling moves).
+// Mirrors column.glsl held.
+float held_snow(const glm::vec4& cell, float s, float hold, float stand) {
+  return std::min(std::min(s, free_top(cell, s) - cell.x), std::min(stand, hold));
+}
+
 int log2_of(int stride) {
   int b = 0;
   while ((2 << b) <= stride) ++b;
@@ -64,11 +72,13 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
       layers_(maps.layers),
       texel_(maps.grid.texel) {
   rise_ = kSurfaceContinuityTexels * texel_;
+  stand_ = settings_.cohesion.stand_height;
   distance_[0] = distance_[1] = distance_[2] = distance_[3] = texel_;
   distance_[4] = distance_[5] = distance_[6] = distance_[7] =
       float(double(texel_) * std::sqrt(2.0));
   try {
     cells_ = stabilize_surface_cells(maps, settings);
+    hold_ = stabilize_holds(maps, settings);
     const size_t n = cells_.size();
     depth_ = ZeroedArray<float>(n);
     lost_ = ZeroedArray<float>(n);
@@ -78,7 +88,7 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
   } catch (const std::bad_alloc&) {
     throw InputError("stabilize: out of memory for maps of " + std::to_string(width_) + " x " +
                      std::to_string(height_) + " texels x " + std::to_string(layers_) +
-                     " layers (64 B per layer texel); use a coarser texel size");
+                     " layers (68 B per layer texel); use a coarser texel size");
   }
 
   const size_t columns = size_t(width_) * size_t(height_);
@@ -317,8 +327,8 @@ bool CpuStabilizer::quiet_since(int i, int j, uint32_t pass) const {
 // The stride-1 rule of a strided pass (see outflow_texel): would a single
 // step move snow from this texel? Most texels of a late strided pass stay,
 // and this answers for them without walking the paths.
-bool CpuStabilizer::single_step_moves(int i, int j, const glm::vec4& cell, float s, float he,
-                                      float over) const {
+bool CpuStabilizer::single_step_moves(int i, int j, const glm::vec4& cell, float movable,
+                                      float he, float over) const {
   float wmax1 = 0.0f;
   for (int n = 0; n < 8; ++n) {
     const int ni = i + kDirI[n], nj = j + kDirJ[n];
@@ -329,7 +339,7 @@ bool CpuStabilizer::single_step_moves(int i, int j, const glm::vec4& cell, float
     const float top = cells_[km].x + depth_[km];
     wmax1 = std::max(wmax1, he - top - distance_[n] * (0.0f + cell.z));
   }
-  return wmax1 > 0.0f && std::min(s, std::max(0.5f * wmax1, over)) >= min_move_;
+  return wmax1 > 0.0f && std::min(movable, std::max(0.5f * wmax1, over)) >= min_move_;
 }
 
 // Mirrors shaders/stabilize_outflow.frag.
@@ -347,6 +357,12 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   const float h = cell.x + s;
   const float he = free_top(cell, s);  // snow above the ceiling is pressed out
   const float over = h - he;
+  // What cohesion holds stays (snow/cohesion.h); only the rest moves.
+  const float movable = s - held_snow(cell, s, hold_[k], stand_);
+  if (!(movable > 0.0f)) {
+    gate_[k] = pass_id_ << 1;  // a single step moves nothing either
+    return 0.0f;
+  }
   // A strided pass moves only snow that a single step moves: snow at rest
   // for single steps stays, which the GPU passes' active tiles rely on. The
   // rule's answer is kept (gate_) while nothing around the texel changes; a
@@ -357,7 +373,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   if (kStrided) {
     bool moves = (gate & 1) != 0;
     if (!known) {
-      moves = single_step_moves(i, j, cell, s, he, over);
+      moves = single_step_moves(i, j, cell, movable, he, over);
       gate_[k] = pass_id_ << 1 | uint32_t(moves);
     }
     if (!moves) return 0.0f;
@@ -413,9 +429,10 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   // (set below where it does).
   if (!kStrided) gate_[k] = pass_id_ << 1 | uint32_t(voids > 0);
   if (voids > 0) {
-    // An edge of the world: everything falls off, shared by the void directions.
-    const float share = s / float(voids);
-    float left = s;
+    // An edge of the world: everything that moves falls off, shared by the
+    // void directions.
+    const float share = movable / float(voids);
+    float left = movable;
     int seen = 0;
     for (int n = 0; n < 8; ++n) {
       if (code[n] != kCodeVoid) continue;
@@ -428,7 +445,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
     // excess: a receiver rises by at most half its excess, so the pair
     // never overshoots and piles end at the repose slope.
     // Moves under min_move are not made (rounding noise).
-    float total = std::min(s, std::max(0.5f * wmax, over));
+    float total = std::min(movable, std::max(0.5f * wmax, over));
     if (!kStrided) gate_[k] = pass_id_ << 1 | uint32_t(total >= min_move_);
     if (total < min_move_) total = 0.0f;
     for (int n = 0; n < 8; ++n) out[n] = total * (w[n] / wsum);
@@ -624,18 +641,20 @@ float CpuStabilizer::erode_texel(int l, int i, int j) const {
   const size_t k = index(l, i, j);
   const glm::vec4 cell = cells_[k];
   float hs = stable_[k];
-  if (hs > cell.x) {
+  // What cohesion holds is kept whatever the neighbours keep.
+  const float floor = cell.x + held_snow(cell, depth_[k], hold_[k], stand_);
+  if (hs > floor) {
     const float he = free_top(cell, depth_[k]);
     for (int n = 0; n < 8; ++n) {
       const int ni = i + kDirI[n], nj = j + kDirJ[n];
       const int land_l = land(ni, nj, he, cell.x, rise_, true);
       if (land_l == kLandVoid) {
-        hs = cell.x;
+        hs = floor;
       } else if (land_l >= 0) {
         hs = std::min(hs, stable_[index(land_l, ni, nj)] + distance_[n] * cell.z);
       }
     }
-    hs = std::max(hs, cell.x);
+    hs = std::max(hs, floor);
   }
   return hs;
 }
@@ -681,6 +700,11 @@ bool CpuStabilizer::erode_tile(int t) {
   }
 }
 
+float CpuStabilizer::start_height(size_t k) const {
+  const glm::vec4 cell = cells_[k];
+  return std::min(free_top(cell, depth_[k]), cell.x + hold_[k]);
+}
+
 int CpuStabilizer::erode() {
   // The highest snow surface each texel can keep, from H = min(ground +
   // depth, ceiling). Only layer texels with a surface are set: free_top is 0
@@ -693,7 +717,7 @@ int CpuStabilizer::erode() {
         const int col_layers = column_layers_[size_t(j) * width_ + i];
         for (int l = 0; l < col_layers; ++l) {
           const size_t k = index(l, i, j);
-          stable_[k] = free_top(cells_[k], depth_[k]);
+          stable_[k] = start_height(k);
         }
       }
     }

@@ -53,7 +53,7 @@ struct Stabilizer::Impl {
   ZeroedArray<glm::vec4> pour_cells;
   std::vector<glm::ivec4> rect;  // per layer: x, y, width, height of its surfaces (0 size: none)
 
-  gl::Texture cells, depth[2], out_a, out_b, code, reduce;
+  gl::Texture cells, holds, depth[2], out_a, out_b, code, reduce;
   // The routing's data live in the outflow textures, free between passes
   // (the first pass after the routing computes every tile again): views of
   // the same memory as other formats (see route()).
@@ -204,6 +204,12 @@ void Stabilizer::Impl::upload_cells(const SnowMaps& maps) {
   cells = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize cells");
   glTextureSubImage3D(cells.id(), 0, 0, 0, 0, width, height, layers, GL_RGBA, GL_FLOAT,
                       cell_data.data());
+  {
+    const ZeroedArray<float> hold_data = stabilize_holds(maps, settings);
+    holds = gl::create_texture_2d_array(GL_R32F, width, height, layers, "stabilize holds");
+    glTextureSubImage3D(holds.id(), 0, 0, 0, 0, width, height, layers, GL_RED, GL_FLOAT,
+                        hold_data.data());
+  }
   if (settings.route_steep && settings.deposit_piles) {
     // Rows on all cores.
     pour_cells = ZeroedArray<glm::vec4>(cell_data.size());
@@ -342,6 +348,7 @@ void Stabilizer::Impl::set_common(const gl::Program& program) const {
   program.set("u_distance", distance);
   program.set("u_rise", kSurfaceContinuityTexels * grid.texel);
   program.set("u_min_move", min_move_of(settings));
+  program.set("u_stand", settings.cohesion.stand_height);
 }
 
 // draw(l) once per layer l with surfaces, into fbos[l] with u_layer = l and
@@ -506,6 +513,7 @@ void Stabilizer::Impl::add_snow(const std::vector<float>& amount) {
   glTextureSubImage3D(out_a.id(), 0, 0, 0, 0, width, height, layers, GL_RED, GL_FLOAT,
                       amount.data());
   bind(SNOW_STABILIZE_CELLS, cells);
+  bind(SNOW_STABILIZE_HOLD, holds);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
   bind(SNOW_STABILIZE_ADD, out_a);
   per_layer(add, fbo_depth[1 - cur]);
@@ -585,6 +593,7 @@ void Stabilizer::Impl::scatter_routed(int routed) {
 
 int Stabilizer::Impl::route(bool drain) {
   bind(SNOW_STABILIZE_CELLS, cells);
+  bind(SNOW_STABILIZE_HOLD, holds);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
   // The routing runs in the outflow textures (r of each texel): the kept
   // heights ping-pong between out_b and code (as floats), the pointers
@@ -725,6 +734,7 @@ void Stabilizer::Impl::relax_pass(int stride, bool measure) {
   int level = 0;
   while ((settings.max_stride >> level) > stride) ++level;
   bind(SNOW_STABILIZE_CELLS, cells);
+  bind(SNOW_STABILIZE_HOLD, holds);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
   const gl::Program& out_program = tiled ? outflow_tiled : outflow;
   const gl::Program& gather_program = tiled ? gather_tiled : gather;

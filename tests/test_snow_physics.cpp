@@ -1,0 +1,212 @@
+// The snow's physics against analytic cases and published measurements, on
+// scenes built in code, through the CPU stages (snow_cpu: the CPU peel, the
+// ray-cast coverage, the CPU stabilizer; the GPU stabilizer's agreement with
+// the CPU one is test_stabilize's): cohesion (snow/cohesion.h) against
+// EN 1991-1-3's roof shape coefficient and SnowSlide's holding depths.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "scene/builder.h"
+#include "snow/coverage.h"
+#include "snow/peel.h"
+#include "snow/reference/coverage_ref.h"
+#include "snow/reference/peel_ref.h"
+#include "snow/stabilize_cpu.h"
+
+namespace snow {
+namespace {
+
+struct Snowed {
+  SnowMaps maps;
+  std::vector<float> depth;  // metres per layer texel, after stabilizing
+  double fallen = 0.0;       // m^3 of snow that fell on the maps
+  double lying = 0.0;        // m^3 lying after stabilizing
+  double lost = 0.0;         // m^3 that left the maps
+};
+
+// `fall` metres of snow on `scene` (maps of `max_side` texels along the
+// longer side), stabilized on the CPU with `settings`.
+Snowed snow_on(const Scene& scene, int max_side, float fall, const StabilizeSettings& settings) {
+  PeelSettings peel;
+  peel.max_side = max_side;
+  Snowed out;
+  out.maps = reference::peel_layers(scene, make_grid(scene.bounds, peel), peel.layers);
+  CoverageSettings coverage;
+  coverage.directions = 16;
+  const std::vector<float> p =
+      reference::compute_coverage(scene, out.maps, fall_directions(coverage));
+  std::vector<float> fell(p.size(), 0.0f);
+  for (size_t k = 0; k < p.size(); ++k) {
+    if (!std::isnan(out.maps.ground[k])) fell[k] = fall * p[k];
+  }
+  out.fallen = snow_volume(out.maps, fell);
+  CpuStabilizer stabilizer(out.maps, settings);
+  stabilizer.set_depth(std::vector<float>(p.size(), 0.0f));
+  stabilizer.add_snow(p, fall);
+  const StabilizeResult r = stabilizer.run();
+  EXPECT_TRUE(r.converged);
+  out.depth = stabilizer.depth();
+  out.lying = snow_volume(out.maps, out.depth);
+  out.lost = stabilizer.lost_volume();
+  return out;
+}
+
+// Mean snow depth (m) over the up-facing layer texels of `object` whose
+// centre satisfies `where(x, z)`.
+template <class Where>
+double mean_depth(const Snowed& s, int object, Where where) {
+  double sum = 0.0;
+  size_t count = 0;
+  const SnowMaps& m = s.maps;
+  for (int l = 0; l < m.layers; ++l) {
+    for (int j = 0; j < m.grid.height; ++j) {
+      for (int i = 0; i < m.grid.width; ++i) {
+        const size_t k = m.index(l, i, j);
+        const glm::vec2 c = m.grid.center(i, j);
+        if (m.object[k] != object || !(m.normal[k].y > 0.0f) || !where(c.x, c.y)) continue;
+        sum += double(s.depth[k]);
+        ++count;
+      }
+    }
+  }
+  return count > 0 ? sum / double(count) : 0.0;
+}
+
+// EN 1991-1-3, table 5.2: roof shape coefficient mu1 for a pitch in degrees.
+double en_mu1(double pitch_deg) {
+  if (pitch_deg <= 30.0) return 0.8;
+  if (pitch_deg >= 60.0) return 0.0;
+  return 0.8 * (60.0 - pitch_deg) / 30.0;
+}
+
+// Roofs against pitch: a gable-roofed house on open ground, 0.3 m of fresh
+// snow. EN 1991-1-3's mu1 is the roof's load over the ground's: 0.8 for
+// pitches up to 30 degrees, falling linearly to 0 at 60. Its 0.8 on gentle
+// roofs is what wind and heat take off roofs over a winter (the standard's
+// exposure and thermal allowances); in still air a flat roof keeps what the
+// ground gets. So the shedding against pitch is compared with mu1 / 0.8,
+// the share of a flat roof's snow that a pitched roof keeps, within 0.1 of
+// mu1 (0.125 of mu1 / 0.8), and gentle roofs keep the ground's depth.
+TEST(SnowPhysics, RoofSnowAgainstPitchFollowsEurocodeMu1) {
+  StabilizeSettings settings;  // fresh snow, the defaults
+  const float fall = 0.3f;
+  std::vector<double> mu;
+  std::vector<float> pitches;
+  for (float pitch : {1.0f, 15.0f, 30.0f, 40.0f, 45.0f, 50.0f, 55.0f, 60.0f, 70.0f}) {
+    HouseDims dims;
+    dims.roof_pitch_deg = pitch;
+    const Scene scene = make_house_scene(dims);
+    const Snowed s = snow_on(scene, 256, fall, settings);
+    const int roof = find_object(scene, "HouseRoof");
+    const int floor = find_object(scene, "Floor");
+    const double ground = mean_depth(s, floor, [](float x, float z) {
+      return std::abs(x) > 6.0f && std::abs(z) > 5.0f;
+    });
+    const double on_roof = mean_depth(s, roof, [](float, float) { return true; });
+    mu.push_back(on_roof / ground);
+    pitches.push_back(pitch);
+    std::printf("pitch %4.1f  roof %.4f m  ground %.4f m  roof/ground %.3f  x 0.8 = %.3f  "
+                "(EN mu1 %.3f)\n",
+                pitch, on_roof, ground, mu.back(), 0.8 * mu.back(), en_mu1(pitch));
+    EXPECT_NEAR(ground, fall, 0.01 * fall) << pitch;
+    EXPECT_NEAR(0.8 * mu.back(), en_mu1(pitch), 0.1) << pitch;
+    if (pitch <= 30.0f) {
+      EXPECT_GT(mu.back(), 0.97) << pitch;
+    }
+    // Mass: what lies plus what left equals what fell.
+    EXPECT_NEAR(s.lying + s.lost, s.fallen, 1e-5 * s.fallen) << pitch;
+  }
+  for (size_t k = 1; k < mu.size(); ++k) {
+    if (pitches[k - 1] >= 30.0f && pitches[k] <= 60.0f) {
+      EXPECT_LT(mu[k], mu[k - 1]) << pitches[k];
+    }
+  }
+}
+
+// A 2 x 2 m block, 1 m tall, on open ground, 0.3 m of fresh snow on 1 cm
+// texels: the snow keeps its depth to the edge (a pillow), where loose snow
+// would bevel at the repose angle.
+TEST(SnowPhysics, SnowOnABlockKeepsItsDepthToTheEdge) {
+  SceneBuilder b;
+  b.add_plane("Ground", 0.0f, glm::vec2(-2.0f), glm::vec2(2.0f));
+  const int block = b.add_box("Block", glm::vec3(-1.0f, 0.0f, -1.0f), glm::vec3(1.0f, 1.0f, 1.0f));
+  const Scene scene = b.build();
+  for (const bool cohesive : {true, false}) {
+    StabilizeSettings settings;
+    if (!cohesive) settings.cohesion = loose_snow();
+    const Snowed s = snow_on(scene, 400, 0.3f, settings);
+    const double centre = mean_depth(s, block, [](float x, float z) {
+      return std::abs(x) < 0.2f && std::abs(z) < 0.2f;
+    });
+    const double band = mean_depth(s, block, [](float x, float z) {
+      return std::max(std::abs(x), std::abs(z)) > 0.9f;
+    });
+    std::printf("%s snow: centre %.4f m, outer 10 cm %.4f m (%.2f of the centre)\n",
+                cohesive ? "fresh" : "loose", centre, band, band / centre);
+    EXPECT_NEAR(centre, 0.3, 0.01);
+    if (cohesive) {
+      EXPECT_GE(band / centre, 0.6);
+    } else {
+      EXPECT_LT(band / centre, 0.6);  // the bevel the cohesion does away with
+    }
+    EXPECT_NEAR(s.lying + s.lost, s.fallen, 1e-5 * s.fallen);
+  }
+}
+
+// A 60-degree roof: thin snow clings (SnowSlide's field data: the steeper, the
+// less holds; a few centimetres on steep faces), a metre of it mostly sheds.
+TEST(SnowPhysics, ThinSnowClingsToASteepRoofAndDeepSnowSheds) {
+  HouseDims dims;
+  dims.roof_pitch_deg = 60.0f;
+  const Scene scene = make_house_scene(dims);
+  const int roof = find_object(scene, "HouseRoof");
+  const StabilizeSettings settings;
+  const auto on_roof = [&](const Snowed& s) {
+    return mean_depth(s, roof, [](float, float) { return true; });
+  };
+  const Snowed thin = snow_on(scene, 256, 0.02f, settings);
+  const Snowed deep = snow_on(scene, 256, 1.0f, settings);
+  std::printf("60-degree roof: 0.02 m fell, %.4f m stays; 1 m fell, %.4f m stays\n", on_roof(thin),
+              on_roof(deep));
+  EXPECT_GT(on_roof(thin), 0.9 * 0.02);
+  EXPECT_GT(on_roof(deep), 0.01);
+  EXPECT_LT(on_roof(deep), 0.1 * 1.0);
+}
+
+// Snow shed from a 50-degree roof lands along the drip line (the eaves
+// overhang the walls by 0.5 m) as a mound higher than the snow on open
+// ground, and fills the sheltered strip under the eaves: no bare trench
+// along the wall.
+TEST(SnowPhysics, ShedSnowFormsAMoundAlongTheDripLine) {
+  HouseDims dims;
+  dims.roof_pitch_deg = 50.0f;
+  const Scene scene = make_house_scene(dims);
+  const Snowed s = snow_on(scene, 256, 0.3f, StabilizeSettings{});
+  const int floor = find_object(scene, "Floor");
+  const SnowMaps& m = s.maps;
+  const int i = m.grid.width / 2;  // x = 0, across the long wall at z = 2
+  float at_wall = -1.0f, peak = 0.0f, peak_z = 0.0f;
+  for (int j = 0; j < m.grid.height; ++j) {
+    for (int l = 0; l < m.layers; ++l) {
+      const size_t k = m.index(l, i, j);
+      const float z = m.grid.center(i, j).y;
+      if (m.object[k] != floor || z < 2.0f || z > 5.0f) continue;
+      if (at_wall < 0.0f) at_wall = s.depth[k];
+      if (s.depth[k] > peak) {
+        peak = s.depth[k];
+        peak_z = z;
+      }
+    }
+  }
+  std::printf("drip line: %.3f m against the wall, peak %.3f m at z = %.2f m (eaves at 2.5)\n",
+              at_wall, peak, peak_z);
+  EXPECT_GE(at_wall, 0.3f);
+  EXPECT_GT(peak, 0.45f);
+  EXPECT_NEAR(peak_z, 2.5f, 0.3f);
+}
+
+}  // namespace
+}  // namespace snow
