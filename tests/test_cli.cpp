@@ -393,6 +393,11 @@ TEST(Cli, ExitCodesAndNoPartialOutputs) {
   EXPECT_EQ(bad_stride.code, 2);
   EXPECT_NE(bad_stride.output.find("max_stride"), std::string::npos) << bad_stride.output;
   EXPECT_EQ(bad_stride.output.find("peel"), std::string::npos) << bad_stride.output;
+  const RunResult bad_kind = run("snow " + q(kCourtyard) + " --snow slush -o " + q(out / "x.glb"));
+  EXPECT_EQ(bad_kind.code, 2);
+  EXPECT_NE(bad_kind.output.find("--snow must be powder, fresh or wet, got 'slush'"),
+            std::string::npos)
+      << bad_kind.output;
   const RunResult bad_device =
       run("snow " + q(kCourtyard) + " --stabilizer tpu -o " + q(out / "x.glb"));
   EXPECT_EQ(bad_device.code, 2);
@@ -607,7 +612,9 @@ TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
 TEST(Cli, WarnsWhenTheSnowDoesNotSettle) {
   const fs::path dir = temp_dir("settle");
   save_small_table(dir / "small.glb");
-  const std::string common = "snow " + q(dir / "small.glb") + " --max-side 32 --directions 8";
+  // Loose snow (no cohesion) creeps off the table's edges for many passes.
+  const std::string common =
+      "snow " + q(dir / "small.glb") + " --max-side 32 --directions 8 --stand-height 0";
   const RunResult cut = run(common + " --max-iterations 2 -o " + q(dir / "cut.obj"));
   ASSERT_EQ(cut.code, 0) << cut.output;
   EXPECT_NE(cut.output.find("did not settle within --max-iterations 2 passes"), std::string::npos)

@@ -176,6 +176,35 @@ TEST(SnowPhysics, ThinSnowClingsToASteepRoofAndDeepSnowSheds) {
   EXPECT_LT(on_roof(deep), 0.1 * 1.0);
 }
 
+// The kinds of snow and the grip of surfaces: on a 45-degree roof, powder
+// keeps less than fresh snow and wet snow more; a slippery (metal) roof
+// keeps less than a normal one and a rough (shingled) one more.
+TEST(SnowPhysics, SnowKindsAndSurfaceGripChangeWhatARoofHolds) {
+  HouseDims dims;
+  dims.roof_pitch_deg = 45.0f;
+  const Scene scene = make_house_scene(dims);
+  const int roof = find_object(scene, "HouseRoof");
+  const auto on_roof = [&](SnowKind kind, float grip) {
+    StabilizeSettings settings;
+    settings.cohesion = cohesion_of(kind);
+    settings.grip.assign(scene.objects.size(), kGripNormal);
+    settings.grip[size_t(roof)] = grip;
+    const Snowed s = snow_on(scene, 128, 0.3f, settings);
+    return mean_depth(s, roof, [](float, float) { return true; });
+  };
+  const double fresh = on_roof(SnowKind::Fresh, kGripNormal);
+  const double powder = on_roof(SnowKind::Powder, kGripNormal);
+  const double wet = on_roof(SnowKind::Wet, kGripNormal);
+  const double metal = on_roof(SnowKind::Fresh, kGripSlippery);
+  const double shingles = on_roof(SnowKind::Fresh, kGripRough);
+  std::printf("45-degree roof: powder %.3f, fresh %.3f, wet %.3f; slippery %.3f, rough %.3f m\n",
+              powder, fresh, wet, metal, shingles);
+  EXPECT_LT(powder, 0.8 * fresh);
+  EXPECT_GT(wet, 1.2 * fresh);
+  EXPECT_NEAR(metal, 0.5 * fresh, 0.1 * fresh);
+  EXPECT_GT(shingles, 1.5 * fresh);
+}
+
 // Snow shed from a 50-degree roof lands along the drip line (the eaves
 // overhang the walls by 0.5 m) as a mound higher than the snow on open
 // ground, and fills the sheltered strip under the eaves: no bare trench

@@ -77,6 +77,7 @@ void run_preview(PreviewOptions o) {
                    : o.overlay == "depth"  ? live::Overlay::Depth
                                            : live::Overlay::None;
   check_settings(s);  // flags and --config alike
+  resolve_snow_settings(s);
   check_viewer_options(v);
   s.peel.memory_budget = memory_budget_bytes(s.memory_budget_gib);
   s.load.limits.memory_budget = s.peel.memory_budget;  // the scene's data, images included
@@ -105,6 +106,9 @@ void run_preview(PreviewOptions o) {
   warn_unmatched(loaded, s.no_snow_on, "--no-snow-on");
   const Scene scene = without_ignored(std::move(loaded), s.ignore);
   if (!s.no_snow_on.empty()) v.receives = receiving_objects(scene, s.no_snow_on);
+  warn_unmatched(scene, s.slippery, "--slippery");
+  warn_unmatched(scene, s.rough, "--rough");
+  v.sim.stabilize.grip = object_grip(scene, s.slippery, s.rough);
   const live::ViewerReport r = live::run_viewer(scene, v);
   char summary[400];
   std::snprintf(summary, sizeof summary,

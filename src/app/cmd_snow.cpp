@@ -173,6 +173,7 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
   }
   PipelineSettings s = o.settings;
   check_settings(s);  // flags and --config alike
+  resolve_snow_settings(s);
   s.peel.memory_budget = memory_budget_bytes(s.memory_budget_gib);
   s.load.limits.memory_budget = s.peel.memory_budget;  // the scene's data, images included
   s.stabilize.seed = uint32_t(s.coverage.seed);
@@ -297,6 +298,9 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   const size_t triangles_in = scene.triangle_count();
   const Scene snow_scene = without_ignored(std::move(scene), s.ignore);
   const std::vector<uint8_t> receives = receiving_objects(snow_scene, s.no_snow_on);
+  warn_unmatched(snow_scene, s.slippery, "--slippery");
+  warn_unmatched(snow_scene, s.rough, "--rough");
+  s.stabilize.grip = object_grip(snow_scene, s.slippery, s.rough);
   warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
   warn_if_imprecise(snow_scene, s.accumulate.fall_depth);
 

@@ -65,4 +65,19 @@ std::vector<uint8_t> receiving_objects(const Scene& scene,
   return receives;
 }
 
+ObjectGrip object_grip(const Scene& scene, const std::vector<std::string>& slippery,
+                       const std::vector<std::string>& rough) {
+  ObjectGrip grip(scene.objects.size(), kGripNormal);
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    const bool slides = matches(slippery, scene.objects[i]), holds = matches(rough, scene.objects[i]);
+    if (slides && holds) {
+      throw InputError("object '" + scene.objects[i].name +
+                       "' is matched by both --slippery and --rough");
+    }
+    if (slides) grip[i] = kGripSlippery;
+    if (holds) grip[i] = kGripRough;
+  }
+  return grip;
+}
+
 }  // namespace snow::app

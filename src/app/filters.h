@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "scene/scene.h"
+#include "snow/cohesion.h"
 
 namespace snow::app {
 
@@ -20,6 +21,13 @@ void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, c
 /// nor shelter; each is logged): `scene` itself when none is ignored (moved
 /// in, not copied). Throws InputError when nothing is left.
 Scene without_ignored(Scene scene, const std::vector<std::string>& ignore);
+
+/// Per object of `scene`, the grip of its surface (snow/cohesion.h):
+/// kGripSlippery where a `slippery` glob matches, kGripRough where a `rough`
+/// one does, else kGripNormal. Throws InputError naming an object that both
+/// match.
+ObjectGrip object_grip(const Scene& scene, const std::vector<std::string>& slippery,
+                       const std::vector<std::string>& rough);
 
 /// Per object of `scene`: 0 where a `no_snow_on` glob matches (it gets no
 /// fresh snow but still shelters), else 1.

@@ -126,6 +126,12 @@ void check_settings(const PipelineSettings& settings) {
       copy);
 }
 
+void resolve_snow_settings(PipelineSettings& s) {
+  s.stabilize.cohesion = cohesion_of(snow_kind_from_name(s.snow_kind));
+  if (s.stand_height >= 0.0f) s.stabilize.cohesion.stand_height = s.stand_height;
+  if (s.hold_depth >= 0.0f) s.stabilize.cohesion.hold_depth = s.hold_depth;
+}
+
 plan::Settings plan_settings(const PipelineSettings& settings) {
   plan::Settings out;
   out.fall_depth = settings.accumulate.fall_depth;
@@ -197,7 +203,7 @@ bool is_developer_setting(const std::string& key) {
       "maps.merge_distance", "maps.device",      "coverage.batch",     "coverage.bias",
       "coverage.method",     "snow.min_move",    "snow.max_stride",    "snow.adaptive_stride",
       "snow.device",         "snow.route_steep", "snow.deposit_piles", "snow.drain_edges",
-      "mesh.piece_triangles"};
+      "mesh.piece_triangles", "snow.stand_height", "snow.hold_depth"};
   for (const char* k : kDeveloper) {
     if (key == k) return true;
   }

@@ -28,6 +28,11 @@ struct PipelineSettings {
   float memory_budget_gib = 4.0f;       // GiB, stop before allocating more (peel.memory_budget)
   std::vector<std::string> no_snow_on;  // name globs: shelter but receive no snow
   std::vector<std::string> ignore;      // name globs: neither receive nor shelter
+  std::string snow_kind = "fresh";      // powder, fresh or wet (snow/cohesion.h)
+  float stand_height = -1.0f;           // m, overrides the kind's (negative: the kind's)
+  float hold_depth = -1.0f;             // m, overrides the kind's (negative: the kind's)
+  std::vector<std::string> slippery;    // name globs: surfaces that shed snow sooner
+  std::vector<std::string> rough;       // name globs: surfaces that hold more snow
 };
 
 /// The values a numeric setting accepts: lo..hi, both included, every value
@@ -110,8 +115,19 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("snow.snow_on_snow_every", "--snow-on-snow-every",
     "Re-render shadows with the lying snow every N steps (0 = off)",
     s.accumulate.snow_on_snow_every, Range{0, kMaxSnowSteps});
-  v("snow.repose_deg", "--repose", "Angle of repose of the snow, degrees", s.stabilize.repose_deg,
-    Range{5, 85});
+  v("snow.kind", "--snow",
+    "Kind of snow: powder (dry, sheds sooner), fresh or wet (sticky, clings to steeper roofs and "
+    "stands higher at edges)",
+    s.snow_kind, kNoRange);
+  v("snow.stand_height", "--stand-height",
+    "Snow up to this deep stands at free edges by cohesion, metres (negative = the --snow kind's)",
+    s.stand_height, Range{0, 100, true});
+  v("snow.hold_depth", "--hold-depth",
+    "Deepest snow that holds on a 40-degree slope, metres; steeper slopes hold less (negative = "
+    "the --snow kind's)",
+    s.hold_depth, Range{0.001, 100, true});
+  v("snow.repose_deg", "--repose", "Angle of repose of snow that slid and piles up, degrees",
+    s.stabilize.repose_deg, Range{5, 85});
   v("snow.repose_jitter_deg", "--repose-jitter",
     "Per-texel jitter of the repose angle, +- degrees (repose +- jitter within 1..89)",
     s.stabilize.repose_jitter_deg, Range{0, 40});
@@ -168,6 +184,13 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     kNoRange);
   v("filters.ignore", "--ignore",
     "Name glob of objects that neither receive nor shelter (repeatable)", s.ignore, kNoRange);
+  v("filters.slippery", "--slippery",
+    "Name glob of objects whose surface sheds snow sooner: glass, metal, solar panels "
+    "(repeatable)",
+    s.slippery, kNoRange);
+  v("filters.rough", "--rough",
+    "Name glob of objects whose surface holds more snow: rock, shingles, gravel (repeatable)",
+    s.rough, kNoRange);
 }
 
 /// The range as the help texts print it: "[0..100]", "[negative, or
@@ -185,6 +208,11 @@ void check_range(const std::string& flag, const std::string& key, double value, 
 /// The stages check the combinations (repose +- jitter, strides that are
 /// powers of two, wind against fall speed) themselves.
 void check_settings(const PipelineSettings& settings);
+
+/// Sets settings.stabilize.cohesion from the snow kind and its overrides
+/// (stand_height, hold_depth where not negative). Throws InputError naming
+/// --snow for an unknown kind.
+void resolve_snow_settings(PipelineSettings& settings);
 
 /// What the planner needs of `settings` (plan::plan_run).
 plan::Settings plan_settings(const PipelineSettings& settings);
