@@ -165,6 +165,10 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("mesh.decimate_error", "--decimate-error",
     "Decimation error bound in metres (negative = half a texel)", s.polygonize.decimate_error,
     Range{0, 100, true});
+  v("mesh.shoulder_radius", "--shoulder",
+    "Radius over which the snow rounds off at free edges (table tops, wall caps), metres (0 = "
+    "square)",
+    s.polygonize.shoulder_radius, Range{0, 10});
   v("mesh.smooth_iterations", "--smooth", "Smoothing passes over the snow top",
     s.polygonize.smooth_iterations, Range{0, 100});
   v("mesh.min_patch_area", "--min-patch-area", "Drop snow patches smaller than this, square metres",

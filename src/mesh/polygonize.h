@@ -24,6 +24,10 @@ struct PolygonizeSettings {
   /// replace). Lowered to a quarter of the patch's median snow depth so
   /// thin snow keeps its volume.
   float decimate_error = -1.0f;
+  /// The snow rounds over a shoulder of this radius (metres, >= 0; 0:
+  /// square) where it ends at a free edge (a table top's, a wall cap's), as
+  /// fresh snow forms a pillow (poly::round_shoulders).
+  float shoulder_radius = 0.1f;
   /// Smoothing passes (count) over the snow top (mass-conserving diffusion of
   /// the snow surface height) and over the outline. 0: none.
   int smooth_iterations = 2;

@@ -6,12 +6,14 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include <glm/glm.hpp>
 
 #include "core/parallel.h"
 #include "mesh/polygonize/steps.h"
+#include "snow/column.h"
 
 namespace snow::poly {
 
@@ -119,6 +121,71 @@ PatchField build_field(const SnowMaps& maps, const LayerArray<float>& depth,
     if (n > 0) f.g[a] = float(sum / n);
   });
   return f;
+}
+
+void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float>& depth,
+                     const PatchTexels& patch, float radius) {
+  const float texel = maps.grid.texel;
+  const int reach = int(std::ceil(radius / texel));
+  // Chamfer distance (texels) from the nearest free-edge member; far: +inf.
+  std::vector<float> steps(f.s.size(), std::numeric_limits<float>::infinity());
+  std::vector<size_t> edge;
+  TexelRows rows(maps);
+  static const int kDi[4] = {1, -1, 0, 0}, kDj[4] = {0, 0, 1, -1};
+  for (size_t k : patch.texels) {
+    const TexelCoord c = rows(k);
+    const size_t a = f.at(c.i - f.i0, c.j - f.j0);
+    const float s = depth[k], top = maps.ground[k] + s;
+    for (int n = 0; n < 4; ++n) {
+      if (f.member[f.at(c.i - f.i0 + kDi[n], c.j - f.j0 + kDj[n])]) continue;
+      const int ni = c.i + kDi[n], nj = c.j + kDj[n];
+      const int l = landing(maps, depth.data(), ni, nj, top, maps.ground[k]);
+      bool drop = l == kLandVoid;
+      if (l >= 0) {
+        const size_t kn = maps.index(l, ni, nj);
+        drop = top - (maps.ground[kn] + std::max(depth[kn], 0.0f)) > 0.5f * s;
+      }
+      if (drop) {
+        steps[a] = 0.0f;
+        edge.push_back(a);
+        break;
+      }
+    }
+  }
+  if (edge.empty()) return;
+  // Chamfer sweeps (1 along rows and columns, sqrt 2 across) over members,
+  // forward and back, within the window.
+  const float kDiag = std::sqrt(2.0f);
+  for (int pass = 0; pass < 2; ++pass) {
+    const bool forward = pass == 0;
+    for (int jj = 0; jj < f.h; ++jj) {
+      const int wj = forward ? jj : f.h - 1 - jj;
+      for (int ii = 0; ii < f.w; ++ii) {
+        const int wi = forward ? ii : f.w - 1 - ii;
+        const size_t a = f.at(wi, wj);
+        if (!f.member[a]) continue;
+        const int d = forward ? -1 : 1;
+        const auto relax = [&](int di, int dj, float cost) {
+          const int ni = wi + di, nj = wj + dj;
+          if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) return;
+          const size_t b = f.at(ni, nj);
+          if (f.member[b]) steps[a] = std::min(steps[a], steps[b] + cost);
+        };
+        relax(d, 0, 1.0f);
+        relax(0, d, 1.0f);
+        relax(d, d, kDiag);
+        relax(-d, d, kDiag);
+      }
+    }
+  }
+  for (size_t a = 0; a < f.s.size(); ++a) {
+    if (!f.member[a] || steps[a] > float(reach)) continue;
+    const float s = f.s[a], r = std::min(radius, s);
+    const float x = (steps[a] + 1.0f) * texel;
+    if (x >= r) continue;
+    const float u = r - x;
+    f.s[a] = s - r + std::sqrt(std::max(r * r - u * u, 0.0f));
+  }
 }
 
 // Each sample gathers its four fluxes, on all cores, in the order a serial

@@ -133,6 +133,9 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const LayerArray<float
   error = std::min(error, 0.25 * double(median_depth));
 
   PatchField field = build_field(maps, d, texels);
+  if (settings.shoulder_radius > 0.0f) {
+    round_shoulders(field, maps, d, texels, settings.shoulder_radius);
+  }
   smooth_field(field, settings.smooth_iterations, min_thickness);
   const double field_seconds = seconds();
   const double tolerance = error > 0.0 ? 0.5 * error : -1.0;

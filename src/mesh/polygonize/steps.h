@@ -117,6 +117,18 @@ void each_sample(const PatchField& f, unsigned threads, const Fn& fn) {
       threads);
 }
 
+/// Rounds the snow over a shoulder of `radius` metres (> 0) along the
+/// patch's free edges: where a member's 4-neighbour column is not in the
+/// patch and the snow would drop there (into the void, or onto a top lower by
+/// more than half the member's depth: a table's or a wall cap's edge, not a
+/// wall). At distance x (m) from such an edge the thickness s becomes
+/// s - r + sqrt(r^2 - (r - x)^2) with r = min(radius, s), for x < r: the snow
+/// stands vertical for s - r and rounds over a quarter circle, a pillow's
+/// shoulder. x is the chamfer distance over members from the edge member,
+/// plus one texel (the outline lies about a texel beyond its centre).
+void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float>& depth,
+                     const PatchTexels& patch, float radius);
+
 /// The patch's window with thickness `depth` and the maps' ground on its
 /// texels, the ground slope there, and the ground extrapolated one sample out.
 PatchField build_field(const SnowMaps& maps, const LayerArray<float>& depth,
