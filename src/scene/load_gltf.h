@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "scene/scene.h"
+#include "scene/source_gltf.h"
 
 namespace snow {
 
@@ -40,6 +41,7 @@ struct LoadSettings {
                             // NORMAL and TEXCOORD attributes are not read, and
                             // Scene::normals and Scene::uvs stay empty
   LoadLimits limits;        // resource limits (see LoadLimits)
+  bool keep_source = false;  // keep the parsed file in Scene::source (scene/source_gltf.h)
 };
 
 /// The file that a glTF uri names, as the loader reads it: `uri`
