@@ -288,7 +288,7 @@ TEST_F(Hostile, DeepOrBrokenJsonIsOneErrorForEveryCombinedOutput) {
   }
   const std::string broken_text = text.substr(0, text.size() / 2);
   text.insert(text.rfind('}'),
-              ",\"extras\":" + std::string(100000, '{') + std::string(100000, '}'));
+              ",\"extras\":" + std::string(100000, '[') + std::string(100000, ']'));
   std::ofstream(deep) << text;
   std::ofstream(dir_ / "broken.gltf") << broken_text;
   for (const char* out : {"x.glb", "x.gltf"}) {
