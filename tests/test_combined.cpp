@@ -71,12 +71,11 @@ json three_buffer_gltf(const fs::path& folder) {
   const std::string c_bytes = bytes_of(c, 36);
   json g;
   g["asset"] = {{"version", "2.0"}};
-  g["buffers"] = {
-      {{"uri", "a.bin"}, {"byteLength", 37}},
-      {{"uri", "b.bin"}, {"byteLength", 40}},
-      {{"uri", "data:application/octet-stream;base64," +
-                   test::base64(std::vector<uint8_t>(c_bytes.begin(), c_bytes.end()))},
-       {"byteLength", 36}}};
+  g["buffers"] = {{{"uri", "a.bin"}, {"byteLength", 37}},
+                  {{"uri", "b.bin"}, {"byteLength", 40}},
+                  {{"uri", "data:application/octet-stream;base64," +
+                               test::base64(std::vector<uint8_t>(c_bytes.begin(), c_bytes.end()))},
+                   {"byteLength", 36}}};
   g["bufferViews"] = {{{"buffer", 0}, {"byteLength", 36}},
                       {{"buffer", 1}, {"byteOffset", 4}, {"byteLength", 36}},
                       {{"buffer", 2}, {"byteLength", 36}}};
@@ -142,7 +141,7 @@ TEST(Combined, MergesEveryBufferIntoOne) {
     for (const json& view : g["bufferViews"]) EXPECT_EQ(view["buffer"], 0);
     EXPECT_EQ(g["bufferViews"][0].value("byteOffset", 0), 0);
     EXPECT_EQ(g["bufferViews"][1]["byteOffset"], 40 + 4);  // buffer 1 from 40 (37 to 8 bytes)
-    EXPECT_EQ(g["bufferViews"][2]["byteOffset"], 80);       // buffer 2 from 80
+    EXPECT_EQ(g["bufferViews"][2]["byteOffset"], 80);      // buffer 2 from 80
     const Scene after = load_scene(out);
     ASSERT_EQ(after.positions.size(), before.positions.size() + 3);  // the snow's triangle
     for (size_t i = 0; i < before.positions.size(); ++i)
@@ -161,13 +160,16 @@ TEST(Combined, PointsMeshoptViewsIntoTheOneBuffer) {
   const fs::path& dir = folder.path;
   json g = three_buffer_gltf(dir);
   g["extensionsUsed"] = {"EXT_meshopt_compression"};
-  g["bufferViews"].push_back(
-      {{"buffer", 0},
-       {"byteLength", 36},
-       {"extensions",
-        {{"EXT_meshopt_compression",
-          {{"buffer", 2}, {"byteOffset", 8}, {"byteLength", 28}, {"count", 1},
-           {"byteStride", 4}, {"mode", "ATTRIBUTES"}}}}}});
+  g["bufferViews"].push_back({{"buffer", 0},
+                              {"byteLength", 36},
+                              {"extensions",
+                               {{"EXT_meshopt_compression",
+                                 {{"buffer", 2},
+                                  {"byteOffset", 8},
+                                  {"byteLength", 28},
+                                  {"count", 1},
+                                  {"byteStride", 4},
+                                  {"mode", "ATTRIBUTES"}}}}}});
   write_file(dir / "meshopt.gltf", g.dump());
   write_combined_gltf(*source_of(dir / "meshopt.gltf"), {}, dir / "out" / "x.glb");
   const json view = json_of(dir / "out" / "x.glb")["bufferViews"][3];

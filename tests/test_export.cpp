@@ -586,16 +586,13 @@ TEST(Export, CombinedKeepsTheInputAndEmbedsItsImages) {
   // The input planned ahead (as the batch job does) gives the same file, and an
   // output that is not glTF is refused at the write.
   fs::create_directories(dir / "ahead");
-  write_combined_gltf(planned(input), patches,
-                      dir / "ahead" / "combined.glb");
+  write_combined_gltf(planned(input), patches, dir / "ahead" / "combined.glb");
   const auto bytes = [](const fs::path& path) {
     std::ifstream in(path, std::ios::binary);
     return std::string(std::istreambuf_iterator<char>(in), {});
   };
   EXPECT_EQ(bytes(dir / "ahead" / "combined.glb"), bytes(dir / "out" / "combined.glb"));
-  EXPECT_THROW(write_combined_gltf(planned(input), patches,
-                                   dir / "ahead" / "x.obj"),
-               InputError);
+  EXPECT_THROW(write_combined_gltf(planned(input), patches, dir / "ahead" / "x.obj"), InputError);
 }
 
 /// What the streamed-GLB tests start from: the table's patches, a test
@@ -856,9 +853,8 @@ TEST(Export, CombinedKeepsADracoPrimitiveWithIndices) {
     ASSERT_NO_THROW(combined_from(input, no_snow, out));
     const Scene s = load_scene(out);
     EXPECT_EQ(s.triangle_count(), 2u);
-    const nlohmann::json json = out.extension() == ".glb"
-                                     ? glb_json_of(out)
-                                     : nlohmann::json::parse(read_text(out));
+    const nlohmann::json json =
+        out.extension() == ".glb" ? glb_json_of(out) : nlohmann::json::parse(read_text(out));
     EXPECT_EQ(json["meshes"][0]["primitives"][0]["indices"], 1) << json.dump();
     EXPECT_FALSE(json["accessors"][1].contains("bufferView")) << json.dump();
   }
@@ -887,9 +883,8 @@ TEST(Export, CombinedKeepsAWholeNumberBeyondInt) {
       SCOPED_TRACE(input.filename().string() + " to " + name);
       const fs::path out = dir / "out" / name;
       combined_from(input, no_snow, out);
-      const nlohmann::json json = out.extension() == ".glb"
-                                      ? glb_json_of(out)
-                                      : nlohmann::json::parse(read_text(out));
+      const nlohmann::json json =
+          out.extension() == ".glb" ? glb_json_of(out) : nlohmann::json::parse(read_text(out));
       EXPECT_EQ(json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"],
                 2147483648u)
           << json.dump();

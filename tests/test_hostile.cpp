@@ -372,8 +372,8 @@ TEST_F(Hostile, DecodedImagesOverTheMemoryBudgetExitTwo) {
   expect_refused(r, 2, "--memory-budget", out_, "three images");
   EXPECT_NE(r.output.find("image 1"), std::string::npos) << r.output;
   // render and info decode the images too, under their own --memory-budget.
-  for (const std::string& command : {"render " + q(scene) + " -o " + q(out_ / "x.png"),
-                                     "info --no-gl " + q(scene)}) {
+  for (const std::string& command :
+       {"render " + q(scene) + " -o " + q(out_ / "x.png"), "info --no-gl " + q(scene)}) {
     const RunResult small = run(command + " --memory-budget 0.01");
     expect_refused(small, 2, "--memory-budget", out_, command);
     EXPECT_NE(small.output.find("image"), std::string::npos) << small.output;
@@ -396,12 +396,12 @@ TEST_F(Hostile, TexCoordBeyondIntIsKeptNeverWrapped) {
     doc["meshes"][0]["primitives"][0]["material"] = 0;
   };
   const fs::path data = write_triangle_gltf(dir_ / "data.gltf", wide);
-  const RunResult from_data =
-      run("snow " + q(data) + kTiny + " -o " + q(out_ / "x.gltf"));
+  const RunResult from_data = run("snow " + q(data) + kTiny + " -o " + q(out_ / "x.gltf"));
   ASSERT_EQ(from_data.code, 0) << from_data.output;
-  EXPECT_EQ(json::parse(std::ifstream(out_ / "x.gltf"))["materials"][0]["pbrMetallicRoughness"]
-                                                     ["baseColorTexture"]["texCoord"],
-            2147483648u);
+  EXPECT_EQ(
+      json::parse(std::ifstream(
+          out_ / "x.gltf"))["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"],
+      2147483648u);
   // The same document with its buffer in a .bin file.
   json doc = json::parse(std::ifstream(data));
   const std::string uri = doc["buffers"][0]["uri"];

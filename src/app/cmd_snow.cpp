@@ -203,8 +203,7 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
 
 /// Writes -o, --snow-output, --maps and the effective settings beside the
 /// first output (so the run can be repeated).
-void write_outputs(const SnowOptions& o, MeshFormat format,
-                   CombinedInputPtr combined_input,
+void write_outputs(const SnowOptions& o, MeshFormat format, CombinedInputPtr combined_input,
                    const std::vector<SnowPatch>& patches, const SnowMaps& maps,
                    const SnowResult& snow) {
   if (!o.output.empty()) {
@@ -285,8 +284,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   // The scene plus snow is written from the input's JSON as the loader
   // parsed it, planned right after the load (a refused buffer fails now,
   // not after the snow); the loader's copy is then freed.
-  const bool combined =
-      !o.output.empty() && !o.snow_only && (format == MeshFormat::Glb || format == MeshFormat::Gltf);
+  const bool combined = !o.output.empty() && !o.snow_only &&
+                        (format == MeshFormat::Glb || format == MeshFormat::Gltf);
   s.load.keep_source = combined;
   Scene scene;
   CombinedInputPtr combined_input;

@@ -391,8 +391,8 @@ void merge_snow(json& g, const json& snow, uint64_t offset) {
 /// the input's buffers at their offsets, the images at theirs, the snow's
 /// bytes at `snow_offset`; zeros between them and up to `size`.
 void write_buffer(int fd, const CombinedInput& plan, const std::vector<uint64_t>& image_offsets,
-                  const std::vector<unsigned char>& snow_bytes, uint64_t snow_offset,
-                  uint64_t size, const fs::path& out) {
+                  const std::vector<unsigned char>& snow_bytes, uint64_t snow_offset, uint64_t size,
+                  const fs::path& out) {
   static const char zeros[8] = {};
   uint64_t at = 0;  // bytes written
   const auto pad_to = [&](uint64_t to) {

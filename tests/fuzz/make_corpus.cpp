@@ -320,8 +320,8 @@ int main(int argc, char** argv) {
     // 100,000 levels: refused by the loader, which is the only parser of
     // the input (the combined writer included).
     std::string deep = to_gltf_text(doc, bin);
-    deep.insert(deep.rfind('}'), ",\"extras\":" + std::string(100000, '[') +
-                                     std::string(100000, ']'));
+    deep.insert(deep.rfind('}'),
+                ",\"extras\":" + std::string(100000, '[') + std::string(100000, ']'));
     emit("bad_deeper_json.gltf", std::vector<uint8_t>(deep.begin(), deep.end()));
   }
   for (const auto& [name, uri] : {std::pair<const char*, const char*>{"dotdot", "../x.png"},

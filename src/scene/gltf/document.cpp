@@ -573,9 +573,8 @@ ViewRange GltfLoader::view(uint64_t index, const std::string& user) {
 std::optional<std::vector<uint8_t>> decode_data_uri(const std::string& uri, std::string* mime,
                                                     std::string* why) {
   std::vector<uint8_t> bytes;
-  const char* problem = gltf::starts_with_ci(uri, "data:")
-                            ? gltf::data_uri_bytes(uri, bytes, mime)
-                            : "is not a data uri";
+  const char* problem = gltf::starts_with_ci(uri, "data:") ? gltf::data_uri_bytes(uri, bytes, mime)
+                                                           : "is not a data uri";
   if (!problem) return bytes;
   if (why) *why = problem;
   return std::nullopt;
