@@ -92,7 +92,8 @@ std::optional<std::filesystem::path> resolve_relative_uri(const std::filesystem:
 /// nested deeper than kMaxJsonDepth, data over LoadLimits::memory_budget
 /// (the input policy: scene/input_policy.h), unsupported required
 /// extensions, a scene without triangles. Buffer files are read only as far
-/// as their byteLength. Throws IOError when the scene file itself does not
+/// as their byteLength. With settings.keep_source the parsed file is kept in
+/// Scene::source (scene/source_gltf.h) for the combined writer. Throws IOError when the scene file itself does not
 /// exist, is a folder or cannot be read.
 Scene load_scene(const std::filesystem::path& path, const LoadSettings& settings = {});
 
