@@ -36,11 +36,11 @@ struct LoadLimits {
 };
 
 struct LoadSettings {
-  bool load_images = true;  // decode baseColor textures into Scene::images (bool)
-  bool shading = true;      // read normals and UVs (only renderers use them); false: the
-                            // NORMAL and TEXCOORD attributes are not read, and
-                            // Scene::normals and Scene::uvs stay empty
-  LoadLimits limits;        // resource limits (see LoadLimits)
+  bool load_images = true;   // decode baseColor textures into Scene::images (bool)
+  bool shading = true;       // read normals and UVs (only renderers use them); false: the
+                             // NORMAL and TEXCOORD attributes are not read, and
+                             // Scene::normals and Scene::uvs stay empty
+  LoadLimits limits;         // resource limits (see LoadLimits)
   bool keep_source = false;  // keep the parsed file in Scene::source (scene/source_gltf.h)
 };
 
@@ -93,8 +93,8 @@ std::optional<std::filesystem::path> resolve_relative_uri(const std::filesystem:
 /// (the input policy: scene/input_policy.h), unsupported required
 /// extensions, a scene without triangles. Buffer files are read only as far
 /// as their byteLength. With settings.keep_source the parsed file is kept in
-/// Scene::source (scene/source_gltf.h) for the combined writer. Throws IOError when the scene file itself does not
-/// exist, is a folder or cannot be read.
+/// Scene::source (scene/source_gltf.h) for the combined writer. Throws IOError when the scene file
+/// itself does not exist, is a folder or cannot be read.
 Scene load_scene(const std::filesystem::path& path, const LoadSettings& settings = {});
 
 /// The bytes load_scene reads from `path`, near enough, without reading
