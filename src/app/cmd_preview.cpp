@@ -101,6 +101,8 @@ void run_preview(PreviewOptions o) {
 
   // Ignored objects are neither simulated nor drawn (a sky dome would hide
   // the scene from the orbit camera).
+  // The export (the scene plus snow) writes from the JSON the loader parsed.
+  s.load.keep_source = true;
   Scene loaded = load_scene(o.input, s.load);
   warn_unmatched(loaded, s.ignore, "--ignore");
   warn_unmatched(loaded, s.no_snow_on, "--no-snow-on");

@@ -204,13 +204,12 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
 
 /// Writes -o, --snow-output, --maps and the effective settings beside the
 /// first output (so the run can be repeated).
-void write_outputs(const SnowOptions& o, MeshFormat format,
-                   std::future<CombinedInputPtr>& combined_input,
+void write_outputs(const SnowOptions& o, MeshFormat format, CombinedInputPtr combined_input,
                    const std::vector<SnowPatch>& patches, const SnowMaps& maps,
                    const SnowResult& snow) {
   if (!o.output.empty()) {
-    if (combined_input.valid()) {
-      write_combined_gltf(combined_input.get(), patches, o.output);
+    if (combined_input) {
+      write_combined_gltf(std::move(combined_input), patches, o.output);
     } else {
       if (!o.snow_only) log_info(std::string(format_name(format)) + " holds the snow only");
       write_snow_meshes(patches, o.output, format);
@@ -283,16 +282,19 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   // Textures, normals and UVs only show in the preview.
   s.load.load_images = s.load.shading = !o.preview.empty();
   fit_heap(plan::huge_pages_off(machine, input_bytes, 0));
+  // The scene plus snow is written from the input's JSON as the loader
+  // parsed it, planned right after the load (a refused buffer fails now,
+  // not after the snow); the loader's copy is then freed.
+  const bool combined = !o.output.empty() && !o.snow_only &&
+                        (format == MeshFormat::Glb || format == MeshFormat::Gltf);
+  s.load.keep_source = combined;
   Scene scene;
-  clock.run("load", [&] { scene = load_scene(o.input, s.load); });
-  // The scene plus snow is written from the input as tinygltf reads it: read
-  // on another thread while the snow is computed.
-  std::future<CombinedInputPtr> combined_input;
-  if (!o.output.empty() && !o.snow_only &&
-      (format == MeshFormat::Glb || format == MeshFormat::Gltf)) {
-    combined_input =
-        std::async(std::launch::async, [&o] { return read_combined_input(o.input, o.output); });
-  }
+  CombinedInputPtr combined_input;
+  clock.run("load", [&] {
+    scene = load_scene(o.input, s.load);
+    if (combined) combined_input = plan_combined_gltf(*scene.source);
+    scene.source.reset();
+  });
   warn_unmatched(scene, s.ignore, "--ignore");
   warn_unmatched(scene, s.no_snow_on, "--no-snow-on");
   const size_t triangles_in = scene.triangle_count();
@@ -361,7 +363,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   clock.run("polygonize",
             [&] { patches = polygonize(maps, snow.depth, snow_scene, s.polygonize); });
   if (patches.empty()) warn_no_patches(snow, s.polygonize);
-  clock.run("export", [&] { write_outputs(o, format, combined_input, patches, maps, snow); });
+  clock.run("export",
+            [&] { write_outputs(o, format, std::move(combined_input), patches, maps, snow); });
   if (!o.preview.empty()) {
     clock.run("preview", [&] {
       const auto context = gl.context();

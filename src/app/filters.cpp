@@ -34,6 +34,7 @@ Scene without_ignored(Scene scene, const std::vector<std::string>& ignore) {
   out.images = scene.images;
   out.stats = scene.stats;
   out.warnings = scene.warnings;
+  out.source = scene.source;
   for (const SceneObject& object : scene.objects) {
     if (matches(ignore, object)) {
       log_info("ignoring object '" + object.name + "' (--ignore)");

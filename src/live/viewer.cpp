@@ -79,8 +79,8 @@ std::string export_snow(const Scene& scene, const LiveSim& sim, const ViewerOpti
   check_output_paths(options.input, {{"export", path, OutputKind::Mesh, format, {}}});
   const std::vector<SnowPatch> patches = polygonize(sim.maps(), sim.depth(), scene, options.mesh);
   const bool combined = !snow_only && (format == MeshFormat::Glb || format == MeshFormat::Gltf);
-  if (combined && !options.input.empty()) {
-    write_combined_gltf(options.input, patches, path);
+  if (combined && scene.source) {
+    write_combined_gltf(*scene.source, patches, path);
   } else {
     write_snow_meshes(patches, path, format);
   }

@@ -15,7 +15,7 @@
 namespace snow::live {
 
 struct ViewerOptions {
-  std::string input;              // the glTF file shown (export of the scene plus snow reads it)
+  std::string input;              // the glTF file shown (the export checks its path against it)
   LiveSettings sim;               // the snowfall
   PolygonizeSettings mesh;        // export
   SnowViewSettings view;          // drawing the snow

@@ -11,6 +11,7 @@
 
 #include "core/trimesh.h"
 #include "mesh/polygonize.h"
+#include "scene/source_gltf.h"
 
 namespace snow {
 
@@ -47,43 +48,45 @@ MeshMaterial snow_material();
 void write_snow_meshes(const std::vector<SnowPatch>& patches, const std::filesystem::path& path,
                        MeshFormat format);
 
-/// Writes the glTF scene `input_scene` (.gltf or .glb) plus the snow to `out`
-/// (.glb or .gltf by its extension; anything else: InputError). The snow is
-/// appended to the input (its JSON as written, streamed into a .glb where
-/// read_combined_input can plan that; else as tinygltf loads it), so its
-/// nodes, meshes, materials, textures, samplers, animations, skins, cameras
-/// and extensions are kept as they were; the snow sits under one "Snow" node
-/// added to the root of the default scene (world frame, identity transform)
-/// with snow_material(). Images that the input keeps in files or data URIs
-/// are embedded, byte for byte, into buffer 0 as buffer views, so the output
-/// opens wherever it is written; buffers are written as save_gltf does. Throws
-/// IOError when the input cannot be read or `out` cannot be written, and
-/// InputError when the input is not valid glTF (first line of tinygltf's
-/// error). Input warnings are logged naming the input.
-void write_combined_gltf(const std::filesystem::path& input_scene,
-                         const std::vector<SnowPatch>& patches, const std::filesystem::path& out);
+/// Writes the glTF scene that `source` holds (the input as load_scene read
+/// it, with LoadSettings::keep_source: its JSON is not read or parsed
+/// again) plus the snow to `out` (.glb or .gltf by its extension; anything
+/// else: InputError). The input's JSON is kept as written, so its nodes,
+/// meshes, materials, textures, samplers, animations, skins, cameras,
+/// extensions and extras stay as they were; the snow sits under one "Snow"
+/// node added to the root of the default scene (world frame, identity
+/// transform) with snow_material(). The output has one buffer: each input
+/// buffer's first byteLength bytes, from an 8-byte boundary (files copied
+/// by the kernel, read no further than byteLength; data URIs decoded), its
+/// bufferViews (and EXT_/KHR_meshopt_compression's) pointed there; then the
+/// images that the input keeps in files or data URIs, embedded byte for
+/// byte as buffer views, so the output opens wherever it is written; then
+/// the snow's data. A .gltf gets that buffer as "<stem>.bin" beside it.
+/// Every file is written atomically. Every buffer and image uri follows the
+/// input policy (scene/input_policy.h). Throws InputError, one line naming
+/// the input and the buffer or image, for what the policy refuses or a
+/// buffer the input cannot fill (mesh/glb_stream.h, plan_combined); IOError
+/// when a file cannot be read, changed since it was planned, or `out`
+/// cannot be written (no partial file is left). Images left at their uri
+/// (unreadable, unknown format) are logged as warnings naming the input.
+void write_combined_gltf(const SourceGltf& source, const std::vector<SnowPatch>& patches,
+                         const std::filesystem::path& out);
 
-/// The input scene of write_combined_gltf, read and parsed ahead of the
-/// write (the batch job reads it while the snow is computed, as parsing a
-/// large scene takes a noticeable share of the run). Its warnings are
-/// logged by the write.
+/// The combined output planned ahead (mesh/glb_stream.h): its buffers and
+/// images found and checked, their files' sizes and times taken. The batch
+/// job plans right after the load, so a refused input fails before the
+/// snow is computed, and a file changed during the run is noticed.
 struct CombinedInput;
 struct CombinedInputDeleter {
   void operator()(CombinedInput* input) const;
 };
 using CombinedInputPtr = std::unique_ptr<CombinedInput, CombinedInputDeleter>;
 
-/// Reads `input_scene` for write_combined_gltf to `out`; throws what it
-/// throws for the input (IOError, InputError). For a .glb `out`, an input
-/// whose data lie in at most one buffer (a .bin file or the GLB's own) and
-/// in image files is only planned here: its JSON is read, and the write
-/// copies the buffer's and the images' bytes from their files into the GLB
-/// (copy_file_range) without reading them into memory. Any other input is
-/// read by tinygltf here.
-CombinedInputPtr read_combined_input(const std::filesystem::path& input_scene,
-                                     const std::filesystem::path& out);
+/// Plans write_combined_gltf for `source` (a copy of its JSON is kept:
+/// `source` may be freed after); throws what it throws for the input.
+CombinedInputPtr plan_combined_gltf(const SourceGltf& source);
 
-/// write_combined_gltf from an input read ahead, which it consumes.
+/// write_combined_gltf from an input planned ahead, which it consumes.
 void write_combined_gltf(CombinedInputPtr input, const std::vector<SnowPatch>& patches,
                          const std::filesystem::path& out);
 

@@ -1,5 +1,7 @@
-// The combined GLB streamed from the input's files (mesh/glb_stream.h; GLB
-// layout: Khronos glTF 2.0 specification, section 4).
+// The combined writer (mesh/glb_stream.h): the input's JSON as the loader
+// parsed it, its buffers merged into one, plus snow. GLB layout: Khronos
+// glTF 2.0 specification, section 4; buffers, bufferViews: section 3.6;
+// EXT_meshopt_compression's bufferView extension (buffer, byteOffset).
 #include "mesh/glb_stream.h"
 
 #include <fcntl.h>
@@ -11,7 +13,6 @@
 #include <cctype>
 #include <cerrno>
 #include <cstring>
-#include <fstream>
 
 #include "core/error.h"
 #include "core/fs.h"
@@ -43,13 +44,8 @@ std::string sniff_mime_type(const std::vector<unsigned char>& b) {
 
 namespace {
 
-constexpr uint32_t kGlbMagic = 0x46546C67u;  // "glTF"
 constexpr uint32_t kChunkJson = 0x4E4F534Au;
 constexpr uint32_t kChunkBin = 0x004E4942u;
-
-uint32_t u32_at(const unsigned char* p) {
-  return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
-}
 
 bool is_index(const json& v) { return v.is_number_unsigned(); }
 
@@ -85,127 +81,202 @@ std::optional<FileBytes> file_bytes(const fs::path& file, uint64_t offset, uint6
   return bytes;
 }
 
-}  // namespace
+/// A whole number >= 0 (an integral float up to 2^53 too, as the loader
+/// reads one); nullopt for anything else.
+std::optional<uint64_t> whole_number(const json& v) {
+  if (v.is_number_unsigned()) return v.get<uint64_t>();
+  if (v.is_number_integer()) {
+    if (v.get<int64_t>() < 0) return std::nullopt;
+    return v.get<uint64_t>();
+  }
+  if (v.is_number_float()) {
+    const double d = v.get<double>();
+    if (d >= 0 && d <= 9007199254740992.0 && d == double(uint64_t(d))) return uint64_t(d);
+  }
+  return std::nullopt;
+}
 
-std::optional<StreamPlan> plan_streamed_glb(const fs::path& input) {
-  std::error_code ec;
-  const uint64_t file_size = fs::file_size(input, ec);
-  if (ec) return std::nullopt;
-  std::ifstream in(input, std::ios::binary);
-  unsigned char header[20] = {};
-  if (!in || !in.read(reinterpret_cast<char*>(header), std::min<uint64_t>(20, file_size)))
-    return std::nullopt;
-  std::string text;
-  std::optional<FileBytes> bin;  // a GLB's BIN chunk
-  if (file_size >= 20 && u32_at(header) == kGlbMagic) {
-    const uint64_t length = u32_at(header + 8), json_length = u32_at(header + 12);
-    if (u32_at(header + 4) != 2 || length > file_size || u32_at(header + 16) != kChunkJson ||
-        20 + json_length > length) {
-      return std::nullopt;
-    }
-    text.resize(json_length);
-    if (!in.read(text.data(), std::streamsize(json_length))) return std::nullopt;
-    const uint64_t next = 20 + ((json_length + 3) & ~uint64_t(3));
-    unsigned char chunk[8];
-    if (next + 8 <= length && in.seekg(std::streamoff(next)) &&
-        in.read(reinterpret_cast<char*>(chunk), 8) && u32_at(chunk + 4) == kChunkBin) {
-      const uint64_t bin_length = u32_at(chunk);
-      if (next + 8 + bin_length > length) return std::nullopt;
-      bin = file_bytes(input, next + 8, bin_length);
-      if (!bin) return std::nullopt;
-    }
-  } else {
-    text.resize(file_size);
-    in.seekg(0);
-    if (!in.read(text.data(), std::streamsize(file_size))) return std::nullopt;
-  }
-  StreamPlan plan;
-  check_json_depth(text, input.string());  // before any parser sees it
-  try {
-    plan.gltf = json::parse(text);
-  } catch (const json::exception&) {
-    return std::nullopt;
-  }
-  text = {};
+uint64_t aligned(uint64_t v) { return (v + 3) & ~uint64_t(3); }
+uint64_t aligned8(uint64_t v) { return (v + 7) & ~uint64_t(7); }
+
+/// Plans the input's buffers (CombinedInput::buffers) and points its
+/// bufferViews (and EXT_/KHR_meshopt_compression's) into the one output
+/// buffer. `fail` throws.
+template <class Fail>
+void plan_buffers(const SourceGltf& source, const fs::path& folder, CombinedInput& plan,
+                  const Fail& fail) {
   json& g = plan.gltf;
-  if (!g.is_object() || !g.contains("asset") || !g["asset"].is_object()) return std::nullopt;
-  for (const char* key : {"buffers", "bufferViews", "accessors", "images", "materials", "meshes",
-                          "nodes", "scenes"}) {
-    if (!is_array_or_absent(g, key)) return std::nullopt;
-  }
-  if (g.contains("scene") && !is_index(g["scene"])) return std::nullopt;
-  if (g.contains("scenes")) {
-    for (const json& scene : g["scenes"]) {
-      if (!scene.is_object() || !is_array_or_absent(scene, "nodes")) return std::nullopt;
-    }
-  }
-  const fs::path folder = input.parent_path();
-  // One buffer at most: buffer indices then need no change anywhere
-  // (EXT_meshopt_compression's included).
-  if (g.contains("buffers")) {
-    const json& buffers = g["buffers"];
-    if (buffers.size() > 1) return std::nullopt;
-    if (buffers.size() == 1) {
-      const json& b = buffers[0];
-      if (!b.is_object() || !b.contains("byteLength") || !is_index(b["byteLength"]))
-        return std::nullopt;
-      const uint64_t length = b["byteLength"].get<uint64_t>();
-      if (b.contains("uri")) {
-        if (bin || !b["uri"].is_string()) return std::nullopt;
-        const std::string uri = b["uri"].get<std::string>();
+  if (!is_array_or_absent(g, "buffers")) fail("'buffers' must be an array");
+  if (!is_array_or_absent(g, "bufferViews")) fail("'bufferViews' must be an array");
+  const json no_buffers = json::array();
+  const json& buffers = g.contains("buffers") ? g["buffers"] : no_buffers;
+  uint64_t end = 0;
+  for (size_t i = 0; i < buffers.size(); ++i) {
+    const std::string what = "buffer " + std::to_string(i);
+    const json& b = buffers[i];
+    if (!b.is_object()) fail(what + " must be a JSON object");
+    const std::optional<uint64_t> length =
+        b.contains("byteLength") ? whole_number(b["byteLength"]) : std::nullopt;
+    if (!length) fail(what + " has no whole 'byteLength'");
+    CombinedInput::Piece piece;
+    piece.offset = i == 0 ? 0 : aligned8(end);
+    if (!b.contains("uri")) {
+      if (*length > 0 && (i != 0 || !source.has_bin)) fail(what + " has no 'uri'");
+      if (*length > source.bin_length)
+        fail(what + ": the GLB's BIN chunk holds " + std::to_string(source.bin_length) +
+             " bytes, but byteLength is " + std::to_string(*length));
+      if (*length > 0)
+        piece.bytes.file =
+            FileBytes{source.path, source.bin_offset, *length, source.file_size, source.modified};
+    } else {
+      if (!b["uri"].is_string()) fail(what + " 'uri' must be a string");
+      const std::string& uri = b["uri"].get_ref<const std::string&>();
+      if (starts_with_data(uri)) {
+        std::string why;
+        std::optional<std::vector<uint8_t>> bytes = decode_data_uri(uri, nullptr, &why);
+        if (!bytes) fail(what + ": " + why);
+        if (bytes->size() < *length)
+          fail(what + " (data uri) holds " + std::to_string(bytes->size()) +
+               " bytes, but byteLength is " + std::to_string(*length));
+        bytes->resize(size_t(*length));
+        piece.bytes.bytes = std::move(*bytes);
+      } else {
+        const std::string named = what + " ('" + one_line(uri) + "')";
         std::string why;
         const std::optional<fs::path> file = resolve_relative_uri(folder, uri, &why);
-        if (!file && !starts_with_data(uri))
-          throw InputError(input.string() + ": buffer 0: uri '" + one_line(uri) + "' " + why);
-        if (file) plan.buffer = file_bytes(*file, 0, length);
-        if (!plan.buffer || plan.buffer->file_size < length) return std::nullopt;
-      } else if (length > 0) {
-        if (!bin || bin->length < length) return std::nullopt;
-        plan.buffer = bin;  // its bytes' start, with the file's size and time read above
-        plan.buffer->length = length;
+        if (!file) fail(what + ": uri '" + one_line(uri) + "' " + why);
+        const std::string problem = regular_file_problem(*file);
+        if (!problem.empty()) fail(named + " " + problem);
+        piece.bytes.file = file_bytes(*file, 0, *length);
+        if (!piece.bytes.file) fail(named + " cannot be read");
+        if (piece.bytes.file->file_size < *length)
+          fail(named + " holds " + std::to_string(piece.bytes.file->file_size) +
+               " bytes, but byteLength is " + std::to_string(*length));
+      }
+    }
+    end = piece.offset + *length;
+    plan.buffers.push_back(std::move(piece));
+  }
+  plan.buffers_end = end;
+  // A view's buffer index and byteOffset, into the output buffer.
+  const auto repoint = [&](json& object, const std::string& what) {
+    const std::optional<uint64_t> index =
+        object.contains("buffer") ? whole_number(object["buffer"]) : std::nullopt;
+    if (!index || *index >= plan.buffers.size())
+      fail(what + ": 'buffer' is not the index of a buffer");
+    const uint64_t shift = plan.buffers[size_t(*index)].offset;
+    if (*index != 0) object["buffer"] = 0;
+    if (shift == 0) return;
+    const std::optional<uint64_t> offset =
+        object.contains("byteOffset") ? whole_number(object["byteOffset"]) : uint64_t(0);
+    if (!offset) fail(what + ": 'byteOffset' is not a whole number");
+    object["byteOffset"] = *offset + shift;
+  };
+  if (g.contains("bufferViews")) {
+    json& views = g["bufferViews"];
+    for (size_t i = 0; i < views.size(); ++i) {
+      const std::string what = "bufferView " + std::to_string(i);
+      json& view = views[i];
+      if (!view.is_object()) fail(what + " must be a JSON object");
+      repoint(view, what);
+      if (!view.contains("extensions") || !view["extensions"].is_object()) continue;
+      for (const char* name : {"EXT_meshopt_compression", "KHR_meshopt_compression"}) {
+        json& extensions = view["extensions"];
+        if (extensions.contains(name) && extensions[name].is_object())
+          repoint(extensions[name], what + " " + name);
       }
     }
   }
-  if (g.contains("images")) {
-    json& images = g["images"];
-    for (size_t i = 0; i < images.size(); ++i) {
-      const json& image = images[i];
-      if (!image.is_object()) return std::nullopt;
-      if (!image.contains("uri")) continue;  // in a buffer view: kept as it is
-      if (!image["uri"].is_string()) return std::nullopt;
-      const std::string uri = image["uri"].get<std::string>();
-      const std::string what = input.string() + ": image " + std::to_string(i) + " ('" + uri + "')";
+  // One buffer: the first, its uri and byteLength set by the write.
+  if (!buffers.empty()) {
+    json first = buffers[0];
+    first.erase("uri");
+    g["buffers"] = json::array({std::move(first)});
+  }
+}
+
+/// Plans the images in files or data URIs to embed (CombinedInput::images).
+template <class Fail>
+void plan_images(const fs::path& folder, CombinedInput& plan, const Fail& fail) {
+  json& g = plan.gltf;
+  if (!is_array_or_absent(g, "images")) fail("'images' must be an array");
+  if (!g.contains("images")) return;
+  const json& images = g["images"];
+  for (size_t i = 0; i < images.size(); ++i) {
+    const json& image = images[i];
+    if (!image.is_object()) fail("image " + std::to_string(i) + " must be a JSON object");
+    if (!image.contains("uri")) continue;  // in a buffer view: kept as it is
+    if (!image["uri"].is_string()) fail("image " + std::to_string(i) + " 'uri' must be a string");
+    const std::string& uri = image["uri"].get_ref<const std::string&>();
+    const bool data = starts_with_data(uri);
+    const std::string what = plan.path.string() + ": image " + std::to_string(i) + " ('" +
+                             (data ? std::string("data uri") : uri) + "')";
+    const auto keep_uri = [&](const char* reason) {
+      plan.kept_by_uri.push_back(one_line(what) + reason +
+                                 "; the output refers to it by its URI as it is");
+    };
+    InputBytes bytes;
+    std::vector<unsigned char> start;  // its first bytes, for its format
+    std::string data_mime;
+    if (data) {
+      std::optional<std::vector<uint8_t>> decoded = decode_data_uri(uri, &data_mime, nullptr);
+      if (decoded) bytes.bytes = std::move(*decoded);
+      start.assign(bytes.bytes.begin(),
+                   bytes.bytes.begin() + long(std::min<size_t>(12, bytes.bytes.size())));
+    } else {
       std::string why;
       const std::optional<fs::path> file = resolve_relative_uri(folder, uri, &why);
-      if (!file && starts_with_data(uri)) return std::nullopt;  // tinygltf decodes it
-      if (!file) throw InputError(one_line(what) + ": uri " + why);
-      const auto keep_uri = [&](const char* reason) {
-        plan.kept_by_uri.push_back(what + reason + "; the output refers to it by its URI as it is");
-      };
-      // The whole file, and its first bytes for its format.
-      std::optional<FileBytes> bytes = file ? file_bytes(*file, 0, 0) : std::nullopt;
-      std::vector<unsigned char> start;
-      if (bytes && bytes->file_size > 0) {
-        bytes->length = bytes->file_size;
-        start.resize(size_t(std::min<uint64_t>(12, bytes->length)));
-        std::ifstream head(*file, std::ios::binary);
-        if (!head.read(reinterpret_cast<char*>(start.data()), std::streamsize(start.size())))
-          start.clear();
+      if (!file) fail("image " + std::to_string(i) + " ('" + one_line(uri) + "'): uri " + why);
+      if (regular_file_problem(*file).empty()) bytes.file = file_bytes(*file, 0, 0);
+      if (bytes.file && bytes.file->file_size > 0) {
+        bytes.file->length = bytes.file->file_size;
+        start.resize(size_t(std::min<uint64_t>(12, bytes.file->length)));
+        if (!read_regular_file(*file, start.size(), start.data(), nullptr)) start.clear();
       }
-      if (start.empty()) {
-        keep_uri(" could not be read");
-        continue;
-      }
-      std::string mime = sniff_mime_type(start);
-      if (mime.empty() && image.contains("mimeType") && image["mimeType"].is_string())
-        mime = image["mimeType"].get<std::string>();
-      if (mime.empty()) {
-        keep_uri(" has an unknown format");
-        continue;
-      }
-      plan.images.push_back({i, *bytes, mime});
+    }
+    if (start.empty()) {
+      keep_uri(data ? " could not be decoded" : " could not be read");
+      continue;
+    }
+    std::string mime = sniff_mime_type(start);
+    if (mime.empty() && image.contains("mimeType") && image["mimeType"].is_string())
+      mime = image["mimeType"].get<std::string>();
+    if (mime.empty() && data_mime.rfind("image/", 0) == 0) mime = data_mime;
+    if (mime.empty()) {
+      keep_uri(" has an unknown format");
+      continue;
+    }
+    plan.images.push_back({i, std::move(bytes), mime});
+  }
+}
+
+}  // namespace
+
+CombinedInput plan_combined(const SourceGltf& source) {
+  CombinedInput plan;
+  plan.path = source.path;
+  plan.gltf = source.json;
+  const auto fail = [&](const std::string& what) {
+    throw InputError(source.path.string() + ": " + what);
+  };
+  if (!plan.gltf.is_object()) fail("broken JSON: the top level is not an object");
+  if (!plan.gltf.contains("asset") || !plan.gltf["asset"].is_object())
+    plan.gltf["asset"] = {{"version", "2.0"}};
+  for (const char* key : {"accessors", "materials", "meshes", "nodes", "scenes"}) {
+    if (!is_array_or_absent(plan.gltf, key)) fail(std::string("'") + key + "' must be an array");
+  }
+  if (plan.gltf.contains("scene") && !is_index(plan.gltf["scene"]))
+    fail("'scene' must be an index");
+  if (plan.gltf.contains("scenes")) {
+    for (const json& scene : plan.gltf["scenes"]) {
+      if (!scene.is_object() || !is_array_or_absent(scene, "nodes"))
+        fail("a scene must be an object whose 'nodes' is an array");
     }
   }
+  const fs::path folder =
+      source.path.parent_path().empty() ? fs::path(".") : source.path.parent_path();
+  plan_buffers(source, folder, plan, fail);
+  plan_images(folder, plan, fail);
   return plan;
 }
 
@@ -267,8 +338,6 @@ void copy_bytes(const FileBytes& src, int fd, const fs::path& out) {
   }
 }
 
-uint64_t aligned(uint64_t v) { return (v + 3) & ~uint64_t(3); }
-
 /// Adds the snow model's JSON (`snow`, from glb_json, its buffer's bytes at
 /// `offset` in buffer 0) to `g`: its buffer views, accessors, materials,
 /// meshes and nodes after g's, their indices shifted, and its root nodes in
@@ -318,29 +387,85 @@ void merge_snow(json& g, const json& snow, uint64_t offset) {
   if (!g["asset"].contains("generator")) g["asset"]["generator"] = "snowmodel";
 }
 
+/// Writes the output buffer's bytes to `fd` (`out` names it in errors):
+/// the input's buffers at their offsets, the images at theirs, the snow's
+/// bytes at `snow_offset`; zeros between them and up to `size`.
+void write_buffer(int fd, const CombinedInput& plan, const std::vector<uint64_t>& image_offsets,
+                  const std::vector<unsigned char>& snow_bytes, uint64_t snow_offset, uint64_t size,
+                  const fs::path& out) {
+  static const char zeros[8] = {};
+  uint64_t at = 0;  // bytes written
+  const auto pad_to = [&](uint64_t to) {
+    write_all(fd, zeros, size_t(to - at), out);
+    at = to;
+  };
+  const auto put = [&](const InputBytes& bytes) {
+    if (bytes.file)
+      copy_bytes(*bytes.file, fd, out);
+    else
+      write_all(fd, bytes.bytes.data(), bytes.bytes.size(), out);
+    at += bytes.length();
+  };
+  for (const CombinedInput::Piece& piece : plan.buffers) {
+    pad_to(piece.offset);
+    put(piece.bytes);
+  }
+  for (size_t k = 0; k < plan.images.size(); ++k) {
+    pad_to(image_offsets[k]);
+    put(plan.images[k].bytes);
+  }
+  if (!snow_bytes.empty()) {
+    pad_to(snow_offset);
+    write_all(fd, snow_bytes.data(), snow_bytes.size(), out);
+    at += snow_bytes.size();
+  }
+  pad_to(size);
+}
+
+/// Opens `tmp` for writing, calls write(fd) and closes it; IOError naming
+/// `out` on failure.
+template <class Write>
+void write_fd(const fs::path& tmp, const fs::path& out, const Write& write) {
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (fd < 0) throw IOError("cannot write " + out.string() + ": " + std::strerror(errno));
+  struct Closer {
+    int fd;
+    ~Closer() {
+      if (fd >= 0) ::close(fd);
+    }
+  } closer{fd};
+  write(fd);
+  closer.fd = -1;
+  if (::close(fd) != 0) throw IOError("cannot write " + out.string() + ": " + std::strerror(errno));
+}
+
 }  // namespace
 
-void write_streamed_glb(StreamPlan& plan, const std::vector<TriMesh>& snow, const fs::path& out) {
+void write_combined(CombinedInput& plan, const std::vector<TriMesh>& snow, const fs::path& out) {
   // The input is read at the start of a run and copied at its end: a file
   // changed in between would no longer match the JSON read then.
-  const auto check_unchanged = [&](const FileBytes& source) {
+  const auto check_unchanged = [&](const InputBytes& bytes) {
+    if (!bytes.file) return;
+    const FileBytes& source = *bytes.file;
     const std::optional<FileBytes> now = file_bytes(source.file, source.offset, source.length);
     if (!now || now->file_size != source.file_size || now->modified != source.modified) {
       throw IOError("cannot write " + out.string() + ": " + source.file.string() +
                     " changed while snowmodel ran; run it again");
     }
   };
-  if (plan.buffer) check_unchanged(*plan.buffer);
-  for (const StreamPlan::EmbeddedImage& e : plan.images) check_unchanged(e.bytes);
+  for (const CombinedInput::Piece& piece : plan.buffers) check_unchanged(piece.bytes);
+  for (const CombinedInput::EmbeddedImage& e : plan.images) check_unchanged(e.bytes);
   for (const std::string& warning : plan.kept_by_uri) log_warn(warning);
   json& g = plan.gltf;
-  // The BIN chunk: the buffer's bytes, the images', then the snow's, each
-  // from a 4-byte boundary.
-  uint64_t size = plan.buffer ? plan.buffer->length : 0;
-  for (const StreamPlan::EmbeddedImage& e : plan.images) {
+  // The output buffer: the input's buffers, the images', then the snow's,
+  // each image and the snow from a 4-byte boundary.
+  uint64_t size = plan.buffers_end;
+  std::vector<uint64_t> image_offsets;
+  for (const CombinedInput::EmbeddedImage& e : plan.images) {
     size = aligned(size);
+    image_offsets.push_back(size);
     json& image = g["images"][e.index];
-    json view = {{"buffer", 0}, {"byteOffset", size}, {"byteLength", e.bytes.length}};
+    json view = {{"buffer", 0}, {"byteOffset", size}, {"byteLength", e.bytes.length()}};
     view["name"] = image.contains("name") && image["name"].is_string() &&
                            !image["name"].get<std::string>().empty()
                        ? image["name"]
@@ -350,7 +475,7 @@ void write_streamed_glb(StreamPlan& plan, const std::vector<TriMesh>& snow, cons
     image["bufferView"] = g["bufferViews"].size() - 1;
     image["mimeType"] = e.mime;
     image.erase("uri");
-    size += e.bytes.length;
+    size += e.bytes.length();
   }
   tinygltf::Model model;
   append_meshes(model, snow, {snow_material()}, "Snow");
@@ -359,67 +484,53 @@ void write_streamed_glb(StreamPlan& plan, const std::vector<TriMesh>& snow, cons
   const uint64_t snow_offset = snow_bytes.empty() ? size : aligned(size);
   merge_snow(g, json::parse(glb_json(model, out)), snow_offset);
   size = snow_offset + snow_bytes.size();
-  if (size > 0) {
-    if (!g.contains("buffers") || g["buffers"].empty())
-      g["buffers"] = json::array({json::object()});
-    g["buffers"][0].erase("uri");
-    g["buffers"][0]["byteLength"] = size;
+  if (size > 0 && (!g.contains("buffers") || g["buffers"].empty()))
+    g["buffers"] = json::array({json::object()});
+  const bool has_buffer = g.contains("buffers") && !g["buffers"].empty();
+  if (has_buffer) g["buffers"][0]["byteLength"] = size;
+  const auto write_bytes = [&](int fd, uint64_t until) {
+    write_buffer(fd, plan, image_offsets, snow_bytes, snow_offset, until, out);
+  };
+
+  if (lower_extension(out) == ".gltf") {
+    // The buffer in "<stem>.bin" beside it, written first: the .gltf names it.
+    const std::string bin_name = out.stem().string() + ".bin";
+    if (has_buffer) {
+      g["buffers"][0]["uri"] = bin_name;
+      const fs::path bin = out.parent_path() / bin_name;
+      write_file_atomically(bin, [&](const fs::path& tmp) {
+        write_fd(tmp, bin, [&](int fd) { write_bytes(fd, size); });
+      });
+    }
+    write_text_atomically(out, g.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
+    return;
   }
   std::string text = g.dump(-1, ' ', false, json::error_handler_t::replace);
   text.resize(aligned(text.size()), ' ');
-  const bool has_bin = g.contains("buffers") && !g["buffers"].empty();
-  const uint64_t total = 12 + 8 + text.size() + (has_bin ? 8 + aligned(size) : 0);
+  const uint64_t total = 12 + 8 + text.size() + (has_buffer ? 8 + aligned(size) : 0);
   if (total > UINT32_MAX) {
     throw IOError("cannot write " + out.string() +
                   ": a GLB holds at most 4 GiB; write .gltf (its buffers go to .bin files)");
   }
   write_file_atomically(out, [&](const fs::path& tmp) {
-    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-    if (fd < 0) throw IOError("cannot write " + out.string() + ": " + std::strerror(errno));
-    struct Closer {
-      int fd;
-      ~Closer() {
-        if (fd >= 0) ::close(fd);
+    write_fd(tmp, out, [&](int fd) {
+      const auto put_u32 = [&](uint32_t v) {
+        const unsigned char b[4] = {uint8_t(v), uint8_t(v >> 8), uint8_t(v >> 16),
+                                    uint8_t(v >> 24)};
+        write_all(fd, b, 4, out);
+      };
+      write_all(fd, "glTF", 4, out);
+      put_u32(2);
+      put_u32(uint32_t(total));
+      put_u32(uint32_t(text.size()));
+      put_u32(kChunkJson);
+      write_all(fd, text.data(), text.size(), out);
+      if (has_buffer) {
+        put_u32(uint32_t(aligned(size)));
+        put_u32(kChunkBin);
+        write_bytes(fd, aligned(size));
       }
-    } closer{fd};
-    const auto put_u32 = [&](uint32_t v) {
-      const unsigned char b[4] = {uint8_t(v), uint8_t(v >> 8), uint8_t(v >> 16), uint8_t(v >> 24)};
-      write_all(fd, b, 4, out);
-    };
-    const char zeros[4] = {0, 0, 0, 0};
-    uint64_t at = 0;  // bytes of the BIN chunk written
-    const auto pad_to = [&](uint64_t to) {
-      write_all(fd, zeros, size_t(to - at), out);
-      at = to;
-    };
-    write_all(fd, "glTF", 4, out);
-    put_u32(2);
-    put_u32(uint32_t(total));
-    put_u32(uint32_t(text.size()));
-    put_u32(kChunkJson);
-    write_all(fd, text.data(), text.size(), out);
-    if (has_bin) {
-      put_u32(uint32_t(aligned(size)));
-      put_u32(kChunkBin);
-      if (plan.buffer) {
-        copy_bytes(*plan.buffer, fd, out);
-        at = plan.buffer->length;
-      }
-      for (const StreamPlan::EmbeddedImage& e : plan.images) {
-        pad_to(aligned(at));
-        copy_bytes(e.bytes, fd, out);
-        at += e.bytes.length;
-      }
-      if (!snow_bytes.empty()) {
-        pad_to(snow_offset);
-        write_all(fd, snow_bytes.data(), snow_bytes.size(), out);
-        at += snow_bytes.size();
-      }
-      pad_to(aligned(at));
-    }
-    closer.fd = -1;
-    if (::close(fd) != 0)
-      throw IOError("cannot write " + out.string() + ": " + std::strerror(errno));
+    });
   });
 }
 

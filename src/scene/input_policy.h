@@ -1,7 +1,8 @@
 #pragma once
 // The input policy: what every command that reads a scene (the glTF loader,
-// and the combined writer of mesh/export.h, which reads the input again)
-// accepts from the file system and from the JSON. A scene is untrusted:
+// and the combined writer of mesh/export.h, which copies the input's files
+// from the JSON the loader parsed) accepts from the file system and from
+// the JSON. A scene is untrusted:
 // - its JSON nests at most kMaxJsonDepth levels, checked on the raw text
 //   before any parser sees it (recursive parsers and writers, tinygltf's
 //   and json::dump, then stay well inside their stack);

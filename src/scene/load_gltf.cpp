@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <new>
 #include <stdexcept>
 #include <system_error>
@@ -48,6 +49,18 @@ Scene GltfLoader::load() {
     fail("the scene has no triangles");
   }
   if (settings_.load_images) load_images();
+  if (settings_.keep_source) {
+    // The JSON is moved, not copied: the loader is done with it.
+    auto source = std::make_shared<SourceGltf>();
+    source->path = path_;
+    source->json = std::move(doc_);
+    source->has_bin = has_glb_bin_;
+    source->bin_offset = has_glb_bin_ ? uint64_t(glb_bin_ - file_.data()) : 0;
+    source->bin_length = glb_bin_size_;
+    source->file_size = file_.size();
+    source->modified = file_modified_;
+    scene_.source = std::move(source);
+  }
   return std::move(scene_);
 }
 

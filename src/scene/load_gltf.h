@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "scene/scene.h"
+#include "scene/source_gltf.h"
 
 namespace snow {
 
@@ -35,11 +36,12 @@ struct LoadLimits {
 };
 
 struct LoadSettings {
-  bool load_images = true;  // decode baseColor textures into Scene::images (bool)
-  bool shading = true;      // read normals and UVs (only renderers use them); false: the
-                            // NORMAL and TEXCOORD attributes are not read, and
-                            // Scene::normals and Scene::uvs stay empty
-  LoadLimits limits;        // resource limits (see LoadLimits)
+  bool load_images = true;   // decode baseColor textures into Scene::images (bool)
+  bool shading = true;       // read normals and UVs (only renderers use them); false: the
+                             // NORMAL and TEXCOORD attributes are not read, and
+                             // Scene::normals and Scene::uvs stay empty
+  LoadLimits limits;         // resource limits (see LoadLimits)
+  bool keep_source = false;  // keep the parsed file in Scene::source (scene/source_gltf.h)
 };
 
 /// The file that a glTF uri names, as the loader reads it: `uri`
@@ -90,8 +92,9 @@ std::optional<std::filesystem::path> resolve_relative_uri(const std::filesystem:
 /// nested deeper than kMaxJsonDepth, data over LoadLimits::memory_budget
 /// (the input policy: scene/input_policy.h), unsupported required
 /// extensions, a scene without triangles. Buffer files are read only as far
-/// as their byteLength. Throws IOError when the scene file itself does not
-/// exist, is a folder or cannot be read.
+/// as their byteLength. With settings.keep_source the parsed file is kept in
+/// Scene::source (scene/source_gltf.h) for the combined writer. Throws IOError when the scene file
+/// itself does not exist, is a folder or cannot be read.
 Scene load_scene(const std::filesystem::path& path, const LoadSettings& settings = {});
 
 /// The bytes load_scene reads from `path`, near enough, without reading

@@ -5,12 +5,15 @@
 // the winding of nodes whose world matrix has a negative determinant).
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
 
 namespace snow {
+
+struct SourceGltf;  // scene/source_gltf.h
 
 /// Axis-aligned box. An empty box has min > max.
 struct Bounds {
@@ -76,6 +79,9 @@ struct Scene {
   Bounds bounds;
   SceneStats stats;
   std::vector<std::string> warnings;  // also logged as they happen
+  // The file as read, with LoadSettings::keep_source (scene/load_gltf.h);
+  // else null. Shared: copies of the scene refer to the same one.
+  std::shared_ptr<const SourceGltf> source;
 
   size_t triangle_count() const { return positions.size() / 3; }
   /// Object index of triangle t (binary search over the ranges).

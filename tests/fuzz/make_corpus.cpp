@@ -212,8 +212,8 @@ int main(int argc, char** argv) {
     const float nan = std::nanf("");
     std::memcpy(b.data() + 24, &nan, 4);
   });
-  // Issue 48: a texCoord beyond int (kept or refused by the combined writer,
-  // never wrapped).
+  // Issue 48: a texCoord beyond int (kept by the combined writer, never
+  // wrapped).
   variant("wide_texcoord", [](json& d, auto&) {
     d["textures"] = json::array({json::object()});
     d["materials"] = {{{"pbrMetallicRoughness",
@@ -288,6 +288,25 @@ int main(int argc, char** argv) {
     d["meshes"][0]["primitives"][0]["material"] = 0;
   });
   variant("uri_escape", [](json& d, auto&) { d["buffers"][0]["uri"] = "../outside.bin"; });
+  // The combined writer (mesh/glb_stream.h): buffers merged into one, a
+  // view into a second buffer (a data URI, as seeds are single files), an
+  // unused buffer that holds less than its byteLength, an
+  // EXT_meshopt_compression view naming a buffer.
+  variant("two_buffers", [](json& d, auto&) {
+    d["buffers"].push_back(
+        {{"uri", "data:application/octet-stream;base64,AAAAAAAAgD8AAAAA"}, {"byteLength", 12}});
+    d["bufferViews"].push_back({{"buffer", 1}, {"byteLength", 12}});
+  });
+  variant("unused_short_buffer", [](json& d, auto&) {
+    d["buffers"].push_back(
+        {{"uri", "data:application/octet-stream;base64,AAAA"}, {"byteLength", 144}});
+  });
+  variant("meshopt_view", [](json& d, auto&) {
+    d["extensionsUsed"] = {"EXT_meshopt_compression"};
+    d["bufferViews"][0]["extensions"] = {
+        {"EXT_meshopt_compression",
+         {{"buffer", 0}, {"byteOffset", 4}, {"byteLength", 8}, {"count", 1}, {"byteStride", 4}}}};
+  });
   // The input policy (scene/input_policy.h): JSON nested past kMaxJsonDepth,
   // image files outside the scene's folder ("..", percent-encoded, absolute).
   // Symlinks and FIFOs are no seeds: the fuzz targets read bytes, not folders.
@@ -296,6 +315,14 @@ int main(int argc, char** argv) {
     deep.insert(deep.rfind('}'),
                 ",\"extras\":" + std::string(30000, '[') + std::string(30000, ']'));
     emit("bad_deep_json.gltf", std::vector<uint8_t>(deep.begin(), deep.end()));
+  }
+  {
+    // 100,000 levels: refused by the loader, which is the only parser of
+    // the input (the combined writer included).
+    std::string deep = to_gltf_text(doc, bin);
+    deep.insert(deep.rfind('}'),
+                ",\"extras\":" + std::string(100000, '[') + std::string(100000, ']'));
+    emit("bad_deeper_json.gltf", std::vector<uint8_t>(deep.begin(), deep.end()));
   }
   for (const auto& [name, uri] : {std::pair<const char*, const char*>{"dotdot", "../x.png"},
                                   {"percent", "%2e%2e/x.png"},

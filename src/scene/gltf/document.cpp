@@ -61,7 +61,8 @@ uint32_t read_u32_le(const uint8_t* p) {
 }
 
 /// Strict base64 (RFC 4648); whitespace is ignored. False on bad input.
-bool base64_decode(std::string_view in, Bytes& out) {
+template <class Out>
+bool base64_decode(std::string_view in, Out& out) {
   static const std::array<int8_t, 256> table = [] {
     std::array<int8_t, 256> t{};
     t.fill(-1);
@@ -119,6 +120,25 @@ bool percent_decode(std::string_view in, std::string& out) {
     }
   }
   return true;
+}
+
+/// The bytes of the data: URI `uri` (which starts with "data:") into `out`,
+/// its media type in *mime; null, else what is wrong with it.
+template <class Out>
+const char* data_uri_bytes(const std::string& uri, Out& out, std::string* mime) {
+  const size_t comma = uri.find(',');
+  if (comma == std::string::npos) return "malformed data uri (no ',')";
+  const std::string header = uri.substr(5, comma - 5);
+  if (mime) *mime = header.substr(0, header.find(';'));
+  const std::string_view payload(uri.data() + comma + 1, uri.size() - comma - 1);
+  if (header.size() >= 7 && header.compare(header.size() - 7, 7, ";base64") == 0) {
+    if (!base64_decode(payload, out)) return "data uri is not valid base64";
+  } else {
+    std::string raw;
+    if (!percent_decode(payload, raw)) return "malformed data uri";
+    out.assign(raw.begin(), raw.end());
+  }
+  return nullptr;
 }
 
 /// Extensions that do not change the geometry, or that the loader handles.
@@ -330,19 +350,8 @@ fs::path GltfLoader::resolve_uri(const std::string& uri, const std::string& what
 
 Bytes GltfLoader::decode_data_uri(const std::string& uri, const std::string& what,
                                   std::string* mime) const {
-  const size_t comma = uri.find(',');
-  if (comma == std::string::npos) fail(what + ": malformed data uri (no ',')");
-  const std::string header = uri.substr(5, comma - 5);
-  if (mime) *mime = header.substr(0, header.find(';'));
-  const std::string_view payload(uri.data() + comma + 1, uri.size() - comma - 1);
   Bytes bytes;
-  if (header.size() >= 7 && header.compare(header.size() - 7, 7, ";base64") == 0) {
-    if (!base64_decode(payload, bytes)) fail(what + ": data uri is not valid base64");
-  } else {
-    std::string raw;
-    if (!percent_decode(payload, raw)) fail(what + ": malformed data uri");
-    bytes.assign(raw.begin(), raw.end());
-  }
+  if (const char* why = data_uri_bytes(uri, bytes, mime)) fail(what + ": " + why);
   if (bytes.size() > settings_.limits.max_file_bytes)
     fail(what + ": data uri is over the limit of " +
          std::to_string(settings_.limits.max_file_bytes) + " bytes (LoadLimits::max_file_bytes)");
@@ -360,6 +369,8 @@ void GltfLoader::read_document() {
     if (!problem.empty()) fail(problem);
     if (::access(path_.c_str(), R_OK) != 0) throw IOError(label_ + ": cannot open file");
   }
+  std::error_code time_error;
+  file_modified_ = fs::last_write_time(path_, time_error);  // for SourceGltf::modified
   file_ = read_file(path_, "scene file", false, nullptr);
   const std::string extension = lower_extension(path_);
   const bool glb_magic = file_.size() >= 4 && read_u32_le(file_.data()) == kGlbMagic;
@@ -558,6 +569,16 @@ ViewRange GltfLoader::view(uint64_t index, const std::string& user) {
 }
 
 }  // namespace gltf
+
+std::optional<std::vector<uint8_t>> decode_data_uri(const std::string& uri, std::string* mime,
+                                                    std::string* why) {
+  std::vector<uint8_t> bytes;
+  const char* problem = gltf::starts_with_ci(uri, "data:") ? gltf::data_uri_bytes(uri, bytes, mime)
+                                                           : "is not a data uri";
+  if (!problem) return bytes;
+  if (why) *why = problem;
+  return std::nullopt;
+}
 
 std::optional<std::filesystem::path> resolve_relative_uri(const std::filesystem::path& folder,
                                                           const std::string& uri,

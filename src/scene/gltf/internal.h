@@ -107,7 +107,8 @@ class GltfLoader {
  public:
   GltfLoader(const std::filesystem::path& path, const LoadSettings& settings);
 
-  /// Reads the file and returns its default scene (see load_scene). Call once.
+  /// Reads the file and returns its default scene (see load_scene), with
+  /// Scene::source when LoadSettings::keep_source. Call once.
   Scene load();
 
  private:
@@ -272,6 +273,7 @@ class GltfLoader {
   std::string label_;
   uint64_t loaded_bytes_ = 0;  // what charge() has counted (bytes)
   Bytes file_;
+  std::filesystem::file_time_type file_modified_{};  // the scene file's, before it was read
   bool is_glb_ = false;
   bool has_glb_bin_ = false;
   const uint8_t* glb_bin_ = nullptr;
