@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "scene/builder.h"
+#include "snow/bridge.h"
 #include "snow/coverage.h"
 #include "snow/peel.h"
 #include "snow/reference/coverage_ref.h"
@@ -28,16 +29,18 @@ struct Snowed {
 };
 
 // `fall` metres of snow on `scene` (maps of `max_side` texels along the
-// longer side), stabilized on the CPU with `settings`.
+// longer side, bridged as the peel bridges them), stabilized on the CPU with
+// `settings`.
 Snowed snow_on(const Scene& scene, int max_side, float fall, const StabilizeSettings& settings) {
   PeelSettings peel;
   peel.max_side = max_side;
   Snowed out;
   out.maps = reference::peel_layers(scene, make_grid(scene.bounds, peel), peel.layers);
+  bridge_gaps(out.maps, peel.bridge_width);
   CoverageSettings coverage;
   coverage.directions = 16;
-  const std::vector<float> p =
-      reference::compute_coverage(scene, out.maps, fall_directions(coverage));
+  std::vector<float> p = reference::compute_coverage(scene, out.maps, fall_directions(coverage));
+  mask_coverage(out.maps, {}, p);
   std::vector<float> fell(p.size(), 0.0f);
   for (size_t k = 0; k < p.size(); ++k) {
     if (!std::isnan(out.maps.ground[k])) fell[k] = fall * p[k];
@@ -235,6 +238,52 @@ TEST(SnowPhysics, ShedSnowFormsAMoundAlongTheDripLine) {
   EXPECT_GE(at_wall, 0.3f);
   EXPECT_GT(peak, 0.45f);
   EXPECT_NEAR(peak_z, 2.5f, 0.3f);
+}
+
+// Bridging (Fearing 2000): two bench seats of 6 cm slats at 0.45 m, 2 cm
+// apart on one, 20 cm apart on the other, on 1 cm texels. Snow spans the
+// 2 cm gaps (the seat is one snow cover, the ground under it stays bare) and
+// falls through the 20 cm ones.
+TEST(SnowPhysics, SnowBridgesNarrowGapsOnly) {
+  SceneBuilder b;
+  b.add_plane("Ground", 0.0f, glm::vec2(-1.0f), glm::vec2(1.0f));
+  const auto seat = [&](const std::string& name, float x0, float gap) {
+    for (int k = 0; k < 5; ++k) {
+      const float z = -0.5f + float(k) * (0.06f + gap);
+      b.add_box(name + std::to_string(k), glm::vec3(x0, 0.42f, z),
+                glm::vec3(x0 + 0.6f, 0.45f, z + 0.06f));
+    }
+  };
+  seat("Narrow", -0.8f, 0.02f);
+  seat("Wide", 0.1f, 0.2f);
+  const Scene scene = b.build();
+  const Snowed s = snow_on(scene, 200, 0.3f, StabilizeSettings{});
+  const SnowMaps& m = s.maps;
+  // Per column along z through each seat's middle (x = -0.5, x = 0.4): the
+  // snow on the seat's level and on the ground.
+  const auto column = [&](float x, float z, bool seat_level) {
+    const int i = int((x - m.grid.origin.x) / m.grid.texel);
+    const int j = int((z - m.grid.origin.y) / m.grid.texel);
+    for (int l = 0; l < m.layers; ++l) {
+      const size_t k = m.index(l, i, j);
+      if (std::isnan(m.ground[k])) break;
+      if ((m.ground[k] > 0.3f) == seat_level) return double(s.depth[k]);
+    }
+    return -1.0;  // no surface there
+  };
+  // The narrow seat's gaps: z = -0.5 + 0.06 + 0.01 + k * 0.08.
+  for (int k = 0; k < 4; ++k) {
+    const float z = -0.43f + float(k) * 0.08f;
+    EXPECT_GT(column(-0.5f, z, true), 0.25) << "narrow gap " << k;
+    EXPECT_LT(column(-0.5f, z, false), 0.05) << "ground under narrow gap " << k;
+  }
+  // The wide seat's gaps: z = -0.5 + 0.06 + 0.1 + k * 0.26, in the middle.
+  for (int k = 0; k < 4; ++k) {
+    const float z = -0.34f + float(k) * 0.26f;
+    EXPECT_EQ(column(0.4f, z, true), -1.0) << "wide gap " << k;
+    EXPECT_GT(column(0.4f, z, false), 0.15) << "ground under wide gap " << k;
+  }
+  EXPECT_NEAR(s.lying + s.lost, s.fallen, 1e-5 * s.fallen);
 }
 
 }  // namespace

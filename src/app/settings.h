@@ -75,6 +75,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     s.peel.margin, Range{0, 10000, true});
   v("maps.merge_distance", "--merge-distance",
     "Surfaces closer than this in metres count as one layer", s.peel.merge_distance, Range{0, 100});
+  v("maps.bridge_width", "--bridge-width",
+    "Snow bridges gaps up to this wide, metres: bench slats, grates (0 = none)",
+    s.peel.bridge_width, Range{0, 10});
   v("maps.device", "--peel-device",
     "Where the maps are peeled: gpu (depth passes), cpu (a vertical ray per texel) or auto (the "
     "planner's choice, as `snowmodel info` prints it)",

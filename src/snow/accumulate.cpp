@@ -59,16 +59,6 @@ StabilizeResult stabilize_step(AnyStabilizer& stabilizer, const StabilizeSetting
 
 }  // namespace
 
-void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
-                   std::vector<float>& coverage) {
-  if (receives.empty()) return;
-  for (size_t k = 0; k < coverage.size(); ++k) {
-    const int32_t object = maps.object[k];
-    if (object >= 0 && size_t(object) < receives.size() && !receives[size_t(object)])
-      coverage[k] = 0;
-  }
-}
-
 SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSettings& coverage,
                       const StabilizeSettings& stabilize, const AccumulateSettings& settings,
                       const plan::GlFacts& gl, const std::vector<uint8_t>& receives,

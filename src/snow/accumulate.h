@@ -40,12 +40,6 @@ struct SnowResult {
   double volume = 0.0;       // m^3 lying at the end; fallen = volume + lost (up to rounding)
 };
 
-/// Multiplies coverage by 0 on every layer texel whose object does not
-/// receive snow (receives[object] == 0); `receives` is indexed by scene
-/// object and may be empty (everything receives).
-void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
-                   std::vector<float>& coverage);
-
 /// Runs the snowfall: coverage once (or every
 /// snow_on_snow_every steps with the lying snow included), then per step
 /// add fall_depth/steps * coverage and stabilize (Stabilizer::iterate in

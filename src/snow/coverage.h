@@ -224,6 +224,13 @@ std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
                                     const CoverageSettings& settings, const plan::GlFacts& gl,
                                     const std::vector<float>* snow_depth = nullptr);
 
+/// Multiplies coverage by 0 on every layer texel whose object does not
+/// receive snow (receives[object] == 0), and under every bridge (its snow
+/// falls on the bridge, snow/bridge.h); `receives` is indexed by scene
+/// object and may be empty (everything receives).
+void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
+                   std::vector<float>& coverage);
+
 /// Cut of the snow-surface heightfield (texels of height difference within
 /// one heightfield triangle), shared by the GPU pass and the reference.
 constexpr float kSnowSurfaceCutTexels = 6.0f;

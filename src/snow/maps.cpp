@@ -40,6 +40,7 @@ void SnowMaps::allocate(const MapGrid& g, int layer_count) {
   ceiling = {};
   normal = {};
   object = {};
+  bridge = {};
   resize_cleared(*this, 0, size_t(std::max(layers, 0)) * grid.texels());
 }
 

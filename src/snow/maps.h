@@ -50,6 +50,10 @@ struct SnowMaps {
   LayerArray<int32_t> object;    // scene object index; -1 where no surface
 
   uint64_t overflow_columns = 0;  // columns holding more than `layers` surfaces
+  // Per column (j * width + i): the layer of the surface that bridge_gaps
+  // laid across a narrow gap there (snow/bridge.h), -1 where none; empty
+  // where none was laid.
+  std::vector<int8_t> bridge;
 
   size_t index(int l, int i, int j) const {
     return (size_t(l) * size_t(grid.height) + size_t(j)) * size_t(grid.width) + size_t(i);

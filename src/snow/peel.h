@@ -23,6 +23,8 @@ struct PeelSettings {
                          // 2 % of the longer horizontal side, at least 2 texels
   float merge_distance = 1e-3f;  // metres: a surface less than this below the one above it is
                                  // the same layer (coplanar duplicates, decals); >= 0
+  float bridge_width = 0.05f;    // metres: snow bridges gaps up to this wide (bench slats,
+                                 // grates; snow/bridge.h); 0 = none
   uint64_t memory_budget = 4ull << 30;  // bytes; peel_layers throws InputError before
                                         // allocating when estimate_memory exceeds it
   // "gpu" (depth passes), "cpu" (a vertical ray per texel:
@@ -86,7 +88,8 @@ void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings
 /// ground[l-1], +inf on layer 0), the geometric normal as wound (unit,
 /// possibly facing down) and the object index; counts the columns holding
 /// more than L surfaces in overflow_columns and warns once if any. Reports
-/// progress. Returns the layers down to the lowest one holding a surface
+/// progress. Then lays bridges across gaps up to settings.bridge_width wide
+/// (bridge_gaps, snow/bridge.h). Returns the layers down to the lowest one holding a surface
 /// (1..L; one empty layer for an empty scene), so later stages neither store
 /// nor compute layers no column reaches; the layers a scene does not fill
 /// take no memory. Throws InputError (grid, budget, a side over GL_MAX_TEXTURE_SIZE)

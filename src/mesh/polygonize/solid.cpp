@@ -3,6 +3,7 @@
 // closed 2-manifold by construction; then decimation (decimate.cpp) and the
 // TriMesh that polygonize returns.
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
@@ -118,13 +119,43 @@ TriMesh to_trimesh(const Solid& solid, bool top_only) {
       out.indices.push_back(uint32_t(remap[vi]));
     }
   }
+  // Vertex normals: the faces' unit normals weighted by their angle at the
+  // vertex (Thuermer and Wuethrich 1998), so that they do not depend on how
+  // the decimation cut the surface into triangles. A vertex of the top (the
+  // outline's included) takes the top's faces only: the bottom lies hidden
+  // under the support, and the outline's normals would otherwise tilt the
+  // shading of every large top triangle that reaches the outline.
+  std::vector<uint8_t> on_top(out.positions.size(), 0);
+  {
+    size_t t = 0;
+    for (size_t f = 0; f < solid.top.size(); ++f) {
+      if (top_only && !solid.top[f]) continue;
+      if (solid.top[f]) {
+        for (int e = 0; e < 3; ++e) on_top[out.indices[t + size_t(e)]] = 1;
+      }
+      t += 3;
+    }
+  }
   std::vector<glm::dvec3> normals(out.positions.size(), glm::dvec3(0.0));
-  for (size_t t = 0; t < out.indices.size(); t += 3) {
-    const glm::dvec3 a = out.positions[out.indices[t]];
-    const glm::dvec3 b = out.positions[out.indices[t + 1]];
-    const glm::dvec3 c = out.positions[out.indices[t + 2]];
-    const glm::dvec3 n = glm::cross(b - a, c - a);
-    for (int e = 0; e < 3; ++e) normals[out.indices[t + e]] += n;
+  {
+    size_t t = 0;
+    for (size_t f = 0; f < solid.top.size(); ++f) {
+      if (top_only && !solid.top[f]) continue;
+      const glm::dvec3 p[3] = {out.positions[out.indices[t]], out.positions[out.indices[t + 1]],
+                               out.positions[out.indices[t + 2]]};
+      const glm::dvec3 n = glm::cross(p[1] - p[0], p[2] - p[0]);
+      const double length = glm::length(n);
+      for (int e = 0; e < 3 && length > 0.0; ++e) {
+        const uint32_t v = out.indices[t + size_t(e)];
+        if (on_top[v] && !solid.top[f]) continue;
+        const glm::dvec3 u = p[(e + 1) % 3] - p[e], w = p[(e + 2) % 3] - p[e];
+        const double lu = glm::length(u), lw = glm::length(w);
+        if (lu <= 0.0 || lw <= 0.0) continue;
+        const double angle = std::acos(std::clamp(glm::dot(u, w) / (lu * lw), -1.0, 1.0));
+        normals[v] += n * (angle / length);
+      }
+      t += 3;
+    }
   }
   out.normals.reserve(normals.size());
   out.uvs.reserve(normals.size());

@@ -160,3 +160,22 @@ void list_receivers(const SnowMaps& maps, const std::vector<float>* snow_depth, 
 }
 
 }  // namespace snow::cov
+
+namespace snow {
+
+void mask_coverage(const SnowMaps& maps, const std::vector<uint8_t>& receives,
+                   std::vector<float>& coverage) {
+  const size_t columns = maps.grid.texels();
+  for (size_t c = 0; c < maps.bridge.size(); ++c) {
+    for (int l = maps.bridge[c] + 1; maps.bridge[c] >= 0 && l < maps.layers; ++l)
+      coverage[size_t(l) * columns + c] = 0;
+  }
+  if (receives.empty()) return;
+  for (size_t k = 0; k < coverage.size(); ++k) {
+    const int32_t object = maps.object[k];
+    if (object >= 0 && size_t(object) < receives.size() && !receives[size_t(object)])
+      coverage[k] = 0;
+  }
+}
+
+}  // namespace snow

@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "plan/rules.h"
+#include "snow/bridge.h"
 #include "snow/peel/internal.h"
 #include "snow/reference/peel_ref.h"
 
@@ -83,7 +84,9 @@ SnowMaps peel_layers(const Scene& scene, const PeelSettings& settings, const pla
 SnowMaps peel_layers(const Scene& scene, const MapGrid& grid, const PeelSettings& settings,
                      const plan::GlFacts& gl) {
   try {
-    return peel_checked(scene, grid, settings, gl);
+    SnowMaps maps = peel_checked(scene, grid, settings, gl);
+    bridge_gaps(maps, settings.bridge_width);
+    return maps;
   } catch (const std::bad_alloc&) {
     throw InputError("peel: out of memory for maps of " + std::to_string(grid.width) + " x " +
                      std::to_string(grid.height) + " texels x " + std::to_string(settings.layers) +
