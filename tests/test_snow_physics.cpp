@@ -5,10 +5,14 @@
 // EN 1991-1-3's roof shape coefficient and SnowSlide's holding depths.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
+#include <utility>
 #include <vector>
 
+#include "mesh/polygonize.h"
 #include "scene/builder.h"
 #include "snow/bridge.h"
 #include "snow/coverage.h"
@@ -157,6 +161,56 @@ TEST(SnowPhysics, SnowOnABlockKeepsItsDepthToTheEdge) {
     }
     EXPECT_NEAR(s.lying + s.lost, s.fallen, 1e-5 * s.fallen);
   }
+}
+
+// The block's snow as a mesh (default polygonize settings): the top rounds
+// over its shoulder without a crease sharper than 20 degrees between
+// neighbouring top faces (tilted less than 60 degrees and off the outline:
+// the steeper ring and the feather edge where the top meets the bottom are
+// the snow's side).
+TEST(SnowPhysics, ThePillowsShoulderIsSmooth) {
+  SceneBuilder b;
+  b.add_plane("Ground", 0.0f, glm::vec2(-2.0f), glm::vec2(2.0f));
+  const int block = b.add_box("Block", glm::vec3(-1.0f, 0.0f, -1.0f), glm::vec3(1.0f, 1.0f, 1.0f));
+  const Scene scene = b.build();
+  const Snowed s = snow_on(scene, 400, 0.3f, StabilizeSettings{});
+  const std::vector<SnowPatch> patches = polygonize(s.maps, s.depth, scene, PolygonizeSettings{});
+  const auto patch = std::find_if(patches.begin(), patches.end(),
+                                  [&](const SnowPatch& p) { return p.object == block; });
+  ASSERT_NE(patch, patches.end());
+  const TriMesh& m = patch->mesh;
+  std::vector<glm::dvec3> normal(m.indices.size() / 3);
+  for (size_t f = 0; f < normal.size(); ++f) {
+    const glm::dvec3 a = m.positions[m.indices[3 * f]], b1 = m.positions[m.indices[3 * f + 1]],
+                     c = m.positions[m.indices[3 * f + 2]];
+    normal[f] = glm::normalize(glm::cross(b1 - a, c - a));
+  }
+  std::map<std::pair<uint32_t, uint32_t>, size_t> first_face;
+  double worst = 0.0;
+  size_t pairs = 0;
+  const auto on_outline = [&](size_t f) {  // where the snow thins out onto the block (y = 1)
+    for (int e = 0; e < 3; ++e) {
+      if (m.positions[m.indices[3 * f + size_t(e)]].y < 1.01f) return true;
+    }
+    return false;
+  };
+  for (size_t f = 0; f < normal.size(); ++f) {
+    if (normal[f].y < 0.5 || on_outline(f)) continue;
+    for (int e = 0; e < 3; ++e) {
+      uint32_t u = m.indices[3 * f + size_t(e)], v = m.indices[3 * f + size_t(e + 1) % 3];
+      if (u > v) std::swap(u, v);
+      const auto [it, fresh] = first_face.emplace(std::make_pair(u, v), f);
+      if (fresh) continue;
+      const double cosine = std::clamp(glm::dot(normal[it->second], normal[f]), -1.0, 1.0);
+      const double angle = std::acos(cosine) * 180.0 / M_PI;
+      worst = std::max(worst, angle);
+      ++pairs;
+    }
+  }
+  std::printf("block's snow: %zu neighbouring top faces, sharpest crease %.1f degrees\n", pairs,
+              worst);
+  EXPECT_GT(pairs, 100u);
+  EXPECT_LE(worst, 20.0);
 }
 
 // A 60-degree roof: thin snow clings (SnowSlide's field data: the steeper, the

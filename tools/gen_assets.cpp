@@ -2,6 +2,8 @@
 //   snowmodel_gen_assets <out_dir>   writes <out_dir>/courtyard.glb
 //   snowmodel_gen_assets --terrain <triangles> <file.glb>
 //                                     writes a benchmark terrain (snow::make_terrain)
+//   snowmodel_gen_assets --truck <file.glb>
+//                                     writes a delivery truck (snow::make_truck)
 // The project's copy lives in assets/scenes/courtyard.glb; regenerate it with
 //   build/<dir>/tools/snowmodel_gen_assets assets/scenes
 // Output is deterministic: the same build writes byte-identical files.
@@ -33,14 +35,22 @@ void write(const snow::SceneBuilder& builder, const std::string& root,
 
 int main(int argc, char** argv) {
   const bool terrain = argc == 4 && std::string(argv[1]) == "--terrain";
-  if (!(argc == 2 || terrain) || std::string(argv[1]) == "-h" || std::string(argv[1]) == "--help") {
+  const bool truck = argc == 3 && std::string(argv[1]) == "--truck";
+  if (!(argc == 2 || terrain || truck) || std::string(argv[1]) == "-h" ||
+      std::string(argv[1]) == "--help") {
     std::cerr << "usage: snowmodel_gen_assets <out_dir>\n"
                  "         writes <out_dir>/courtyard.glb (the demo courtyard scene)\n"
                  "       snowmodel_gen_assets --terrain <triangles> <file.glb>\n"
-                 "         writes a benchmark terrain of about that many triangles\n";
+                 "         writes a benchmark terrain of about that many triangles\n"
+                 "       snowmodel_gen_assets --truck <file.glb>\n"
+                 "         writes a delivery truck on a ground (snow::make_truck)\n";
     return argc == 2 ? 0 : snow::kExitBadInput;
   }
   try {
+    if (argc == 3 && std::string(argv[1]) == "--truck") {
+      write(snow::make_truck(), "Truck", argv[2]);
+      return snow::kExitOk;
+    }
     if (terrain) {
       const long triangles = std::strtol(argv[2], nullptr, 10);
       if (triangles < 300 || triangles > 100000000) {

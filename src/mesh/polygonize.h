@@ -27,10 +27,10 @@ struct PolygonizeSettings {
   /// The snow rounds over a shoulder of this radius (metres, >= 0; 0:
   /// square) where it ends at a free edge (a table top's, a wall cap's), as
   /// fresh snow forms a pillow (poly::round_shoulders).
-  float shoulder_radius = 0.1f;
+  float shoulder_radius = 0.15f;
   /// Smoothing passes (count) over the snow top (mass-conserving diffusion of
   /// the snow surface height) and over the outline. 0: none.
-  int smooth_iterations = 2;
+  int smooth_iterations = 8;
   /// Patches whose top covers less ground than this (square metres, plan
   /// area) are dropped.
   float min_patch_area = 0.01f;

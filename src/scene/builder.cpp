@@ -682,6 +682,36 @@ Scene make_bowl_scene(const BowlDims& d) {
 
 // --- The courtyard ----------------------------------------------------------------
 
+SceneBuilder make_truck() {
+  SceneBuilder b;
+  add_floor(b, 12.0f);
+  const int paint = b.add_material("Paint", glm::vec4(0.75f, 0.1f, 0.08f, 1.0f), 0.4f, 0.3f);
+  const int box = b.add_material("CargoPanels", glm::vec4(0.85f, 0.85f, 0.82f, 1.0f), 0.6f);
+  const int dark = b.add_material("Rubber", glm::vec4(0.03f, 0.03f, 0.03f, 1.0f), 0.9f);
+  const int glass = b.add_material("Glass", glm::vec4(0.2f, 0.25f, 0.3f, 1.0f), 0.1f);
+  b.add_box("Chassis", glm::vec3(-1.0f, 0.5f, -3.5f), glm::vec3(1.0f, 0.9f, 3.2f), dark);
+  b.add_box("CargoBox", glm::vec3(-1.2f, 0.9f, -1.0f), glm::vec3(1.2f, 3.4f, 3.2f), box);
+  b.add_box("Cab", glm::vec3(-1.15f, 0.9f, -2.6f), glm::vec3(1.15f, 2.8f, -1.1f), paint);
+  b.add_box("Hood", glm::vec3(-1.15f, 0.9f, -3.5f), glm::vec3(1.15f, 1.7f, -2.6f), paint);
+  // The windscreen: a wedge from the cab's front top edge down to the hood.
+  const float x0 = -1.15f, x1 = 1.15f, zb = -2.6f, zf = -3.1f, yb = 1.7f, yt = 2.8f;
+  const std::vector<glm::vec3> wedge = {{x0, yb, zb}, {x1, yb, zb}, {x1, yt, zb},
+                                        {x0, yt, zb}, {x0, yb, zf}, {x1, yb, zf}};
+  const std::vector<uint32_t> faces = {0, 2, 1, 0, 3, 2,   // back, facing +z
+                                       4, 5, 2, 4, 2, 3,   // sloped front
+                                       0, 1, 5, 0, 5, 4,   // bottom
+                                       0, 4, 3, 1, 2, 5};  // sides
+  b.add_mesh("Windscreen", wedge, faces, glass);
+  int k = 0;
+  for (const float z : {-2.6f, 2.2f}) {
+    for (const float x : {-1.15f, 0.85f}) {
+      b.add_beam("Wheel" + std::to_string(k++), glm::vec3(x, 0.45f, z),
+                 glm::vec3(x + 0.3f, 0.45f, z), 0.9f, 0.9f, dark);
+    }
+  }
+  return b;
+}
+
 SceneBuilder make_courtyard() {
   SceneBuilder b;
   const int ground = b.add_material("Paving", glm::vec4(0.36f, 0.38f, 0.33f, 1.0f), 0.9f);

@@ -281,6 +281,15 @@ Scene make_bowl_scene(const BowlDims& dims = {});
 ///   Lamp: "LampPole" (at (4, -4), 3 m), "LampHead" (y [3, 3.35]).
 SceneBuilder make_courtyard();
 
+/// A delivery truck on a 12 x 12 m ground "Floor", its nose towards -z:
+/// "CargoBox" (x [-1.2, 1.2], z [-1, 3.2], y [0.9, 3.4]), "Cab" (z [-2.6,
+/// -1.1], y [0.9, 2.8]) with a sloped "Windscreen" wedge in front of it down
+/// to the "Hood" (z [-3.5, -2.6], top y = 1.7), a "Chassis" beam and four
+/// "Wheel<k>" blocks (0.9 m across, 0.3 m wide): flat roofs with free edges,
+/// a sloped windscreen and a gap under the body, for the look of snow on a
+/// vehicle.
+SceneBuilder make_truck();
+
 /// A benchmark scene of about `triangles` triangles (>= 300): a rolling
 /// terrain "Terrain" over 100 x 100 m (heights within +-1.8 m) as a regular
 /// grid, with 8 table tops "Table<k>" (3 x 2 m at y 2.5..2.6) and 8 walls

@@ -111,6 +111,12 @@ class ModPlaneErrorT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   OpenMesh::VPropHandleT<OpenMesh::Geometry::Quadricd> quadrics_;
 };
 
+/// Degrees a collapse may turn a face's normal at most: small enough that
+/// the decimation keeps rounded shoulders and mounds round (within the error
+/// bound alone, a gently curved strip collapses into long flat triangles
+/// with a crease along them).
+constexpr double kMaxNormalDeviationDeg = 15.0;
+
 /// Greedy decimation with ModPlaneErrorT as OpenMesh's DecimaterT::decimate
 /// runs it (each vertex in a heap keyed by its best collapse; after a
 /// collapse, the vertices around it are keyed again), with the tests of a
@@ -128,7 +134,7 @@ class Decimater : public OpenMesh::Decimater::BaseDecimaterT<OMesh> {
   Decimater(OMesh& mesh, double max_error) : Base(mesh), mesh_(mesh) {
     add(module_);
     module(module_).set_max_err(max_error * max_error);
-    module(module_).set_max_normal_deviation(60.0);
+    module(module_).set_max_normal_deviation(kMaxNormalDeviationDeg);
     mesh_.add_property(target_);
     mesh_.add_property(priority_);
     mesh_.add_property(position_);

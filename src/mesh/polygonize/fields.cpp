@@ -127,7 +127,7 @@ void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float
                      const PatchTexels& patch, float radius) {
   const float texel = maps.grid.texel;
   const int reach = int(std::ceil(radius / texel));
-  // Chamfer distance (texels) from the nearest free-edge member; far: +inf.
+  // Distance (texels) from the nearest free-edge member; far: +inf.
   std::vector<float> steps(f.s.size(), std::numeric_limits<float>::infinity());
   std::vector<size_t> edge;
   TexelRows rows(maps);
@@ -153,37 +153,71 @@ void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float
     }
   }
   if (edge.empty()) return;
-  // Chamfer sweeps (1 along rows and columns, sqrt 2 across) over members,
-  // forward and back, within the window.
-  const float kDiag = std::sqrt(2.0f);
-  for (int pass = 0; pass < 2; ++pass) {
-    const bool forward = pass == 0;
-    for (int jj = 0; jj < f.h; ++jj) {
-      const int wj = forward ? jj : f.h - 1 - jj;
-      for (int ii = 0; ii < f.w; ++ii) {
-        const int wi = forward ? ii : f.w - 1 - ii;
-        const size_t a = f.at(wi, wj);
-        if (!f.member[a]) continue;
-        const int d = forward ? -1 : 1;
-        const auto relax = [&](int di, int dj, float cost) {
-          const int ni = wi + di, nj = wj + dj;
-          if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) return;
-          const size_t b = f.at(ni, nj);
-          if (f.member[b]) steps[a] = std::min(steps[a], steps[b] + cost);
-        };
-        relax(d, 0, 1.0f);
-        relax(0, d, 1.0f);
-        relax(d, d, kDiag);
-        relax(-d, d, kDiag);
+  // Distances over members by dead reckoning (Grevera 2004): two chamfer
+  // sweeps over the window, forward and back, that pass on each sample's
+  // nearest seed rather than a sum of step costs, so d becomes the
+  // Euclidean distance (texels) to the nearest member where it is 0, up to
+  // the sweeps' rare misses.
+  const auto chamfer = [&](std::vector<float>& d) {
+    std::vector<glm::ivec2> seed(d.size(), glm::ivec2(0));
+    for (int wj = 0; wj < f.h; ++wj) {
+      for (int wi = 0; wi < f.w; ++wi) seed[f.at(wi, wj)] = glm::ivec2(wi, wj);
+    }
+    for (int pass = 0; pass < 2; ++pass) {
+      const bool forward = pass == 0;
+      const int back = forward ? -1 : 1;
+      for (int jj = 0; jj < f.h; ++jj) {
+        const int wj = forward ? jj : f.h - 1 - jj;
+        for (int ii = 0; ii < f.w; ++ii) {
+          const int wi = forward ? ii : f.w - 1 - ii;
+          const size_t a = f.at(wi, wj);
+          if (!f.member[a]) continue;
+          const auto relax = [&](int di, int dj) {
+            const int ni = wi + di, nj = wj + dj;
+            if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) return;
+            const size_t b = f.at(ni, nj);
+            if (!f.member[b] || !std::isfinite(d[b])) return;
+            const glm::vec2 to = glm::vec2(seed[b]) - glm::vec2(float(wi), float(wj));
+            const float via = std::sqrt(glm::dot(to, to));
+            if (via < d[a]) {
+              d[a] = via;
+              seed[a] = seed[b];
+            }
+          };
+          relax(back, 0);
+          relax(0, back);
+          relax(back, back);
+          relax(-back, back);
+        }
       }
     }
+  };
+  chamfer(steps);
+  // The core: members a shoulder's width or more from every free edge. The
+  // shoulder follows the distance to the core, r minus it, which rounds
+  // convex corners in plan too (the inward offsets of a square have mitred
+  // corners; those of the core, grown back by r, round ones).
+  std::vector<float> to_core(f.s.size(), std::numeric_limits<float>::infinity());
+  for (size_t a = 0; a < f.s.size(); ++a) {
+    if (f.member[a] && (steps[a] + 1.0f) * texel >= radius) to_core[a] = 0.0f;
   }
+  chamfer(to_core);
+  f.shoulder.assign(f.s.size(), 0);
   for (size_t a = 0; a < f.s.size(); ++a) {
     if (!f.member[a] || steps[a] > float(reach)) continue;
+    f.shoulder[a] = 1;
+    // x: the distance (m) from the rounded outline, about a texel beyond
+    // the edge members' centres; a member beyond it (a square corner's
+    // tip) keeps no snow: the outline rounds there.
+    const float x = radius - to_core[a] * texel;
+    if (x <= 0.0f) {
+      f.s[a] = 0.0f;
+      continue;
+    }
     const float s = f.s[a], r = std::min(radius, s);
-    const float x = (steps[a] + 1.0f) * texel;
-    if (x >= r) continue;
-    const float u = r - x;
+    const float xr = x - (radius - r);  // from the start of a shallower snow's arc
+    if (xr >= r) continue;
+    const float u = r - std::max(xr, 0.0f);
     f.s[a] = s - r + std::sqrt(std::max(r * r - u * u, 0.0f));
   }
 }
@@ -195,6 +229,7 @@ void smooth_field(PatchField& f, int iterations, float min_thickness) {
   const float kRate = 0.125f;
   // The flux from member a to member b.
   auto flux = [&](size_t a, size_t b) {
+    if (!f.shoulder.empty() && (f.shoulder[a] || f.shoulder[b])) return 0.0f;
     const float flow = kRate * ((f.g[a] + f.s[a]) - (f.g[b] + f.s[b]));  // a -> b
     return std::clamp(flow, -0.25f * std::max(f.s[b] - min_thickness, 0.0f),
                       0.25f * std::max(f.s[a] - min_thickness, 0.0f));

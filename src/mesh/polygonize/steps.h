@@ -90,6 +90,7 @@ struct PatchField {
   LayerArray<float> s;       // snow thickness, m (0 outside the patch)
   LayerArray<float> g;       // ground height, m (extrapolated outside; NaN far away)
   LayerArray<float> gx, gz;  // ground slope dy/dx, dy/dz (members)
+  std::vector<uint8_t> shoulder;  // 1 on the members round_shoulders shaped (empty: none)
 
   size_t at(int wi, int wj) const { return size_t(wj) * size_t(w) + size_t(wi); }
 };
@@ -124,8 +125,12 @@ void each_sample(const PatchField& f, unsigned threads, const Fn& fn) {
 /// wall). At distance x (m) from such an edge the thickness s becomes
 /// s - r + sqrt(r^2 - (r - x)^2) with r = min(radius, s), for x < r: the snow
 /// stands vertical for s - r and rounds over a quarter circle, a pillow's
-/// shoulder. x is the chamfer distance over members from the edge member,
-/// plus one texel (the outline lies about a texel beyond its centre).
+/// shoulder. x is measured from the outline rounded by r in plan (convex
+/// corners round off; members beyond it keep no snow): the shoulder's width
+/// less the Euclidean distance over members to the core, the members at
+/// least that far from every free edge, with the outline about a texel
+/// beyond the edge members' centres. Marks them in f.shoulder: the smoothing
+/// leaves them as shaped.
 void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float>& depth,
                      const PatchTexels& patch, float radius);
 
