@@ -340,5 +340,27 @@ TEST(SnowPhysics, SnowBridgesNarrowGapsOnly) {
   EXPECT_NEAR(s.lying + s.lost, s.fallen, 1e-5 * s.fallen);
 }
 
+// Maps far finer than the bridge width (found by tools/fuzz: a gap of
+// width / texel columns overflowed an int): the gap is still bridged, the
+// search bounded by kBridgeMaxTexels.
+TEST(SnowPhysics, BridgesOnMapsFarFinerThanTheWidth) {
+  SnowMaps maps;
+  MapGrid grid;
+  grid.texel = 1e-30f;
+  grid.width = 8;
+  grid.height = 1;
+  maps.allocate(grid, 2);
+  for (int i = 0; i < 8; ++i) {
+    const size_t k = maps.index(0, i, 0);
+    maps.ground[k] = i == 4 ? 0.0f : 1.0f;  // a one-texel gap at column 4
+    maps.normal[k] = glm::vec3(0.0f, 1.0f, 0.0f);
+    maps.object[k] = 0;
+  }
+  EXPECT_EQ(bridge_gaps(maps, 0.05f), 1u);
+  EXPECT_EQ(maps.bridge[4], 0);
+  EXPECT_FLOAT_EQ(maps.ground[maps.index(0, 4, 0)], 1.0f);
+  EXPECT_FLOAT_EQ(maps.ground[maps.index(1, 4, 0)], 0.0f);
+}
+
 }  // namespace
 }  // namespace snow

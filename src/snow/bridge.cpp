@@ -42,7 +42,9 @@ bool find_bridge(const SnowMaps& maps, int i, int j, float width, Bridge& out) {
     const float ceiling = maps.ceiling[k];
     for (int d = 0; d < 4; ++d) {
       const float step = d < 2 ? texel : texel * std::sqrt(2.0f);
-      const int reach = int(std::floor(width / step));  // gap columns at most
+      // Gap columns at most (the bound keeps the cost per column finite
+      // on maps far finer than the width).
+      const int reach = int(std::min(std::floor(width / step), float(kBridgeMaxTexels)));
       // The rims on either side: the first column with a surface above
       // this one's (by more than `drop`) and below its ceiling.
       float rim_h[2] = {0.0f, 0.0f};
@@ -83,7 +85,8 @@ bool find_bridge(const SnowMaps& maps, int i, int j, float width, Bridge& out) {
 }  // namespace
 
 size_t bridge_gaps(SnowMaps& maps, float width) {
-  if (!(width > 0.0f) || maps.layers < 1) return 0;
+  if (!(width > 0.0f) || !std::isfinite(width) || !(maps.grid.texel > 0.0f) || maps.layers < 1)
+    return 0;
   const size_t columns = maps.grid.texels();
   std::vector<std::vector<Bridge>> rows(size_t(maps.grid.height));
   parallel_for(rows.size(), [&](size_t row) {

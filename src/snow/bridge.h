@@ -15,6 +15,10 @@ namespace snow {
 /// this many metres per metre across (45 degrees).
 constexpr float kBridgeMaxSlope = 1.0f;
 
+/// Gaps wider than this many texels are not bridged (on maps whose texels
+/// are this much finer than the bridge width).
+constexpr int kBridgeMaxTexels = 64;
+
 /// Adds a bridge surface to every column of `maps` that lies in a gap at
 /// most `width` metres wide (> 0; 0: none) along x, z or a diagonal, between
 /// two up-facing surfaces (the rims) that stand more than half a texel above

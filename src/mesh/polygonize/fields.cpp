@@ -202,23 +202,38 @@ void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float
     if (f.member[a] && (steps[a] + 1.0f) * texel >= radius) to_core[a] = 0.0f;
   }
   chamfer(to_core);
-  f.shoulder.assign(f.s.size(), 0);
-  for (size_t a = 0; a < f.s.size(); ++a) {
-    if (!f.member[a] || steps[a] > float(reach)) continue;
-    f.shoulder[a] = 1;
-    // x: the distance (m) from the rounded outline, about a texel beyond
-    // the edge members' centres; a member beyond it (a square corner's
-    // tip) keeps no snow: the outline rounds there.
+  // The thickness (m) of shoulder member a: x is its distance (m) from the
+  // rounded outline, about a texel beyond the edge members' centres; a
+  // member beyond it (a square corner's tip) keeps no snow: the outline
+  // rounds there.
+  const auto shaped = [&](size_t a) {
     const float x = radius - to_core[a] * texel;
-    if (x <= 0.0f) {
-      f.s[a] = 0.0f;
-      continue;
-    }
+    if (x <= 0.0f) return 0.0f;
     const float s = f.s[a], r = std::min(radius, s);
     const float xr = x - (radius - r);  // from the start of a shallower snow's arc
-    if (xr >= r) continue;
+    if (xr >= r) return s;
     const float u = r - std::max(xr, 0.0f);
-    f.s[a] = s - r + std::sqrt(std::max(r * r - u * u, 0.0f));
+    return s - r + std::sqrt(std::max(r * r - u * u, 0.0f));
+  };
+  f.shoulder.assign(f.s.size(), 0);
+  // The snow the shoulders give up stays in the patch: every member is
+  // raised by its share first (the shoulders' loss barely depends on the
+  // depth), so the mesh holds the snow the maps hold.
+  double removed = 0.0;  // m, thickness the shoulders give up, summed over samples
+  size_t members = 0;
+  for (size_t a = 0; a < f.s.size(); ++a) {
+    if (!f.member[a]) continue;
+    ++members;
+    if (steps[a] > float(reach)) continue;
+    f.shoulder[a] = 1;
+    removed += double(f.s[a]) - double(shaped(a));
+  }
+  const float raise = float(removed / double(members));
+  for (size_t a = 0; a < f.s.size(); ++a) {
+    if (f.member[a]) f.s[a] += raise;
+  }
+  for (size_t a = 0; a < f.s.size(); ++a) {
+    if (f.shoulder[a]) f.s[a] = shaped(a);
   }
 }
 
