@@ -274,6 +274,19 @@ TEST(Polygonize, ShouldersKeepTheVolume) {
   EXPECT_LT(ymax, 0.31f);
 }
 
+// Maps of absurdly fine texels (found by tools/fuzz: the shoulder's width in
+// texels overflowed an int; the sanitized build catches a relapse).
+TEST(Polygonize, ShouldersOnAbsurdlyFineMaps) {
+  const SnowMaps maps = flat_floor(16, 1e-30f);
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  for (int j = 4; j < 12; ++j) {
+    for (int i = 4; i < 12; ++i) depth[maps.index(0, i, j)] = 0.3f;
+  }
+  PolygonizeSettings settings;
+  settings.min_patch_area = 0.0f;
+  EXPECT_NO_THROW(polygonize(maps, depth, names_scene({"Floor"}), settings));
+}
+
 TEST(Polygonize, FlatPlaneDecimatesEightfoldWithinTheErrorBound) {
   const SnowMaps maps = flat_floor(64, 0.1f);
   std::vector<float> depth(maps.ground.size(), 0.0f);

@@ -126,7 +126,7 @@ PatchField build_field(const SnowMaps& maps, const LayerArray<float>& depth,
 void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float>& depth,
                      const PatchTexels& patch, float radius) {
   const float texel = maps.grid.texel;
-  const int reach = int(std::ceil(radius / texel));
+  const float reach = std::ceil(radius / texel);  // texels (inf on absurdly fine maps)
   // Distance (texels) from the nearest free-edge member; far: +inf.
   std::vector<float> steps(f.s.size(), std::numeric_limits<float>::infinity());
   std::vector<size_t> edge;
@@ -224,7 +224,7 @@ void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float
   for (size_t a = 0; a < f.s.size(); ++a) {
     if (!f.member[a]) continue;
     ++members;
-    if (steps[a] > float(reach)) continue;
+    if (steps[a] > reach) continue;
     f.shoulder[a] = 1;
     removed += double(f.s[a]) - double(shaped(a));
   }
