@@ -19,6 +19,7 @@
 #include "mesh/gltf_writer.h"
 #include "scene/builder.h"
 #include "support/command.h"
+#include "support/enclosures.h"
 
 namespace fs = std::filesystem;
 
@@ -521,6 +522,27 @@ void save_built_scene(const snow::SceneBuilder& builder, const fs::path& path) {
   snow::save_gltf(model, path);
 }
 }  // namespace
+
+// A yard under a sky dome (tests/support/enclosures.h): the dome is left
+// out with a warning naming it, and the block gets its snow; kept, the dome
+// takes the snow and the block gets none.
+TEST(Cli, SkyDomeIsLeftOutWithAWarning) {
+  const fs::path dir = temp_dir("sky_dome");
+  save_built_scene(snow::test::yard_under(snow::test::Sky::Dome), dir / "yard.glb");
+  const std::string common = "snow " + q(dir / "yard.glb") + " --max-side 128 --directions 8";
+  const RunResult left_out = run(common + " --snow-output " + q(dir / "left_out.obj"));
+  ASSERT_EQ(left_out.code, 0) << left_out.output;
+  EXPECT_NE(left_out.output.find("object 'SkyDome' encloses the scene from above"),
+            std::string::npos)
+      << left_out.output;
+  const std::string snow = read_all(dir / "left_out.obj");
+  EXPECT_NE(snow.find("o snow/Block"), std::string::npos);
+  EXPECT_EQ(snow.find("o snow/SkyDome"), std::string::npos);
+  const RunResult kept =
+      run(common + " --keep-enclosures true --snow-output " + q(dir / "kept.obj"));
+  ASSERT_EQ(kept.code, 0) << kept.output;
+  EXPECT_EQ(read_all(dir / "kept.obj").find("o snow/Block"), std::string::npos);
+}
 
 // A 1 m floor with a 0.4 m table top 0.3 m above it.
 void save_small_table(const fs::path& path) {

@@ -362,5 +362,59 @@ TEST(SnowPhysics, BridgesOnMapsFarFinerThanTheWidth) {
   EXPECT_FLOAT_EQ(maps.ground[maps.index(1, 4, 0)], 0.0f);
 }
 
+// Flat stays flat: 0.3 m of snow on a flat 100 m plane, meshed: the top lies
+// within 1 cm of 0.3 m everywhere off its rounded edge, and no two
+// neighbouring faces of it meet at more than 5 degrees.
+TEST(SnowPhysics, SnowOnFlatGroundIsFlat) {
+  SceneBuilder b;
+  b.add_plane("Ground", 0.0f, glm::vec2(-50.0f), glm::vec2(50.0f));
+  // A block of houses in the middle: the open ground beyond 20 m is flat.
+  for (int k = 0; k < 4; ++k) {
+    const float x = -12.0f + 8.0f * float(k);
+    b.add_box("House" + std::to_string(k), glm::vec3(x, 0.0f, -6.0f),
+              glm::vec3(x + 6.0f, 6.0f + 2.0f * float(k), 4.0f));
+  }
+  const Scene scene = b.build();
+  const Snowed s = snow_on(scene, 1024, 0.3f, StabilizeSettings{});
+  const std::vector<SnowPatch> patches = polygonize(s.maps, s.depth, scene, PolygonizeSettings{});
+  const auto ground = std::find_if(patches.begin(), patches.end(),
+                                   [&](const SnowPatch& p) { return p.object == 0; });
+  ASSERT_NE(ground, patches.end());
+  const TriMesh& m = ground->mesh;
+  double low = 1e9, high = -1e9, worst = 0.0;
+  std::map<std::pair<uint32_t, uint32_t>, size_t> first_face;
+  std::vector<glm::dvec3> normal(m.indices.size() / 3);
+  for (size_t f = 0; f < normal.size(); ++f) {
+    const glm::dvec3 a = m.positions[m.indices[3 * f]], b1 = m.positions[m.indices[3 * f + 1]],
+                     c = m.positions[m.indices[3 * f + 2]];
+    normal[f] = glm::normalize(glm::cross(b1 - a, c - a));
+  }
+  const auto inside = [&](const glm::vec3& p) {  // off the rounded edge, away from the houses
+    const float r = std::max(std::abs(p.x), std::abs(p.z));
+    return r < 49.0f && r > 25.0f;
+  };
+  for (size_t f = 0; f < normal.size(); ++f) {
+    bool in = normal[f].y > 0.0;
+    for (int e = 0; e < 3; ++e) in = in && inside(m.positions[m.indices[3 * f + size_t(e)]]);
+    if (!in) continue;
+    for (int e = 0; e < 3; ++e) {
+      const glm::vec3 p = m.positions[m.indices[3 * f + size_t(e)]];
+      low = std::min(low, double(p.y));
+      high = std::max(high, double(p.y));
+      uint32_t u = m.indices[3 * f + size_t(e)], v = m.indices[3 * f + size_t(e + 1) % 3];
+      if (u > v) std::swap(u, v);
+      const auto [it, fresh] = first_face.emplace(std::make_pair(u, v), f);
+      if (fresh) continue;
+      const double cosine = std::clamp(glm::dot(normal[it->second], normal[f]), -1.0, 1.0);
+      worst = std::max(worst, std::acos(cosine) * 180.0 / M_PI);
+    }
+  }
+  std::printf("flat 100 m plane: top from %.4f to %.4f m, sharpest crease %.2f degrees, %zu faces\n",
+              low, high, worst, normal.size());
+  EXPECT_GT(low, 0.29);
+  EXPECT_LT(high, 0.31);
+  EXPECT_LE(worst, 5.0);
+}
+
 }  // namespace
 }  // namespace snow

@@ -106,7 +106,8 @@ void run_preview(PreviewOptions o) {
   Scene loaded = load_scene(o.input, s.load);
   warn_unmatched(loaded, s.ignore, "--ignore");
   warn_unmatched(loaded, s.no_snow_on, "--no-snow-on");
-  const Scene scene = without_ignored(std::move(loaded), s.ignore);
+  const Scene scene =
+      without_sky_enclosures(without_ignored(std::move(loaded), s.ignore), s.keep_enclosures);
   if (!s.no_snow_on.empty()) v.receives = receiving_objects(scene, s.no_snow_on);
   warn_unmatched(scene, s.slippery, "--slippery");
   warn_unmatched(scene, s.rough, "--rough");

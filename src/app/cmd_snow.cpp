@@ -298,7 +298,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_unmatched(scene, s.ignore, "--ignore");
   warn_unmatched(scene, s.no_snow_on, "--no-snow-on");
   const size_t triangles_in = scene.triangle_count();
-  const Scene snow_scene = without_ignored(std::move(scene), s.ignore);
+  const Scene snow_scene =
+      without_sky_enclosures(without_ignored(std::move(scene), s.ignore), s.keep_enclosures);
   const std::vector<uint8_t> receives = receiving_objects(snow_scene, s.no_snow_on);
   warn_unmatched(snow_scene, s.slippery, "--slippery");
   warn_unmatched(snow_scene, s.rough, "--rough");

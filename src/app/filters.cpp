@@ -6,6 +6,8 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "plan/rules.h"
+#include "scene/enclosure.h"
 
 namespace snow::app {
 
@@ -27,17 +29,25 @@ void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, c
   }
 }
 
-Scene without_ignored(Scene scene, const std::vector<std::string>& ignore) {
-  if (ignore.empty()) return scene;
+namespace {
+
+// The scene without the objects for which `drop(index, object)` is true
+// (each is logged with `why`); `scene` itself when none is dropped.
+template <class Drop>
+Scene without(Scene scene, Drop drop, const char* why) {
+  bool any = false;
+  for (size_t i = 0; i < scene.objects.size() && !any; ++i) any = drop(i, scene.objects[i]);
+  if (!any) return scene;
   Scene out;
   out.materials = scene.materials;
   out.images = scene.images;
   out.stats = scene.stats;
   out.warnings = scene.warnings;
   out.source = scene.source;
-  for (const SceneObject& object : scene.objects) {
-    if (matches(ignore, object)) {
-      log_info("ignoring object '" + object.name + "' (--ignore)");
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    const SceneObject& object = scene.objects[i];
+    if (drop(i, object)) {
+      log_info("ignoring object '" + object.name + "' (" + why + ")");
       continue;
     }
     SceneObject copy = object;
@@ -54,8 +64,32 @@ Scene without_ignored(Scene scene, const std::vector<std::string>& ignore) {
     out.objects.push_back(copy);
   }
   for (const glm::vec3& p : out.positions) out.bounds.extend(p);
-  if (out.positions.empty()) throw InputError("--ignore removed every object of the scene");
+  if (out.positions.empty()) throw InputError(std::string(why) + " removed every object of the scene");
   return out;
+}
+
+}  // namespace
+
+Scene without_ignored(Scene scene, const std::vector<std::string>& ignore) {
+  return without(
+      std::move(scene), [&](size_t, const SceneObject& o) { return matches(ignore, o); },
+      "--ignore");
+}
+
+Scene without_sky_enclosures(Scene scene, bool keep) {
+  if (keep) return scene;
+  const std::vector<int> found = find_sky_enclosures(scene, plan::kSkyEnclosureCover);
+  if (found.empty()) return scene;
+  std::vector<uint8_t> enclosure(scene.objects.size(), 0);
+  for (int o : found) {
+    enclosure[size_t(o)] = 1;
+    log_warn("object '" + scene.objects[size_t(o)].name +
+             "' encloses the scene from above (a sky dome or box): it neither receives nor "
+             "shelters snow; --keep-enclosures keeps it");
+  }
+  return without(
+      std::move(scene), [&](size_t i, const SceneObject&) { return enclosure[i] != 0; },
+      "a sky enclosure");
 }
 
 std::vector<uint8_t> receiving_objects(const Scene& scene,

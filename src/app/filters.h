@@ -22,6 +22,11 @@ void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, c
 /// in, not copied). Throws InputError when nothing is left.
 Scene without_ignored(Scene scene, const std::vector<std::string>& ignore);
 
+/// The scene without its sky enclosures (scene/enclosure.h, with the
+/// planner's plan::kSkyEnclosureCover), each named in a warning; `scene`
+/// itself when there are none or `keep` is set.
+Scene without_sky_enclosures(Scene scene, bool keep);
+
 /// Per object of `scene`, the grip of its surface (snow/cohesion.h):
 /// kGripSlippery where a `slippery` glob matches, kGripRough where a `rough`
 /// one does, else kGripNormal. Throws InputError naming an object that both

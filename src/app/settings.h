@@ -33,6 +33,7 @@ struct PipelineSettings {
   float hold_depth = -1.0f;             // m, overrides the kind's (negative: the kind's)
   std::vector<std::string> slippery;    // name globs: surfaces that shed snow sooner
   std::vector<std::string> rough;       // name globs: surfaces that hold more snow
+  bool keep_enclosures = false;         // keep sky domes and boxes (scene/enclosure.h)
 };
 
 /// The values a numeric setting accepts: lo..hi, both included, every value
@@ -191,6 +192,10 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     kNoRange);
   v("filters.ignore", "--ignore",
     "Name glob of objects that neither receive nor shelter (repeatable)", s.ignore, kNoRange);
+  v("filters.keep_enclosures", "--keep-enclosures",
+    "Keep objects that enclose the scene from above (sky domes, sky boxes), which are otherwise "
+    "left out with a warning (true/false)",
+    s.keep_enclosures, kNoRange);
   v("filters.slippery", "--slippery",
     "Name glob of objects whose surface sheds snow sooner: glass, metal, solar panels "
     "(repeatable)",

@@ -22,6 +22,16 @@ struct GlFacts {
                           // and further contexts come cheaply
 };
 
+// --- Scene: what the run leaves out ---
+
+/// An object that holds the rest of the scene horizontally, rises above it,
+/// and covers at least this share of its footprint from above is a sky
+/// enclosure (a dome, a sky box; snow::find_sky_enclosures): the run leaves
+/// it out unless told to keep it. Below 1 so that a dome's seams and a box
+/// whose top has a hole still count; high enough that a roof over part of
+/// a scene does not.
+constexpr double kSkyEnclosureCover = 0.9;  // share of the footprint, 0..1
+
 // --- Peel: the GPU's depth passes or a vertical ray per texel on the CPU ---
 
 /// The CPU peel keeps every hit of a texel's ray before sorting (20 bytes
