@@ -5,11 +5,13 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <map>
 #include <optional>
+#include <sstream>
 #include <string>
 
 #include <tiny_gltf.h>
@@ -18,6 +20,7 @@
 #include "gl/context.h"
 #include "mesh/gltf_writer.h"
 #include "scene/builder.h"
+#include "scene/frame.h"
 #include "support/command.h"
 #include "support/enclosures.h"
 
@@ -542,6 +545,71 @@ TEST(Cli, SkyDomeIsLeftOutWithAWarning) {
       run(common + " --keep-enclosures true --snow-output " + q(dir / "kept.obj"));
   ASSERT_EQ(kept.code, 0) << kept.output;
   EXPECT_EQ(read_all(dir / "kept.obj").find("o snow/Block"), std::string::npos);
+}
+
+// The m^3 of snow the run's summary line reports ("snow V m^3"), or -1.
+double summary_volume(const std::string& output) {
+  const size_t at = output.find("; snow ");
+  return at == std::string::npos ? -1.0 : std::atof(output.c_str() + at + 7);
+}
+
+// The yard (three objects) in metres, in centimetres and +Z up, as
+// exporters write them: the frame warnings say which option fixes each, the
+// options give the metre run's snow, and the snow goes back to the file's
+// frame.
+TEST(Cli, CentimetresAndZUpAreNoticedAndFixedByOptions) {
+  const fs::path dir = temp_dir("frames");
+  snow::SceneBuilder yard = snow::test::yard_under(snow::test::Sky::None);
+  yard.add_box("Shed", {2.0f, 0.0f, 2.0f}, {4.0f, 2.0f, 4.0f});
+  const auto save_in = [&](const snow::FileFrame& frame, const fs::path& path) {
+    std::vector<snow::TriMesh> meshes = yard.meshes();
+    for (snow::TriMesh& m : meshes) snow::to_file_frame(m, frame);
+    tinygltf::Model model;
+    snow::append_meshes(model, meshes, yard.materials(), "Scene");
+    snow::save_gltf(model, path);
+  };
+  save_in({}, dir / "m.glb");
+  save_in({0.01f, false}, dir / "cm.glb");
+  save_in({1.0f, true}, dir / "zup.glb");
+  const std::string common = " --max-side 96 --directions 8 --snow-output ";
+  const auto snow = [&](const std::string& scene, const std::string& options) {
+    const RunResult r = run("snow " + q(dir / scene) + options + common + q(dir / (scene + ".obj")));
+    EXPECT_EQ(r.code, 0) << r.output;
+    return r;
+  };
+  const RunResult metres = snow("m.glb", "");
+  EXPECT_EQ(metres.output.find("--unit-scale"), std::string::npos) << metres.output;
+  EXPECT_EQ(metres.output.find("--up z"), std::string::npos) << metres.output;
+  const double volume = summary_volume(metres.output);
+  ASSERT_GT(volume, 0.0) << metres.output;
+  const RunResult cm = snow("cm.glb", "");
+  EXPECT_NE(cm.output.find("if the scene is in centimetres, give --unit-scale 0.01"),
+            std::string::npos)
+      << cm.output;
+  const RunResult cm_fixed = snow("cm.glb", " --unit-scale 0.01");
+  EXPECT_EQ(cm_fixed.output.find("--unit-scale 0.01"), std::string::npos) << cm_fixed.output;
+  EXPECT_NEAR(summary_volume(cm_fixed.output), volume, 0.01 * volume);
+  const RunResult zup = snow("zup.glb", "");
+  EXPECT_NE(zup.output.find("if the scene is +Z up, give --up z"), std::string::npos)
+      << zup.output;
+  const RunResult zup_fixed = snow("zup.glb", " --up z");
+  EXPECT_EQ(zup_fixed.output.find("--up z"), std::string::npos) << zup_fixed.output;
+  EXPECT_NEAR(summary_volume(zup_fixed.output), volume, 0.01 * volume);
+  // The snow lies in the file's frame: its top in centimetres; +Z up.
+  const auto extent = [&](const std::string& obj, int axis) {
+    std::istringstream in(read_all(dir / obj));
+    double most = 0.0;
+    for (std::string line; std::getline(in, line);) {
+      if (line.rfind("v ", 0) != 0) continue;
+      std::istringstream v(line.substr(2));
+      double c[3];
+      v >> c[0] >> c[1] >> c[2];
+      most = std::max(most, c[axis]);
+    }
+    return most;
+  };
+  EXPECT_NEAR(extent("cm.glb.obj", 1), 100.0 * extent("m.glb.obj", 1), 1.0);
+  EXPECT_NEAR(extent("zup.glb.obj", 2), extent("m.glb.obj", 1), 0.01);
 }
 
 // A 1 m floor with a 0.4 m table top 0.3 m above it.

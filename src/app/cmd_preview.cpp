@@ -7,6 +7,7 @@
 #include "app/commands.h"
 #include "app/filters.h"
 #include "app/settings.h"
+#include "app/snow_warnings.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "live/viewer.h"
@@ -79,6 +80,7 @@ void run_preview(PreviewOptions o) {
   check_settings(s);  // flags and --config alike
   resolve_snow_settings(s);
   check_viewer_options(v);
+  v.frame = file_frame(s);
   s.peel.memory_budget = memory_budget_bytes(s.memory_budget_gib);
   s.load.limits.memory_budget = s.peel.memory_budget;  // the scene's data, images included
   s.stabilize.seed = uint32_t(s.coverage.seed);
@@ -104,6 +106,7 @@ void run_preview(PreviewOptions o) {
   // The export (the scene plus snow) writes from the JSON the loader parsed.
   s.load.keep_source = true;
   Scene loaded = load_scene(o.input, s.load);
+  to_metres_y_up(loaded, v.frame);
   warn_unmatched(loaded, s.ignore, "--ignore");
   warn_unmatched(loaded, s.no_snow_on, "--no-snow-on");
   const Scene scene =
@@ -112,6 +115,7 @@ void run_preview(PreviewOptions o) {
   warn_unmatched(scene, s.slippery, "--slippery");
   warn_unmatched(scene, s.rough, "--rough");
   v.sim.stabilize.grip = object_grip(scene, s.slippery, s.rough);
+  warn_if_not_metres_y_up(scene);
   const live::ViewerReport r = live::run_viewer(scene, v);
   char summary[400];
   std::snprintf(summary, sizeof summary,

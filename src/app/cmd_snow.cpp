@@ -203,10 +203,17 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
 }
 
 /// Writes -o, --snow-output, --maps and the effective settings beside the
-/// first output (so the run can be repeated).
+/// first output (so the run can be repeated). The meshes go back to the
+/// file's frame (`frame`); the maps stay in metres, +Y up.
 void write_outputs(const SnowOptions& o, MeshFormat format, CombinedInputPtr combined_input,
-                   const std::vector<SnowPatch>& patches, const SnowMaps& maps,
-                   const SnowResult& snow) {
+                   const std::vector<SnowPatch>& metre_patches, const FileFrame& frame,
+                   const SnowMaps& maps, const SnowResult& snow) {
+  std::vector<SnowPatch> file_patches;
+  if (!frame.is_identity()) {
+    file_patches = metre_patches;
+    for (SnowPatch& p : file_patches) to_file_frame(p.mesh, frame);
+  }
+  const std::vector<SnowPatch>& patches = frame.is_identity() ? metre_patches : file_patches;
   if (!o.output.empty()) {
     if (combined_input) {
       write_combined_gltf(std::move(combined_input), patches, o.output);
@@ -271,6 +278,7 @@ void log_plan(const plan::RunPlan& run) {
 void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   MeshFormat format = MeshFormat::Glb;
   PipelineSettings s = checked_settings(o, format);
+  const FileFrame frame = file_frame(s);
   StageClock clock;
 
   // The machine's facts; the renderer is probed beside the load.
@@ -294,6 +302,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
     scene = load_scene(o.input, s.load);
     if (combined) combined_input = plan_combined_gltf(*scene.source);
     scene.source.reset();
+    to_metres_y_up(scene, frame);
   });
   warn_unmatched(scene, s.ignore, "--ignore");
   warn_unmatched(scene, s.no_snow_on, "--no-snow-on");
@@ -304,6 +313,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_unmatched(snow_scene, s.slippery, "--slippery");
   warn_unmatched(snow_scene, s.rough, "--rough");
   s.stabilize.grip = object_grip(snow_scene, s.slippery, s.rough);
+  warn_if_not_metres_y_up(snow_scene);
   warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
   warn_if_imprecise(snow_scene, s.accumulate.fall_depth);
 
@@ -365,7 +375,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
             [&] { patches = polygonize(maps, snow.depth, snow_scene, s.polygonize); });
   if (patches.empty()) warn_no_patches(snow, s.polygonize);
   clock.run("export",
-            [&] { write_outputs(o, format, std::move(combined_input), patches, maps, snow); });
+            [&] { write_outputs(o, format, std::move(combined_input), patches, frame, maps, snow); });
   if (!o.preview.empty()) {
     clock.run("preview", [&] {
       const auto context = gl.context();

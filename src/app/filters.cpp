@@ -44,6 +44,7 @@ Scene without(Scene scene, Drop drop, const char* why) {
   out.stats = scene.stats;
   out.warnings = scene.warnings;
   out.source = scene.source;
+  out.generator = scene.generator;
   for (size_t i = 0; i < scene.objects.size(); ++i) {
     const SceneObject& object = scene.objects[i];
     if (drop(i, object)) {

@@ -126,6 +126,13 @@ void check_settings(const PipelineSettings& settings) {
       copy);
 }
 
+FileFrame file_frame(const PipelineSettings& s) {
+  FileFrame frame;
+  frame.unit_scale = s.unit_scale;
+  frame.z_up = z_up_from_name(s.up);
+  return frame;
+}
+
 void resolve_snow_settings(PipelineSettings& s) {
   s.stabilize.cohesion = cohesion_of(snow_kind_from_name(s.snow_kind));
   if (s.stand_height >= 0.0f) s.stabilize.cohesion.stand_height = s.stand_height;

@@ -10,6 +10,7 @@
 
 #include "mesh/polygonize.h"
 #include "plan/plan.h"
+#include "scene/frame.h"
 #include "scene/load_gltf.h"
 #include "snow/accumulate.h"
 #include "snow/coverage.h"
@@ -26,6 +27,8 @@ struct PipelineSettings {
   AccumulateSettings accumulate;
   PolygonizeSettings polygonize;
   float memory_budget_gib = 4.0f;       // GiB, stop before allocating more (peel.memory_budget)
+  float unit_scale = 1.0f;              // metres per file unit (scene/frame.h)
+  std::string up = "y";                 // the file's up axis: y or z
   std::vector<std::string> no_snow_on;  // name globs: shelter but receive no snow
   std::vector<std::string> ignore;      // name globs: neither receive nor shelter
   std::string snow_kind = "fresh";      // powder, fresh or wet (snow/cohesion.h)
@@ -63,6 +66,13 @@ inline uint64_t memory_budget_bytes(float gib) {
 /// v(key, flag, help, field, range) for each.
 template <class Visitor>
 void visit_settings(Visitor&& v, PipelineSettings& s) {
+  // The scene's frame.
+  v("scene.unit_scale", "--unit-scale",
+    "Metres per unit of the file: 0.01 for a scene in centimetres, 0.001 for millimetres (the "
+    "snow goes back to the file's units)",
+    s.unit_scale, Range{1e-6, 1e6});
+  v("scene.up", "--up", "The file's up axis: y (glTF's) or z (the snow goes back to it)", s.up,
+    kNoRange);
   // Maps (peel).
   v("maps.texel", "--texel", "Map texel size in metres (0 = automatic from --max-side)",
     s.peel.texel, Range{0, 1000});
@@ -220,6 +230,10 @@ void check_range(const std::string& flag, const std::string& key, double value, 
 /// The stages check the combinations (repose +- jitter, strides that are
 /// powers of two, wind against fall speed) themselves.
 void check_settings(const PipelineSettings& settings);
+
+/// The file frame that --unit-scale and --up give (InputError naming --up
+/// for anything but y or z).
+FileFrame file_frame(const PipelineSettings& settings);
 
 /// Sets settings.stabilize.cohesion from the snow kind and its overrides
 /// (stand_height, hold_depth where not negative). Throws InputError naming

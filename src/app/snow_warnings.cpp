@@ -10,7 +10,9 @@
 
 #include "core/log.h"
 #include "plan/plan.h"
+#include "plan/rules.h"
 #include "scene/builder.h"
+#include "scene/frame.h"
 
 namespace snow::app {
 
@@ -24,6 +26,27 @@ void warn_if_out_of_scale(const Scene& scene, float fall_depth) {
                 "metres: if the scene is not to scale, lower --depth",
                 double(fall_depth), 100.0 * double(fall_depth / width), double(width));
   log_warn(line);
+}
+
+void warn_if_not_metres_y_up(const Scene& scene) {
+  const std::string& generator = scene.generator;
+  const FrameFigures f = frame_figures(scene);
+  const plan::FrameAdvice a = plan::advise_frame(scene.objects.size(), f.median_object_size,
+                                                 f.area_facing_y, f.area_facing_z);
+  const std::string by = generator.empty() ? "" : " (written by " + generator + ")";
+  if (a.unit_scale != 1.0f) {
+    char line[400];
+    std::snprintf(line, sizeof line,
+                  "the scene's objects are %.3g units across (median)%s: glTF units are metres; "
+                  "if the scene is in %s, give --unit-scale %g",
+                  double(f.median_object_size), by.c_str(),
+                  a.unit_scale < 0.005f ? "millimetres" : "centimetres", double(a.unit_scale));
+    log_warn(line);
+  }
+  if (a.z_up) {
+    log_warn("most of the scene's area faces +-Z, little faces up (+Y)" + by +
+             ": if the scene is +Z up, give --up z");
+  }
 }
 
 void warn_if_imprecise(const Scene& scene, float fall_depth) {

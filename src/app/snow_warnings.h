@@ -31,6 +31,10 @@ void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth);
 /// snow still moving more than --tolerance: the snow shown is not at rest.
 void warn_if_unsettled(const SnowResult& snow, const StabilizeSettings& settings);
 
+/// Warns when the scene's figures (snow::frame_figures, plan::advise_frame)
+/// say it is not in metres or not +Y up, naming the option that fixes it.
+void warn_if_not_metres_y_up(const Scene& scene);
+
 /// Objects that enclose the scene like a sky dome or a sky box: their bounds
 /// hold every other object and in most columns they top there is another
 /// surface below them (unlike a hilly terrain, which is also wide and tall).

@@ -77,7 +77,8 @@ std::string export_snow(const Scene& scene, const LiveSim& sim, const ViewerOpti
                         const std::string& path, bool snow_only) {
   const MeshFormat format = format_from_path(path);
   check_output_paths(options.input, {{"export", path, OutputKind::Mesh, format, {}}});
-  const std::vector<SnowPatch> patches = polygonize(sim.maps(), sim.depth(), scene, options.mesh);
+  std::vector<SnowPatch> patches = polygonize(sim.maps(), sim.depth(), scene, options.mesh);
+  for (SnowPatch& p : patches) to_file_frame(p.mesh, options.frame);
   const bool combined = !snow_only && (format == MeshFormat::Glb || format == MeshFormat::Gltf);
   if (combined && scene.source) {
     write_combined_gltf(*scene.source, patches, path);

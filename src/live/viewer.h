@@ -10,6 +10,7 @@
 #include "live/live_sim.h"
 #include "live/snow_view.h"
 #include "mesh/polygonize.h"
+#include "scene/frame.h"
 #include "scene/scene.h"
 
 namespace snow::live {
@@ -34,6 +35,7 @@ struct ViewerOptions {
   bool screenshot_panel = false;  // the screenshot at exit shows the panel too
   std::string export_path;        // snow meshes (.glb/.gltf with the scene, .obj/.ply) at exit
   bool snow_only = false;         // export the snow only, also to .glb/.gltf
+  FileFrame frame;                // the file's frame: the export goes back to it
   std::vector<uint8_t> receives;  // per scene object: 0 = no fresh snow (may be empty)
 };
 

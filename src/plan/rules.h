@@ -32,6 +32,38 @@ struct GlFacts {
 /// a scene does not.
 constexpr double kSkyEnclosureCover = 0.9;  // share of the footprint, 0..1
 
+/// A scene whose median object is more than this many units across is
+/// probably not in metres (glTF's unit): centimetres up to
+/// kMillimetreObjectUnits, millimetres beyond; the run suggests
+/// --unit-scale. Real objects (benches, cars, houses) are 0.3 to 30 m.
+constexpr float kCentimetreObjectUnits = 60.0f;   // units
+constexpr float kMillimetreObjectUnits = 3000.0f;  // units
+/// A scene with this many times more area facing +-Z than facing +-Y
+/// (grounds, floors and roofs face up) is probably +Z up; the run
+/// suggests --up z.
+constexpr double kZUpAreaRatio = 3.0;
+
+/// The frame the scene's figures suggest (snow::frame_figures): metres per
+/// unit (1 where they look like metres) and whether +Z looks up.
+struct FrameAdvice {
+  float unit_scale = 1.0f;
+  bool z_up = false;
+};
+/// The size rule needs this many objects (a lone terrain is any size).
+constexpr size_t kFrameMinObjects = 3;
+inline FrameAdvice advise_frame(size_t objects, float median_object_units, double area_facing_y,
+                                double area_facing_z) {
+  FrameAdvice a;
+  if (objects < kFrameMinObjects) {
+  } else if (median_object_units > kMillimetreObjectUnits) {
+    a.unit_scale = 0.001f;
+  } else if (median_object_units > kCentimetreObjectUnits) {
+    a.unit_scale = 0.01f;
+  }
+  a.z_up = area_facing_z > kZUpAreaRatio * area_facing_y;
+  return a;
+}
+
 // --- Peel: the GPU's depth passes or a vertical ray per texel on the CPU ---
 
 /// The CPU peel keeps every hit of a texel's ray before sorting (20 bytes

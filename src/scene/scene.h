@@ -79,6 +79,7 @@ struct Scene {
   Bounds bounds;
   SceneStats stats;
   std::vector<std::string> warnings;  // also logged as they happen
+  std::string generator;              // the file's asset.generator (one line), "" if none
   // The file as read, with LoadSettings::keep_source (scene/load_gltf.h);
   // else null. Shared: copies of the scene refer to the same one.
   std::shared_ptr<const SourceGltf> source;

@@ -400,6 +400,7 @@ void GltfLoader::read_document() {
   if (!doc_.is_object()) fail("broken JSON: the top level is not an object");
   const json* asset = member(doc_, "asset");
   const std::string version = asset ? opt_string(*asset, "version") : std::string();
+  if (asset) scene_.generator = one_line(opt_string(*asset, "generator"), 100);
   if (version.empty()) {
     warn("'asset.version' is missing; reading the file as glTF 2.0");
   } else if (version[0] != '2') {
