@@ -547,6 +547,56 @@ TEST(Cli, SkyDomeIsLeftOutWithAWarning) {
   EXPECT_EQ(read_all(dir / "kept.obj").find("o snow/Block"), std::string::npos);
 }
 
+// The highest point (m) of the OBJ object `name` in `obj`'s text, or -1.
+double object_top(const std::string& obj, const std::string& name) {
+  std::istringstream in(obj);
+  bool inside = false;
+  double top = -1.0;
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("o ", 0) == 0) inside = line.substr(2) == name;
+    if (!inside || line.rfind("v ", 0) != 0) continue;
+    std::istringstream v(line.substr(2));
+    double c[3];
+    v >> c[0] >> c[1] >> c[2];
+    top = std::max(top, c[1]);
+  }
+  return top;
+}
+
+// A 2 x 2 x 1 m block on square planes of 20 m, 200 m and 2 km, default
+// settings: the block gets the same snow on each (to 1 cm; its top 0.3 m
+// over it and up to 1.5 cm more, the snow its rounded shoulders give up),
+// the big planes' far ground an even cover under two map levels that the
+// run names, all within the default memory budget.
+TEST(Cli, SmallObjectOnBigGroundsGetsTheSameSnow) {
+  const fs::path dir = temp_dir("big_grounds");
+  double first_top = -1.0;
+  for (const float side : {20.0f, 200.0f, 2000.0f}) {
+    snow::SceneBuilder b;
+    b.add_plane("Ground", 0.0f, glm::vec2(-0.5f * side), glm::vec2(0.5f * side));
+    b.add_box("Block", {-1.0f, 0.0f, -1.0f}, {1.0f, 1.0f, 1.0f});
+    const std::string name = "ground" + std::to_string(int(side));
+    save_built_scene(b, dir / (name + ".glb"));
+    const RunResult r = run("-v snow " + q(dir / (name + ".glb")) + " --directions 16 " +
+                            "--snow-output " + q(dir / (name + ".obj")));
+    ASSERT_EQ(r.code, 0) << r.output;
+    const bool levels = side > 20.0f;  // 20 m: one map at 2 cm texels holds it all
+    EXPECT_EQ(r.output.find("maps: two levels") != std::string::npos, levels) << r.output;
+    const std::string obj = read_all(dir / (name + ".obj"));
+    const double top = object_top(obj, "snow/Block");
+    EXPECT_GT(top, 1.3 - 0.005) << side;
+    EXPECT_LT(top, 1.3 + 0.015) << side;
+    if (first_top < 0.0) first_top = top;
+    EXPECT_NEAR(top, first_top, 0.01) << side;
+    if (levels) {
+      EXPECT_NEAR(object_top(obj, "snow/Ground/beyond"), 0.3, 0.002) << side;
+    }
+    const size_t at = r.output.find("peak memory ");
+    ASSERT_NE(at, std::string::npos);
+    EXPECT_LT(std::atof(r.output.c_str() + at + 12), 4096.0) << r.output;  // MiB
+  }
+}
+
 // The m^3 of snow the run's summary line reports ("snow V m^3"), or -1.
 double summary_volume(const std::string& output) {
   const size_t at = output.find("; snow ");

@@ -27,11 +27,14 @@
 #include "core/heap.h"
 #include "core/log.h"
 #include "mesh/export.h"
+#include "mesh/far_ground.h"
 #include "mesh/output_policy.h"
 #include "mesh/write_maps.h"
 #include "plan/plan.h"
+#include "plan/rules.h"
 #include "render/preview.h"
 #include "scene/builder.h"
+#include "scene/flat_ground.h"
 #include "scene/load_gltf.h"
 #include "snow/stabilize.h"
 
@@ -271,6 +274,36 @@ void fit_heap(bool off) {
   }
 }
 
+/// The maps' part of a scene on a big flat ground: where the planner says
+/// so (plan::detail_margin), the detail and a margin around it; the ground
+/// beyond gets an even cover (mesh/far_ground.h).
+struct DetailMaps {
+  FlatGround ground;
+  Bounds region;  // x, z of the maps; y unused
+};
+
+std::optional<DetailMaps> detail_maps(const Scene& scene, const CoverageSettings& coverage) {
+  const std::optional<FlatGround> ground = find_flat_ground(scene);
+  if (!ground) return std::nullopt;
+  const glm::vec3 g = ground->bounds.size(), d = ground->detail.size();
+  const double tilt =
+      std::atan2(double(glm::length(coverage.wind)), double(coverage.fall_speed)) * 180.0 / M_PI +
+      double(coverage.flutter_deg);
+  const double margin = plan::detail_margin(std::max(g.x, g.z), std::max(d.x, d.z),
+                                            double(ground->detail.max.y - ground->y), tilt);
+  if (margin < 0.0) return std::nullopt;
+  DetailMaps out{*ground, {}};
+  const float m = float(margin);
+  out.region.min = glm::max(ground->detail.min - glm::vec3(m), ground->bounds.min);
+  out.region.max = glm::min(ground->detail.max + glm::vec3(m), ground->bounds.max);
+  // The far cover needs room on every side.
+  if (out.region.min.x <= ground->bounds.min.x || out.region.max.x >= ground->bounds.max.x ||
+      out.region.min.z <= ground->bounds.min.z || out.region.max.z >= ground->bounds.max.z) {
+    return std::nullopt;
+  }
+  return out;
+}
+
 void log_plan(const plan::RunPlan& run) {
   for (const std::string& line : plan::describe(run)) log_debug(line);
 }
@@ -317,9 +350,19 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
   warn_if_imprecise(snow_scene, s.accumulate.fall_depth);
 
+  // Small objects on a big flat ground: maps over the detail alone.
+  const std::optional<DetailMaps> detail = detail_maps(snow_scene, s.coverage);
+  Scene clipped;
+  if (detail) {
+    clipped = with_ground_clipped(snow_scene, detail->ground, detail->region);
+    s.peel.margin = 0.0f;
+    s.polygonize.open_beyond = detail->region;
+  }
+  const Scene& map_scene = detail ? clipped : snow_scene;
+
   // The plan: the maps' size and where each stage runs.
   const plan::Settings wanted = plan_settings(s);
-  const plan::SceneStats stats = scene_stats(snow_scene, s.peel, wanted, input_bytes);
+  const plan::SceneStats stats = scene_stats(map_scene, s.peel, wanted, input_bytes);
   plan::RunPlan run = plan::plan_run(stats, gl.machine(), wanted, gl.warming());
   if (!run.maps.note.empty()) log_info(run.maps.note);
   log_plan(run);
@@ -330,7 +373,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   std::future<CoverageBvh> bvh_ahead;
   const auto build_bvh_ahead = [&] {
     bvh_ahead = std::async(std::launch::async, [&] {
-      return build_coverage_bvh(snow_scene, run.bvh_morton ? Bvh::Build::Morton : Bvh::Build::Sah);
+      return build_coverage_bvh(map_scene, run.bvh_morton ? Bvh::Build::Morton : Bvh::Build::Sah);
     });
   };
   if (run.bvh_ahead) build_bvh_ahead();
@@ -344,7 +387,18 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
       log_plan(run);
       if (run.bvh_ahead) build_bvh_ahead();
     }
-    maps = peel_layers(snow_scene, s.peel, run.gl);
+    maps = peel_layers(map_scene, s.peel, run.gl);
+    if (detail) {
+      const glm::vec3 r = detail->region.size(), g = detail->ground.bounds.size();
+      char line[400];
+      std::snprintf(line, sizeof line,
+                    "maps: two levels: the detail and its surroundings, %.4g x %.4g m at %.3g m "
+                    "texels; the open ground '%s' beyond (%.4g x %.4g m) under an even cover",
+                    double(r.x), double(r.z), double(maps.grid.texel),
+                    snow_scene.objects[size_t(detail->ground.object)].name.c_str(), double(g.x),
+                    double(g.z));
+      log_info(line);
+    }
     gl_after_peel = {run.gl.software, run.gl.started || context->made()};
   });
   log_info("maps: " + std::to_string(maps.grid.width) + " x " + std::to_string(maps.grid.height) +
@@ -364,15 +418,23 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
                          std::to_string(snow_scene.triangle_count()) + " triangles");
       }
     }
-    snow = accumulate(snow_scene, maps, s.coverage, s.stabilize, s.accumulate, gl_after_peel,
+    snow = accumulate(map_scene, maps, s.coverage, s.stabilize, s.accumulate, gl_after_peel,
                       receives, bvh ? &*bvh : nullptr);
   });
   warn_if_unsettled(snow, s.stabilize);
-  warn_if_sheltered(snow_scene, maps, snow.coverage);
+  warn_if_sheltered(map_scene, maps, snow.coverage);
 
   std::vector<SnowPatch> patches;
   clock.run("polygonize",
-            [&] { patches = polygonize(maps, snow.depth, snow_scene, s.polygonize); });
+            [&] { patches = polygonize(maps, snow.depth, map_scene, s.polygonize); });
+  if (detail && s.accumulate.fall_depth > 0.0f) {
+    const SceneObject& g = snow_scene.objects[size_t(detail->ground.object)];
+    patches.push_back(far_ground_snow(detail->ground, detail->region, s.accumulate.fall_depth,
+                                      2.0f * maps.grid.texel, kFarGroundSeam,
+                                      s.polygonize.bottom_offset, "snow/" + g.name + "/beyond"));
+    snow.fallen_volume += patches.back().depth_volume;
+    snow.volume += patches.back().depth_volume;
+  }
   if (patches.empty()) warn_no_patches(snow, s.polygonize);
   clock.run("export",
             [&] { write_outputs(o, format, std::move(combined_input), patches, frame, maps, snow); });

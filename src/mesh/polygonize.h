@@ -28,6 +28,10 @@ struct PolygonizeSettings {
   /// square) where it ends at a free edge (a table top's, a wall cap's), as
   /// fresh snow forms a pillow (poly::round_shoulders).
   float shoulder_radius = 0.15f;
+  /// The snow goes on past the border of this rectangle (x, z; empty:
+  /// nowhere), as an even cover laid around the maps (mesh/far_ground.h):
+  /// free edges there get no shoulder.
+  Bounds open_beyond;
   /// Smoothing passes (count) over the snow top (mass-conserving diffusion of
   /// the snow surface height) and over the outline. 0: none.
   int smooth_iterations = 8;

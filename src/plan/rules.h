@@ -7,6 +7,8 @@
 // functions here, which the stages call with those figures. The constants
 // were fitted on the scenes and machines named in tools/RESULTS.md
 // ("Constants of the automatic choices"); refit them there, not in the stages.
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -62,6 +64,29 @@ inline FrameAdvice advise_frame(size_t objects, float median_object_units, doubl
   }
   a.z_up = area_facing_z > kZUpAreaRatio * area_facing_y;
   return a;
+}
+
+/// Small objects on a big flat ground (snow::find_flat_ground): where the
+/// ground's longer side is at least kDetailGroundRatio times that of the
+/// detail plus its margins, the maps cover the detail and a margin around
+/// it alone, at the detail's resolution, and the open ground beyond gets an
+/// even cover of the fallen depth (as Neukom et al. 2018 nest a fine grid
+/// in a coarse one). The margin holds the detail's shadows under the
+/// steepest fall (twice its height times the tangent of the fall's tilt
+/// plus flutter), the piles of what slides off it, and at least
+/// kDetailMarginShare of its size or kDetailMarginMin.
+constexpr double kDetailGroundRatio = 4.0;   // ground side over detail side (with margins)
+constexpr double kDetailMarginShare = 0.25;  // of the detail's longer side
+constexpr double kDetailMarginMin = 2.0;     // metres
+/// The margin (m) around the detail, or a negative number where the maps
+/// should cover the whole ground. Sides and height in metres, the tilt in
+/// degrees (fall tilt plus flutter, below 90).
+inline double detail_margin(double ground_side, double detail_side, double detail_height,
+                            double tilt_deg) {
+  const double tilt = std::min(tilt_deg, 80.0) * 3.14159265358979 / 180.0;
+  const double margin = std::max({kDetailMarginMin, kDetailMarginShare * detail_side,
+                                  2.0 * detail_height * std::tan(tilt)});
+  return ground_side >= kDetailGroundRatio * (detail_side + 2.0 * margin) ? margin : -1.0;
 }
 
 // --- Peel: the GPU's depth passes or a vertical ray per texel on the CPU ---

@@ -124,7 +124,13 @@ PatchField build_field(const SnowMaps& maps, const LayerArray<float>& depth,
 }
 
 void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float>& depth,
-                     const PatchTexels& patch, float radius) {
+                     const PatchTexels& patch, float radius, const Bounds& open_beyond) {
+  const auto goes_on = [&](int i, int j) {
+    if (open_beyond.empty()) return false;
+    const glm::vec2 c = maps.grid.center(i, j);
+    return c.x < open_beyond.min.x || c.x > open_beyond.max.x || c.y < open_beyond.min.z ||
+           c.y > open_beyond.max.z;
+  };
   const float texel = maps.grid.texel;
   const float reach = std::ceil(radius / texel);  // texels (inf on absurdly fine maps)
   // Distance (texels) from the nearest free-edge member; far: +inf.
@@ -139,6 +145,7 @@ void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float
     for (int n = 0; n < 4; ++n) {
       if (f.member[f.at(c.i - f.i0 + kDi[n], c.j - f.j0 + kDj[n])]) continue;
       const int ni = c.i + kDi[n], nj = c.j + kDj[n];
+      if (goes_on(ni, nj)) continue;
       const int l = landing(maps, depth.data(), ni, nj, top, maps.ground[k]);
       bool drop = l == kLandVoid;
       if (l >= 0) {

@@ -134,7 +134,7 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const LayerArray<float
 
   PatchField field = build_field(maps, d, texels);
   if (settings.shoulder_radius > 0.0f) {
-    round_shoulders(field, maps, d, texels, settings.shoulder_radius);
+    round_shoulders(field, maps, d, texels, settings.shoulder_radius, settings.open_beyond);
   }
   smooth_field(field, settings.smooth_iterations, min_thickness);
   const double field_seconds = seconds();

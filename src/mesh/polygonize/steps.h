@@ -23,6 +23,7 @@
 
 #include "core/parallel.h"
 #include "core/trimesh.h"
+#include "scene/scene.h"
 #include "snow/maps.h"
 
 namespace snow::poly {
@@ -131,8 +132,10 @@ void each_sample(const PatchField& f, unsigned threads, const Fn& fn) {
 /// least that far from every free edge, with the outline about a texel
 /// beyond the edge members' centres. Marks them in f.shoulder: the smoothing
 /// leaves them as shaped.
+/// Neighbour columns whose centre lies outside `open_beyond` (x, z; empty:
+/// none) are not drops: the snow goes on there.
 void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float>& depth,
-                     const PatchTexels& patch, float radius);
+                     const PatchTexels& patch, float radius, const Bounds& open_beyond);
 
 /// The patch's window with thickness `depth` and the maps' ground on its
 /// texels, the ground slope there, and the ground extrapolated one sample out.
