@@ -526,27 +526,6 @@ void save_built_scene(const snow::SceneBuilder& builder, const fs::path& path) {
 }
 }  // namespace
 
-// A yard under a sky dome (tests/support/enclosures.h): the dome is left
-// out with a warning naming it, and the block gets its snow; kept, the dome
-// takes the snow and the block gets none.
-TEST(Cli, SkyDomeIsLeftOutWithAWarning) {
-  const fs::path dir = temp_dir("sky_dome");
-  save_built_scene(snow::test::yard_under(snow::test::Sky::Dome), dir / "yard.glb");
-  const std::string common = "snow " + q(dir / "yard.glb") + " --max-side 128 --directions 8";
-  const RunResult left_out = run(common + " --snow-output " + q(dir / "left_out.obj"));
-  ASSERT_EQ(left_out.code, 0) << left_out.output;
-  EXPECT_NE(left_out.output.find("object 'SkyDome' encloses the scene from above"),
-            std::string::npos)
-      << left_out.output;
-  const std::string snow = read_all(dir / "left_out.obj");
-  EXPECT_NE(snow.find("o snow/Block"), std::string::npos);
-  EXPECT_EQ(snow.find("o snow/SkyDome"), std::string::npos);
-  const RunResult kept =
-      run(common + " --keep-enclosures true --snow-output " + q(dir / "kept.obj"));
-  ASSERT_EQ(kept.code, 0) << kept.output;
-  EXPECT_EQ(read_all(dir / "kept.obj").find("o snow/Block"), std::string::npos);
-}
-
 // The highest point (m) of the OBJ object `name` in `obj`'s text, or -1.
 double object_top(const std::string& obj, const std::string& name) {
   std::istringstream in(obj);
@@ -660,6 +639,38 @@ TEST(Cli, CentimetresAndZUpAreNoticedAndFixedByOptions) {
   };
   EXPECT_NEAR(extent("cm.glb.obj", 1), 100.0 * extent("m.glb.obj", 1), 1.0);
   EXPECT_NEAR(extent("zup.glb.obj", 2), extent("m.glb.obj", 1), 0.01);
+}
+
+// A yard under a sky dome, in a sky box, in an inverted sphere
+// (tests/support/enclosures.h): the sky is left out with a warning naming
+// it, and the yard gets the snow it gets under the open sky; kept, the dome
+// takes the snow and the block gets none.
+TEST(Cli, SkyEnclosuresAreLeftOutWithAWarning) {
+  using snow::test::Sky;
+  const fs::path dir = temp_dir("sky_enclosures");
+  const std::string options = " --max-side 128 --directions 8 --snow-output ";
+  save_built_scene(snow::test::yard_under(Sky::None), dir / "open.glb");
+  const RunResult open = run("snow " + q(dir / "open.glb") + options + q(dir / "open.obj"));
+  ASSERT_EQ(open.code, 0) << open.output;
+  const double top = object_top(read_all(dir / "open.obj"), "snow/Block");
+  ASSERT_GT(top, 1.2);
+  for (const auto& [sky, name] : {std::pair{Sky::Dome, "SkyDome"}, std::pair{Sky::Box, "SkyBox"},
+                                  std::pair{Sky::InvertedSphere, "SkySphere"}}) {
+    save_built_scene(snow::test::yard_under(sky), dir / (std::string(name) + ".glb"));
+    const std::string common = "snow " + q(dir / (std::string(name) + ".glb")) + options;
+    const RunResult r = run(common + q(dir / (std::string(name) + ".obj")));
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("object '" + std::string(name) + "' encloses the scene from above"),
+              std::string::npos)
+        << r.output;
+    const std::string snow = read_all(dir / (std::string(name) + ".obj"));
+    EXPECT_NEAR(object_top(snow, "snow/Block"), top, 0.01) << name;
+    EXPECT_EQ(snow.find("o snow/" + std::string(name)), std::string::npos) << name;
+  }
+  const RunResult kept = run("snow " + q(dir / "SkyDome.glb") + " --keep-enclosures true" +
+                             options + q(dir / "kept.obj"));
+  ASSERT_EQ(kept.code, 0) << kept.output;
+  EXPECT_EQ(read_all(dir / "kept.obj").find("o snow/Block"), std::string::npos);
 }
 
 // A 1 m floor with a 0.4 m table top 0.3 m above it.
@@ -798,7 +809,9 @@ TEST(Cli, WarnsWhenASkyBoxTakesTheSnow) {
   save_built_scene(builder, dir / "sky.glb");
 
   const std::string common = "snow " + q(dir / "sky.glb") + " --max-side 96 --directions 16";
-  const RunResult boxed = run(common + " -o " + q(dir / "boxed.glb"));
+  // Kept (it would be left out, Cli.SkyEnclosuresAreLeftOutWithAWarning), the
+  // sky box takes the snow, and the fallback warning names it.
+  const RunResult boxed = run(common + " --keep-enclosures true -o " + q(dir / "boxed.glb"));
   ASSERT_EQ(boxed.code, 0) << boxed.output;
   EXPECT_NE(boxed.output.find("almost nothing receives snow"), std::string::npos) << boxed.output;
   EXPECT_NE(boxed.output.find("'SkyBox' (encloses the scene"), std::string::npos) << boxed.output;
