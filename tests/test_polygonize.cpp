@@ -287,6 +287,32 @@ TEST(Polygonize, ShouldersOnAbsurdlyFineMaps) {
   EXPECT_NO_THROW(polygonize(maps, depth, names_scene({"Floor"}), settings));
 }
 
+// Shoulders on thin snow and on narrow strips (a parapet's cap, a sill):
+// 5 cm of snow keeps its depth a shoulder's width from the edge, and a strip
+// narrower than two shoulders rounds over its width instead of vanishing.
+TEST(Polygonize, ShouldersKeepThinSnowAndNarrowStrips) {
+  const SnowMaps maps = flat_floor(64, 0.02f);
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  for (int j = 8; j < 56; ++j) {
+    for (int i = 8; i < 30; ++i) depth[maps.index(0, i, j)] = 0.05f;  // thin snow, 44 cm wide
+    for (int i = 40; i < 45; ++i) depth[maps.index(0, i, j)] = 0.3f;   // a strip 10 cm wide
+  }
+  const auto patches = polygonize(maps, depth, names_scene({"Floor"}), {});
+  ASSERT_EQ(patches.size(), 2u);
+  for (const SnowPatch& p : patches) {
+    float top = 0.0f;
+    for (const glm::vec3& v : p.mesh.positions) top = std::max(top, v.y);
+    std::printf("%s: top %.4f m, volume %.4f m^3 vs %.4f m^3 of snow\n",
+                p.texels > 600 ? "thin snow" : "narrow strip", top, p.volume, p.depth_volume);
+    EXPECT_NEAR(p.volume, p.depth_volume, 0.05 * p.depth_volume);
+    if (p.texels > 600) {
+      EXPECT_NEAR(top, 0.05f, 0.01f);  // raised by what the shoulders give up
+    } else {
+      EXPECT_GT(top, 0.25f);
+    }
+  }
+}
+
 TEST(Polygonize, FlatPlaneDecimatesEightfoldWithinTheErrorBound) {
   const SnowMaps maps = flat_floor(64, 0.1f);
   std::vector<float> depth(maps.ground.size(), 0.0f);

@@ -163,10 +163,10 @@ void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float
   // Distances over members by dead reckoning (Grevera 2004): two chamfer
   // sweeps over the window, forward and back, that pass on each sample's
   // nearest seed rather than a sum of step costs, so d becomes the
-  // Euclidean distance (texels) to the nearest member where it is 0, up to
-  // the sweeps' rare misses.
+  // Euclidean distance (texels) to the nearest member where it is 0 (that
+  // member in seed), up to the sweeps' rare misses.
+  std::vector<glm::ivec2> seed(f.s.size());  // each sample's nearest seed, after a chamfer
   const auto chamfer = [&](std::vector<float>& d) {
-    std::vector<glm::ivec2> seed(d.size(), glm::ivec2(0));
     for (int wj = 0; wj < f.h; ++wj) {
       for (int wi = 0; wi < f.w; ++wi) seed[f.at(wi, wj)] = glm::ivec2(wi, wj);
     }
@@ -200,26 +200,51 @@ void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float
     }
   };
   chamfer(steps);
-  // The core: members a shoulder's width or more from every free edge. The
-  // shoulder follows the distance to the core, r minus it, which rounds
-  // convex corners in plan too (the inward offsets of a square have mitred
-  // corners; those of the core, grown back by r, round ones).
+  // The core: members a shoulder's width or more from every free edge, and
+  // the ridges of strips narrower than two shoulders (members no nearer to
+  // an edge than any neighbour). The shoulder follows the distance to the
+  // core: a member lies x = x_core - d from the outline, x_core the core
+  // sample's own distance from it (the shoulder's width, or a narrow
+  // strip's half width) and d the distance to it. That rounds convex
+  // corners in plan too (the inward offsets of a square have mitred
+  // corners; those of the core, grown back, round ones).
   std::vector<float> to_core(f.s.size(), std::numeric_limits<float>::infinity());
-  for (size_t a = 0; a < f.s.size(); ++a) {
-    if (f.member[a] && (steps[a] + 1.0f) * texel >= radius) to_core[a] = 0.0f;
+  const auto ridge = [&](int wi, int wj) {
+    const float d = steps[f.at(wi, wj)];
+    for (int dj = -1; dj <= 1; ++dj) {
+      for (int di = -1; di <= 1; ++di) {
+        const int ni = wi + di, nj = wj + dj;
+        if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) continue;
+        const size_t b = f.at(ni, nj);
+        if (f.member[b] && steps[b] > d) return false;
+      }
+    }
+    return true;
+  };
+  for (int wj = 0; wj < f.h; ++wj) {
+    for (int wi = 0; wi < f.w; ++wi) {
+      const size_t a = f.at(wi, wj);
+      if (!f.member[a]) continue;
+      if ((steps[a] + 1.0f) * texel >= radius || ridge(wi, wj)) to_core[a] = 0.0f;
+    }
   }
   chamfer(to_core);
-  // The thickness (m) of shoulder member a: x is its distance (m) from the
-  // rounded outline, about a texel beyond the edge members' centres; a
-  // member beyond it (a square corner's tip) keeps no snow: the outline
-  // rounds there.
+  std::vector<float> x_of(f.s.size(), 0.0f);  // m, from the rounded outline
+  for (size_t a = 0; a < f.s.size(); ++a) {
+    if (!f.member[a] || !std::isfinite(to_core[a])) continue;
+    const size_t core = f.at(seed[a].x, seed[a].y);
+    const float x_core = std::min(radius, (steps[core] + 1.0f) * texel);
+    x_of[a] = x_core - to_core[a] * texel;
+  }
+  // The thickness (m) of shoulder member a, s thick, at x from the rounded
+  // outline: a quarter circle of radius min(radius, s) rising from it; none
+  // beyond it (a square corner's tip): the outline rounds there.
   const auto shaped = [&](size_t a) {
-    const float x = radius - to_core[a] * texel;
+    const float x = x_of[a];
     if (x <= 0.0f) return 0.0f;
     const float s = f.s[a], r = std::min(radius, s);
-    const float xr = x - (radius - r);  // from the start of a shallower snow's arc
-    if (xr >= r) return s;
-    const float u = r - std::max(xr, 0.0f);
+    if (x >= r) return s;
+    const float u = r - x;
     return s - r + std::sqrt(std::max(r * r - u * u, 0.0f));
   };
   f.shoulder.assign(f.s.size(), 0);
