@@ -213,6 +213,42 @@ TEST(SnowPhysics, ThePillowsShoulderIsSmooth) {
   EXPECT_LE(worst, 20.0);
 }
 
+// Where cohesion lets it, the snow bulges past a free edge: on the block the
+// mesh reaches beyond the block's sides over the air, with faces looking
+// down above the block's top (the lip's underside: no longer a height
+// field), and stays a closed 2-manifold.
+TEST(SnowPhysics, ThePillowBulgesPastTheEdgeAsAClosedSolid) {
+  SceneBuilder b;
+  b.add_plane("Ground", 0.0f, glm::vec2(-2.0f), glm::vec2(2.0f));
+  const int block = b.add_box("Block", glm::vec3(-1.0f, 0.0f, -1.0f), glm::vec3(1.0f, 1.0f, 1.0f));
+  const Scene scene = b.build();
+  const Snowed s = snow_on(scene, 400, 0.3f, StabilizeSettings{});
+  const std::vector<SnowPatch> patches = polygonize(s.maps, s.depth, scene, PolygonizeSettings{});
+  const auto patch = std::find_if(patches.begin(), patches.end(),
+                                  [&](const SnowPatch& p) { return p.object == block; });
+  ASSERT_NE(patch, patches.end());
+  const TriMesh& m = patch->mesh;
+  const TopologyReport topology = check_topology(m.positions, m.indices);
+  EXPECT_TRUE(topology.closed()) << topology.boundary_edges << " boundary, "
+                                          << topology.nonmanifold_edges << " non-manifold";
+  float reach = 0.0f;
+  for (const glm::vec3& p : m.positions) {
+    if (p.y > 1.005f) reach = std::max(reach, std::max(std::abs(p.x), std::abs(p.z)) - 1.0f);
+  }
+  size_t under = 0;
+  for (size_t t = 0; t < m.indices.size(); t += 3) {
+    const glm::vec3 a = m.positions[m.indices[t]], b1 = m.positions[m.indices[t + 1]],
+                    c = m.positions[m.indices[t + 2]];
+    const glm::vec3 n = glm::cross(b1 - a, c - a);
+    if (n.y < -0.1f * glm::length(n) && std::min({a.y, b1.y, c.y}) >= 0.999f) ++under;
+  }
+  std::printf("block's snow: reaches %.3f m past the edge, %zu faces under the lip\n", reach,
+              under);
+  EXPECT_GT(reach, 0.02f);
+  EXPECT_LT(reach, 0.05f);
+  EXPECT_GT(under, 100u);
+}
+
 // A 60-degree roof: thin snow clings (SnowSlide's field data: the steeper, the
 // less holds; a few centimetres on steep faces), a metre of it mostly sheds.
 TEST(SnowPhysics, ThinSnowClingsToASteepRoofAndDeepSnowSheds) {

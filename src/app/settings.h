@@ -183,6 +183,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Radius over which the snow rounds off at free edges (table tops, wall caps), metres (0 = "
     "square)",
     s.polygonize.shoulder_radius, Range{0, 10});
+  v("mesh.overhang", "--overhang",
+    "With shoulders, the snow bulges past free edges by up to this much, metres (0 = none)",
+    s.polygonize.overhang, Range{0, 1});
   v("mesh.smooth_iterations", "--smooth", "Smoothing passes over the snow top",
     s.polygonize.smooth_iterations, Range{0, 100});
   v("mesh.min_patch_area", "--min-patch-area", "Drop snow patches smaller than this, square metres",

@@ -28,6 +28,10 @@ struct PolygonizeSettings {
   /// square) where it ends at a free edge (a table top's, a wall cap's), as
   /// fresh snow forms a pillow (poly::round_shoulders).
   float shoulder_radius = 0.15f;
+  /// With shoulders, the snow bulges past a free edge by up to this much
+  /// (metres, >= 0; at most poly::kOverhangShare of its thickness there):
+  /// a lip over the air, the closed solid no longer a height field there.
+  float overhang = 0.03f;
   /// The snow goes on past the border of this rectangle (x, z; empty:
   /// nowhere), as an even cover laid around the maps (mesh/far_ground.h):
   /// free edges there get no shoulder.

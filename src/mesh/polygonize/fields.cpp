@@ -154,6 +154,8 @@ void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float
       }
       if (drop) {
         steps[a] = 0.0f;
+        if (f.drop_edge.empty()) f.drop_edge.assign(f.s.size(), 0);
+        f.drop_edge[a] = 1;
         edge.push_back(a);
         break;
       }
@@ -235,6 +237,8 @@ void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float
     const size_t core = f.at(seed[a].x, seed[a].y);
     const float x_core = std::min(radius, (steps[core] + 1.0f) * texel);
     x_of[a] = x_core - to_core[a] * texel;
+    // Only the edges of snow wider than two shoulders bulge (add_lips).
+    if (x_core < radius && !f.drop_edge.empty()) f.drop_edge[a] = 0;
   }
   // The thickness (m) of shoulder member a, s thick, at x from the rounded
   // outline: a quarter circle of radius min(radius, s) rising from it; none

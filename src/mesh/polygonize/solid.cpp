@@ -168,3 +168,149 @@ TriMesh to_trimesh(const Solid& solid, bool top_only) {
 }
 
 }  // namespace snow::poly
+
+namespace snow::poly {
+
+void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& origin,
+              float overhang) {
+  if (!(overhang > 0.0f) || f.drop_edge.empty()) return;
+  const size_t faces = solid.top.size();
+  // Outline edges: those of a top face whose twin is a bottom face. Keyed by
+  // the (smaller, larger) vertex pair: the top face's direction (u -> v)
+  // and how many top and bottom faces use the edge.
+  struct Edge {
+    uint32_t u = 0, v = 0;
+    int top = 0, bottom = 0;
+  };
+  std::vector<std::pair<uint64_t, Edge>> edges;
+  edges.reserve(faces * 3);
+  for (size_t t = 0; t < faces; ++t) {
+    for (int e = 0; e < 3; ++e) {
+      const uint32_t u = solid.tris[3 * t + size_t(e)], v = solid.tris[3 * t + size_t(e + 1) % 3];
+      const uint64_t key = uint64_t(std::min(u, v)) << 32 | std::max(u, v);
+      Edge edge;
+      if (solid.top[t]) {
+        edge = {u, v, 1, 0};
+      } else {
+        edge.bottom = 1;
+      }
+      edges.push_back({key, edge});
+    }
+  }
+  std::sort(edges.begin(), edges.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<Edge> outline;
+  for (size_t k = 0; k < edges.size();) {
+    Edge sum;
+    size_t end = k;
+    for (; end < edges.size() && edges[end].first == edges[k].first; ++end) {
+      const Edge& e = edges[end].second;
+      if (e.top) {
+        sum.u = e.u;
+        sum.v = e.v;
+      }
+      sum.top += e.top;
+      sum.bottom += e.bottom;
+    }
+    if (sum.top == 1 && sum.bottom == 1) outline.push_back(sum);
+    k = end;
+  }
+  // The outline vertices at a free edge, their outward direction (x, z) and
+  // how far they reach out.
+  const size_t n = solid.positions.size();
+  std::vector<glm::dvec2> out(n, glm::dvec2(0.0));
+  std::vector<uint8_t> on_outline(n, 0);
+  for (const Edge& e : outline) {
+    const glm::dvec3 d = solid.positions[e.v] - solid.positions[e.u];
+    const glm::dvec2 away(-d.z, d.x);  // the top lies to the left of u -> v seen from above
+    out[e.u] += away;
+    out[e.v] += away;
+    on_outline[e.u] = on_outline[e.v] = 1;
+  }
+  // The thickness near a point: the largest at free-edge members within a
+  // sample; 0 where none is near (not a free edge).
+  const auto edge_thickness = [&](const glm::dvec3& p) {
+    const int ci = int(std::floor((p.x - double(origin.x)) / double(texel))) - f.i0;
+    const int cj = int(std::floor((p.z - double(origin.y)) / double(texel))) - f.j0;
+    float s = 0.0f;
+    for (int j = cj - 1; j <= cj + 1; ++j) {
+      for (int i = ci - 1; i <= ci + 1; ++i) {
+        if (i < 0 || j < 0 || i >= f.w || j >= f.h) continue;
+        const size_t a = f.at(i, j);
+        if (f.drop_edge[a]) s = std::max(s, f.s[a]);
+      }
+    }
+    return s;
+  };
+  double volume_before = 0.0;  // m^3 enclosed before the lips
+  for (size_t t = 0; t < faces; ++t) {
+    const glm::dvec3 a = solid.positions[solid.tris[3 * t]], b = solid.positions[solid.tris[3 * t + 1]],
+                     c = solid.positions[solid.tris[3 * t + 2]];
+    volume_before += glm::dot(a, glm::cross(b, c)) / 6.0;
+  }
+  std::vector<uint32_t> lip(n, UINT32_MAX);  // the top's copy of each outline vertex that moves
+  for (size_t v = 0; v < n; ++v) {
+    if (!on_outline[v]) continue;
+    const double length = glm::length(out[v]);
+    const float s = edge_thickness(solid.positions[v]);
+    const double reach = std::min(double(overhang), double(kOverhangShare) * double(s));
+    if (!(length > 0.0) || !(reach > 0.0)) continue;
+    const glm::dvec2 dir = out[v] / length;
+    lip[v] = uint32_t(solid.positions.size());
+    solid.positions.push_back(solid.positions[v] +
+                              glm::dvec3(dir.x * reach, 0.5 * reach, dir.y * reach));
+  }
+  for (size_t t = 0; t < faces; ++t) {
+    if (!solid.top[t]) continue;
+    for (int e = 0; e < 3; ++e) {
+      uint32_t& v = solid.tris[3 * t + size_t(e)];
+      if (lip[v] != UINT32_MAX) v = lip[v];
+    }
+  }
+  // The band under the lip: per outline edge u -> v (as the top had it), the
+  // quad v' u' u v, a triangle where one end does not move.
+  for (const Edge& e : outline) {
+    const uint32_t u2 = lip[e.u] != UINT32_MAX ? lip[e.u] : e.u;
+    const uint32_t v2 = lip[e.v] != UINT32_MAX ? lip[e.v] : e.v;
+    const auto add = [&](uint32_t a, uint32_t b, uint32_t c) {
+      solid.tris.insert(solid.tris.end(), {a, b, c});
+      solid.top.push_back(0);
+    };
+    if (u2 != e.u) add(v2, u2, e.u);
+    if (v2 != e.v) add(v2, e.u, e.v);
+  }
+  // The lip's snow comes off the top (as it creeps out over the edge): the
+  // top's other vertices go down by the lip's volume over the top's plan
+  // area, so the solid holds what it held.
+  const auto volume = [&] {
+    double v6 = 0.0;
+    for (size_t t = 0; t < solid.top.size(); ++t) {
+      const glm::dvec3 a = solid.positions[solid.tris[3 * t]],
+                       b = solid.positions[solid.tris[3 * t + 1]],
+                       c = solid.positions[solid.tris[3 * t + 2]];
+      v6 += glm::dot(a, glm::cross(b, c));
+    }
+    return v6 / 6.0;
+  };
+  std::vector<uint8_t> lowered(solid.positions.size(), 0);
+  double plan_area = 0.0;
+  for (size_t t = 0; t < faces; ++t) {
+    if (!solid.top[t]) continue;
+    const glm::dvec3 a = solid.positions[solid.tris[3 * t]], b = solid.positions[solid.tris[3 * t + 1]],
+                     c = solid.positions[solid.tris[3 * t + 2]];
+    plan_area += 0.5 * std::abs(glm::cross(b - a, c - a).y);
+    for (int e = 0; e < 3; ++e) {
+      const uint32_t v = solid.tris[3 * t + size_t(e)];
+      if (v < n && !on_outline[v]) lowered[v] = 1;
+    }
+  }
+  const double added = volume() - volume_before;
+  if (plan_area > 0.0 && added > 0.0) {
+    const double drop = added / plan_area;
+    for (size_t v = 0; v < lowered.size(); ++v) {
+      if (lowered[v]) solid.positions[v].y -= drop;
+    }
+  }
+}
+
+}  // namespace snow::poly

@@ -92,6 +92,7 @@ struct PatchField {
   LayerArray<float> g;       // ground height, m (extrapolated outside; NaN far away)
   LayerArray<float> gx, gz;  // ground slope dy/dx, dy/dz (members)
   std::vector<uint8_t> shoulder;  // 1 on the members round_shoulders shaped (empty: none)
+  std::vector<uint8_t> drop_edge;  // 1 on the members at a free edge (a drop; empty: none)
 
   size_t at(int wi, int wj) const { return size_t(wj) * size_t(w) + size_t(wi); }
 };
@@ -211,6 +212,19 @@ struct Solid {
 /// manifold mesh; when it is not 0, `out` is left as it was.
 size_t build_decimated_solid(const TopMesh& top, const PatchField& field, float bottom_offset,
                              double max_error, Solid& out);
+
+/// The snow bulges past its free edges, as cohesive snow does (Fearing
+/// 2000): every outline vertex of `solid` within a sample of a free-edge
+/// member (f.drop_edge) splits in two, the bottom's staying where it is and
+/// the top's moving out (away from the top, horizontally) by
+/// min(overhang, kOverhangShare * thickness nearby) and up by half that; a
+/// band of faces joins the two outlines, the lip's underside. The solid stays
+/// a closed 2-manifold; there it is no longer a height field. `texel`,
+/// `origin`: the maps' grid (metres).
+void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& origin,
+              float overhang);
+/// The lip reaches out at most this share of the snow's thickness.
+constexpr float kOverhangShare = 0.25f;
 
 /// Narrowest strip of window columns (samples) a top is cut into for
 /// decimation in pieces.
