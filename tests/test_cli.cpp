@@ -140,7 +140,8 @@ TEST(Cli, HelpHidesDeveloperOptionsAndHelpAllListsThem) {
   const fs::path dir = temp_dir("developer");
   const RunResult hidden = run("snow " + q(kCourtyard) +
                                " --max-side 32 --directions 4 --stabilizer cpu --route-steep false"
-                               " --snow-output " + q((dir / "snow.obj").string()));
+                               " --snow-output " +
+                               q((dir / "snow.obj").string()));
   EXPECT_EQ(hidden.code, 0) << hidden.output;
   EXPECT_TRUE(fs::exists(dir / "snow.obj"));
   fs::remove_all(dir);
@@ -454,7 +455,8 @@ TEST(Cli, OptionsOutsideTheirRangesAreRefused) {
       {"--smooth -1", "--smooth (mesh.smooth_iterations) must be in 0..100, got -1"},
       {"--steps 100000", "--steps (snow.steps) must be in 1..1000, got 100000"},
       {"--min-thickness -1", "--min-thickness (mesh.min_thickness) must be in 0..100, got -1"},
-      {"--bottom-offset 1e9", "--bottom-offset (mesh.bottom_offset) must be in 0..10, got 1000000000"},
+      {"--bottom-offset 1e9",
+       "--bottom-offset (mesh.bottom_offset) must be in 0..10, got 1000000000"},
       {"--depth inf", "--depth (snow.depth) must be in 0..1000, got inf"},
       {"--wind 300,0", "--wind (coverage.wind) must be in -100..100, got 300"},
       {"--margin nan", "--margin (maps.margin) must be negative (automatic) or in 0..10000"},
@@ -472,16 +474,15 @@ TEST(Cli, OptionsOutsideTheirRangesAreRefused) {
     EXPECT_FALSE(fs::exists(out)) << c.args;
   }
   // The largest seed is a seed; a negative margin is automatic.
-  const RunResult largest =
-      run("snow " + q(kCourtyard) + kFast + " --seed 18446744073709551615 --margin -5 -o " + q(out));
+  const RunResult largest = run("snow " + q(kCourtyard) + kFast +
+                                " --seed 18446744073709551615 --margin -5 -o " + q(out));
   EXPECT_EQ(largest.code, 0) << largest.output;
   // The same bounds hold for a --config file, and a whole number its field
   // cannot hold is not wrapped into one.
   write_all(dir / "smooth.json", R"({"mesh": {"smooth_iterations": 1000000}})");
   write_all(dir / "wrap.json", R"({"mesh": {"smooth_iterations": 4294967298}})");
   write_all(dir / "seed.json", R"({"coverage": {"seed": 18446744073709551616}})");
-  for (const auto& [file, message] :
-       std::vector<std::pair<std::string, std::string>>{
+  for (const auto& [file, message] : std::vector<std::pair<std::string, std::string>>{
            {"smooth.json", "--smooth (mesh.smooth_iterations) must be in 0..100, got 1000000"},
            {"wrap.json", "'mesh.smooth_iterations' has a value of the wrong type (4294967298"},
            {"seed.json", "'coverage.seed' has a value of the wrong type"}}) {
@@ -602,7 +603,8 @@ TEST(Cli, CentimetresAndZUpAreNoticedAndFixedByOptions) {
   save_in({1.0f, true}, dir / "zup.glb");
   const std::string common = " --max-side 96 --directions 8 --snow-output ";
   const auto snow = [&](const std::string& scene, const std::string& options) {
-    const RunResult r = run("snow " + q(dir / scene) + options + common + q(dir / (scene + ".obj")));
+    const RunResult r =
+        run("snow " + q(dir / scene) + options + common + q(dir / (scene + ".obj")));
     EXPECT_EQ(r.code, 0) << r.output;
     return r;
   };
@@ -619,8 +621,7 @@ TEST(Cli, CentimetresAndZUpAreNoticedAndFixedByOptions) {
   EXPECT_EQ(cm_fixed.output.find("--unit-scale 0.01"), std::string::npos) << cm_fixed.output;
   EXPECT_NEAR(summary_volume(cm_fixed.output), volume, 0.01 * volume);
   const RunResult zup = snow("zup.glb", "");
-  EXPECT_NE(zup.output.find("if the scene is +Z up, give --up z"), std::string::npos)
-      << zup.output;
+  EXPECT_NE(zup.output.find("if the scene is +Z up, give --up z"), std::string::npos) << zup.output;
   const RunResult zup_fixed = snow("zup.glb", " --up z");
   EXPECT_EQ(zup_fixed.output.find("--up z"), std::string::npos) << zup_fixed.output;
   EXPECT_NEAR(summary_volume(zup_fixed.output), volume, 0.01 * volume);

@@ -294,7 +294,7 @@ TEST(Polygonize, ShouldersKeepThinSnowAndNarrowStrips) {
   std::vector<float> depth(maps.ground.size(), 0.0f);
   for (int j = 8; j < 56; ++j) {
     for (int i = 8; i < 30; ++i) depth[maps.index(0, i, j)] = 0.05f;  // thin snow, 44 cm wide
-    for (int i = 40; i < 45; ++i) depth[maps.index(0, i, j)] = 0.3f;   // a strip 10 cm wide
+    for (int i = 40; i < 45; ++i) depth[maps.index(0, i, j)] = 0.3f;  // a strip 10 cm wide
   }
   const auto patches = polygonize(maps, depth, names_scene({"Floor"}), {});
   ASSERT_EQ(patches.size(), 2u);

@@ -109,15 +109,15 @@ TEST(SnowPhysics, RoofSnowAgainstPitchFollowsEurocodeMu1) {
     const Snowed s = snow_on(scene, 256, fall, settings);
     const int roof = find_object(scene, "HouseRoof");
     const int floor = find_object(scene, "Floor");
-    const double ground = mean_depth(s, floor, [](float x, float z) {
-      return std::abs(x) > 6.0f && std::abs(z) > 5.0f;
-    });
+    const double ground = mean_depth(
+        s, floor, [](float x, float z) { return std::abs(x) > 6.0f && std::abs(z) > 5.0f; });
     const double on_roof = mean_depth(s, roof, [](float, float) { return true; });
     mu.push_back(on_roof / ground);
     pitches.push_back(pitch);
-    std::printf("pitch %4.1f  roof %.4f m  ground %.4f m  roof/ground %.3f  x 0.8 = %.3f  "
-                "(EN mu1 %.3f)\n",
-                pitch, on_roof, ground, mu.back(), 0.8 * mu.back(), en_mu1(pitch));
+    std::printf(
+        "pitch %4.1f  roof %.4f m  ground %.4f m  roof/ground %.3f  x 0.8 = %.3f  "
+        "(EN mu1 %.3f)\n",
+        pitch, on_roof, ground, mu.back(), 0.8 * mu.back(), en_mu1(pitch));
     EXPECT_NEAR(ground, fall, 0.01 * fall) << pitch;
     EXPECT_NEAR(0.8 * mu.back(), en_mu1(pitch), 0.1) << pitch;
     if (pitch <= 30.0f) {
@@ -145,12 +145,10 @@ TEST(SnowPhysics, SnowOnABlockKeepsItsDepthToTheEdge) {
     StabilizeSettings settings;
     if (!cohesive) settings.cohesion = loose_snow();
     const Snowed s = snow_on(scene, 400, 0.3f, settings);
-    const double centre = mean_depth(s, block, [](float x, float z) {
-      return std::abs(x) < 0.2f && std::abs(z) < 0.2f;
-    });
-    const double band = mean_depth(s, block, [](float x, float z) {
-      return std::max(std::abs(x), std::abs(z)) > 0.9f;
-    });
+    const double centre = mean_depth(
+        s, block, [](float x, float z) { return std::abs(x) < 0.2f && std::abs(z) < 0.2f; });
+    const double band = mean_depth(
+        s, block, [](float x, float z) { return std::max(std::abs(x), std::abs(z)) > 0.9f; });
     std::printf("%s snow: centre %.4f m, outer 10 cm %.4f m (%.2f of the centre)\n",
                 cohesive ? "fresh" : "loose", centre, band, band / centre);
     EXPECT_NEAR(centre, 0.3, 0.01);
@@ -230,7 +228,7 @@ TEST(SnowPhysics, ThePillowBulgesPastTheEdgeAsAClosedSolid) {
   const TriMesh& m = patch->mesh;
   const TopologyReport topology = check_topology(m.positions, m.indices);
   EXPECT_TRUE(topology.closed()) << topology.boundary_edges << " boundary, "
-                                          << topology.nonmanifold_edges << " non-manifold";
+                                 << topology.nonmanifold_edges << " non-manifold";
   float reach = 0.0f;
   for (const glm::vec3& p : m.positions) {
     if (p.y > 1.005f) reach = std::max(reach, std::max(std::abs(p.x), std::abs(p.z)) - 1.0f);
@@ -445,8 +443,9 @@ TEST(SnowPhysics, SnowOnFlatGroundIsFlat) {
       worst = std::max(worst, std::acos(cosine) * 180.0 / M_PI);
     }
   }
-  std::printf("flat 100 m plane: top from %.4f to %.4f m, sharpest crease %.2f degrees, %zu faces\n",
-              low, high, worst, normal.size());
+  std::printf(
+      "flat 100 m plane: top from %.4f to %.4f m, sharpest crease %.2f degrees, %zu faces\n", low,
+      high, worst, normal.size());
   EXPECT_GT(low, 0.29);
   EXPECT_LT(high, 0.31);
   EXPECT_LE(worst, 5.0);

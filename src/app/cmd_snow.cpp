@@ -425,8 +425,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_if_sheltered(map_scene, maps, snow.coverage);
 
   std::vector<SnowPatch> patches;
-  clock.run("polygonize",
-            [&] { patches = polygonize(maps, snow.depth, map_scene, s.polygonize); });
+  clock.run("polygonize", [&] { patches = polygonize(maps, snow.depth, map_scene, s.polygonize); });
   if (detail && s.accumulate.fall_depth > 0.0f) {
     const SceneObject& g = snow_scene.objects[size_t(detail->ground.object)];
     patches.push_back(far_ground_snow(detail->ground, detail->region, s.accumulate.fall_depth,
@@ -436,8 +435,9 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
     snow.volume += patches.back().depth_volume;
   }
   if (patches.empty()) warn_no_patches(snow, s.polygonize);
-  clock.run("export",
-            [&] { write_outputs(o, format, std::move(combined_input), patches, frame, maps, snow); });
+  clock.run("export", [&] {
+    write_outputs(o, format, std::move(combined_input), patches, frame, maps, snow);
+  });
   if (!o.preview.empty()) {
     clock.run("preview", [&] {
       const auto context = gl.context();

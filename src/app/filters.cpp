@@ -65,7 +65,8 @@ Scene without(Scene scene, Drop drop, const char* why) {
     out.objects.push_back(copy);
   }
   for (const glm::vec3& p : out.positions) out.bounds.extend(p);
-  if (out.positions.empty()) throw InputError(std::string(why) + " removed every object of the scene");
+  if (out.positions.empty())
+    throw InputError(std::string(why) + " removed every object of the scene");
   return out;
 }
 
@@ -105,7 +106,8 @@ ObjectGrip object_grip(const Scene& scene, const std::vector<std::string>& slipp
                        const std::vector<std::string>& rough) {
   ObjectGrip grip(scene.objects.size(), kGripNormal);
   for (size_t i = 0; i < scene.objects.size(); ++i) {
-    const bool slides = matches(slippery, scene.objects[i]), holds = matches(rough, scene.objects[i]);
+    const bool slides = matches(slippery, scene.objects[i]),
+               holds = matches(rough, scene.objects[i]);
     if (slides && holds) {
       throw InputError("object '" + scene.objects[i].name +
                        "' is matched by both --slippery and --rough");

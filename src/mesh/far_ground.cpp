@@ -31,9 +31,9 @@ SnowPatch far_ground_snow(const FlatGround& ground, const Bounds& region, float 
   };
   for (uint32_t k = 0; k < 4; ++k) {
     const uint32_t n = (k + 1) % 4;
-    quad(k, n, 4 + n, 4 + k);           // top ring, facing +Y
+    quad(k, n, 4 + n, 4 + k);            // top ring, facing +Y
     quad(8 + k, 12 + k, 12 + n, 8 + n);  // bottom ring, facing -Y
-    quad(k, 8 + k, 8 + n, n);           // outer wall, facing out
+    quad(k, 8 + k, 8 + n, n);            // outer wall, facing out
     quad(4 + k, 4 + n, 12 + n, 12 + k);  // inner wall, facing into the hole
   }
   // Flat normals are wrong on shared corners; a box's faces meet at right

@@ -38,7 +38,7 @@ constexpr double kSkyEnclosureCover = 0.9;  // share of the footprint, 0..1
 /// probably not in metres (glTF's unit): centimetres up to
 /// kMillimetreObjectUnits, millimetres beyond; the run suggests
 /// --unit-scale. Real objects (benches, cars, houses) are 0.3 to 30 m.
-constexpr float kCentimetreObjectUnits = 60.0f;   // units
+constexpr float kCentimetreObjectUnits = 60.0f;    // units
 constexpr float kMillimetreObjectUnits = 3000.0f;  // units
 /// A scene with this many times more area facing +-Z than facing +-Y
 /// (grounds, floors and roofs face up) is probably +Z up; the run
@@ -84,8 +84,8 @@ constexpr double kDetailMarginMin = 2.0;     // metres
 inline double detail_margin(double ground_side, double detail_side, double detail_height,
                             double tilt_deg) {
   const double tilt = std::min(tilt_deg, 80.0) * 3.14159265358979 / 180.0;
-  const double margin = std::max({kDetailMarginMin, kDetailMarginShare * detail_side,
-                                  2.0 * detail_height * std::tan(tilt)});
+  const double margin = std::max(
+      {kDetailMarginMin, kDetailMarginShare * detail_side, 2.0 * detail_height * std::tan(tilt)});
   return ground_side >= kDetailGroundRatio * (detail_side + 2.0 * margin) ? margin : -1.0;
 }
 

@@ -32,9 +32,11 @@ double cover_share(const Scene& scene, const SceneObject& o, const Bounds& footp
     const float det = (b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z);
     if (!(std::abs(det) > 0.0f)) continue;  // seen edge-on from above
     const int i0 = std::max(0, int(std::floor((std::min({a.x, b.x, c.x}) - lo.x) / cell.x - 0.5f)));
-    const int i1 = std::min(n - 1, int(std::ceil((std::max({a.x, b.x, c.x}) - lo.x) / cell.x - 0.5f)));
+    const int i1 =
+        std::min(n - 1, int(std::ceil((std::max({a.x, b.x, c.x}) - lo.x) / cell.x - 0.5f)));
     const int j0 = std::max(0, int(std::floor((std::min({a.z, b.z, c.z}) - lo.y) / cell.y - 0.5f)));
-    const int j1 = std::min(n - 1, int(std::ceil((std::max({a.z, b.z, c.z}) - lo.y) / cell.y - 0.5f)));
+    const int j1 =
+        std::min(n - 1, int(std::ceil((std::max({a.z, b.z, c.z}) - lo.y) / cell.y - 0.5f)));
     for (int j = j0; j <= j1; ++j) {
       for (int i = i0; i <= i1; ++i) {
         uint8_t& hit = covered[size_t(j) * size_t(n) + size_t(i)];

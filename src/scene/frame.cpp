@@ -17,9 +17,7 @@ bool z_up_from_name(const std::string& name) {
 
 void to_metres_y_up(Scene& scene, const FileFrame& frame) {
   if (frame.is_identity()) return;
-  const auto turn = [&](const glm::vec3& v) {
-    return frame.z_up ? glm::vec3(v.x, v.z, -v.y) : v;
-  };
+  const auto turn = [&](const glm::vec3& v) { return frame.z_up ? glm::vec3(v.x, v.z, -v.y) : v; };
   scene.bounds = Bounds{};
   for (glm::vec3& p : scene.positions) {
     p = turn(p) * frame.unit_scale;

@@ -95,7 +95,8 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   if (!(settings.snow_on_snow_every > 0 && settings.steps > settings.snow_on_snow_every)) {
     shadows.reset();
   }
-  const bool on_cpu = result.stabilized_on_cpu = stabilizes_on_cpu(stabilize, StabilizerUse::Batch, gl);
+  const bool on_cpu = result.stabilized_on_cpu =
+      stabilizes_on_cpu(stabilize, StabilizerUse::Batch, gl);
   // The steps over either stabilizer (same passes, same results).
   auto run_steps = [&](auto& stabilizer) {
     const float per_step = settings.fall_depth / float(settings.steps);

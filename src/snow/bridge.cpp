@@ -106,8 +106,8 @@ size_t bridge_gaps(SnowMaps& maps, float width) {
   const auto full = [&](size_t c) {
     return !std::isnan(maps.ground[size_t(maps.layers - 1) * columns + c]);
   };
-  if (maps.layers < 64 &&
-      std::any_of(bridges.begin(), bridges.end(), [&](const Bridge& b) { return full(b.column); })) {
+  if (maps.layers < 64 && std::any_of(bridges.begin(), bridges.end(),
+                                      [&](const Bridge& b) { return full(b.column); })) {
     maps.reserve_layers(maps.layers + 1);
     maps.add_layer();
   }

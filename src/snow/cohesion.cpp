@@ -60,8 +60,9 @@ void check_cohesion(const Cohesion& c) {
 }
 
 float holding_depth(const Cohesion& c, float slope_deg, float grip) {
-  const double h = double(grip) * double(c.hold_depth) *
-                   std::exp((double(c.hold_angle_deg) - double(slope_deg)) / double(c.hold_fall_deg));
+  const double h =
+      double(grip) * double(c.hold_depth) *
+      std::exp((double(c.hold_angle_deg) - double(slope_deg)) / double(c.hold_fall_deg));
   return float(std::min(h, double(kMaxHoldDepth)));
 }
 

@@ -119,7 +119,7 @@ struct StabilizeSettings {
                                    // into StabilizeResult::tile_share, for benchmarks
   Cohesion cohesion = cohesion_of(SnowKind::Fresh);  // what holds where it fell
                                                      // (snow/cohesion.h; loose_snow(): none)
-  ObjectGrip grip;                 // per scene object, the grip of its surface (empty: normal)
+  ObjectGrip grip;  // per scene object, the grip of its surface (empty: normal)
 };
 
 /// Snow without cohesion, as dry sand: nothing stands at edges, and no

@@ -244,7 +244,8 @@ void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& o
   };
   double volume_before = 0.0;  // m^3 enclosed before the lips
   for (size_t t = 0; t < faces; ++t) {
-    const glm::dvec3 a = solid.positions[solid.tris[3 * t]], b = solid.positions[solid.tris[3 * t + 1]],
+    const glm::dvec3 a = solid.positions[solid.tris[3 * t]],
+                     b = solid.positions[solid.tris[3 * t + 1]],
                      c = solid.positions[solid.tris[3 * t + 2]];
     volume_before += glm::dot(a, glm::cross(b, c)) / 6.0;
   }
@@ -296,7 +297,8 @@ void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& o
   double plan_area = 0.0;
   for (size_t t = 0; t < faces; ++t) {
     if (!solid.top[t]) continue;
-    const glm::dvec3 a = solid.positions[solid.tris[3 * t]], b = solid.positions[solid.tris[3 * t + 1]],
+    const glm::dvec3 a = solid.positions[solid.tris[3 * t]],
+                     b = solid.positions[solid.tris[3 * t + 1]],
                      c = solid.positions[solid.tris[3 * t + 2]];
     plan_area += 0.5 * std::abs(glm::cross(b - a, c - a).y);
     for (int e = 0; e < 3; ++e) {

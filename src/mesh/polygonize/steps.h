@@ -88,10 +88,10 @@ struct PatchField {
   int w = 0, h = 0;    // window size in samples
   // (resized unwritten, then filled on all cores)
   LayerArray<uint8_t> member;
-  LayerArray<float> s;       // snow thickness, m (0 outside the patch)
-  LayerArray<float> g;       // ground height, m (extrapolated outside; NaN far away)
-  LayerArray<float> gx, gz;  // ground slope dy/dx, dy/dz (members)
-  std::vector<uint8_t> shoulder;  // 1 on the members round_shoulders shaped (empty: none)
+  LayerArray<float> s;             // snow thickness, m (0 outside the patch)
+  LayerArray<float> g;             // ground height, m (extrapolated outside; NaN far away)
+  LayerArray<float> gx, gz;        // ground slope dy/dx, dy/dz (members)
+  std::vector<uint8_t> shoulder;   // 1 on the members round_shoulders shaped (empty: none)
   std::vector<uint8_t> drop_edge;  // 1 on the members at a free edge (a drop; empty: none)
 
   size_t at(int wi, int wj) const { return size_t(wj) * size_t(w) + size_t(wi); }

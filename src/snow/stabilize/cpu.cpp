@@ -327,8 +327,8 @@ bool CpuStabilizer::quiet_since(int i, int j, uint32_t pass) const {
 // The stride-1 rule of a strided pass (see outflow_texel): would a single
 // step move snow from this texel? Most texels of a late strided pass stay,
 // and this answers for them without walking the paths.
-bool CpuStabilizer::single_step_moves(int i, int j, const glm::vec4& cell, float movable,
-                                      float he, float over) const {
+bool CpuStabilizer::single_step_moves(int i, int j, const glm::vec4& cell, float movable, float he,
+                                      float over) const {
   float wmax1 = 0.0f;
   for (int n = 0; n < 8; ++n) {
     const int ni = i + kDirI[n], nj = j + kDirJ[n];
