@@ -123,6 +123,49 @@ PatchField build_field(const SnowMaps& maps, const LayerArray<float>& depth,
   return f;
 }
 
+namespace {
+
+// Distances over the members of `f` by dead reckoning (Grevera 2004): two
+// chamfer sweeps over the window, forward and back, that pass on each
+// sample's nearest seed rather than a sum of step costs, so d becomes the
+// Euclidean distance (texels) to the nearest member where it is 0 (that
+// member in seed), up to the sweeps' rare misses.
+void member_distances(const PatchField& f, std::vector<float>& d, std::vector<glm::ivec2>& seed) {
+  for (int wj = 0; wj < f.h; ++wj) {
+    for (int wi = 0; wi < f.w; ++wi) seed[f.at(wi, wj)] = glm::ivec2(wi, wj);
+  }
+  for (int pass = 0; pass < 2; ++pass) {
+    const bool forward = pass == 0;
+    const int back = forward ? -1 : 1;
+    for (int jj = 0; jj < f.h; ++jj) {
+      const int wj = forward ? jj : f.h - 1 - jj;
+      for (int ii = 0; ii < f.w; ++ii) {
+        const int wi = forward ? ii : f.w - 1 - ii;
+        const size_t a = f.at(wi, wj);
+        if (!f.member[a]) continue;
+        const auto relax = [&](int di, int dj) {
+          const int ni = wi + di, nj = wj + dj;
+          if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) return;
+          const size_t b = f.at(ni, nj);
+          if (!f.member[b] || !std::isfinite(d[b])) return;
+          const glm::vec2 to = glm::vec2(seed[b]) - glm::vec2(float(wi), float(wj));
+          const float via = std::sqrt(glm::dot(to, to));
+          if (via < d[a]) {
+            d[a] = via;
+            seed[a] = seed[b];
+          }
+        };
+        relax(back, 0);
+        relax(0, back);
+        relax(back, back);
+        relax(-back, back);
+      }
+    }
+  }
+}
+
+}  // namespace
+
 void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float>& depth,
                      const PatchTexels& patch, float radius, const Bounds& open_beyond) {
   const auto goes_on = [&](int i, int j) {
@@ -162,45 +205,8 @@ void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float
     }
   }
   if (edge.empty()) return;
-  // Distances over members by dead reckoning (Grevera 2004): two chamfer
-  // sweeps over the window, forward and back, that pass on each sample's
-  // nearest seed rather than a sum of step costs, so d becomes the
-  // Euclidean distance (texels) to the nearest member where it is 0 (that
-  // member in seed), up to the sweeps' rare misses.
   std::vector<glm::ivec2> seed(f.s.size());  // each sample's nearest seed, after a chamfer
-  const auto chamfer = [&](std::vector<float>& d) {
-    for (int wj = 0; wj < f.h; ++wj) {
-      for (int wi = 0; wi < f.w; ++wi) seed[f.at(wi, wj)] = glm::ivec2(wi, wj);
-    }
-    for (int pass = 0; pass < 2; ++pass) {
-      const bool forward = pass == 0;
-      const int back = forward ? -1 : 1;
-      for (int jj = 0; jj < f.h; ++jj) {
-        const int wj = forward ? jj : f.h - 1 - jj;
-        for (int ii = 0; ii < f.w; ++ii) {
-          const int wi = forward ? ii : f.w - 1 - ii;
-          const size_t a = f.at(wi, wj);
-          if (!f.member[a]) continue;
-          const auto relax = [&](int di, int dj) {
-            const int ni = wi + di, nj = wj + dj;
-            if (ni < 0 || nj < 0 || ni >= f.w || nj >= f.h) return;
-            const size_t b = f.at(ni, nj);
-            if (!f.member[b] || !std::isfinite(d[b])) return;
-            const glm::vec2 to = glm::vec2(seed[b]) - glm::vec2(float(wi), float(wj));
-            const float via = std::sqrt(glm::dot(to, to));
-            if (via < d[a]) {
-              d[a] = via;
-              seed[a] = seed[b];
-            }
-          };
-          relax(back, 0);
-          relax(0, back);
-          relax(back, back);
-          relax(-back, back);
-        }
-      }
-    }
-  };
+  const auto chamfer = [&](std::vector<float>& d) { member_distances(f, d, seed); };
   chamfer(steps);
   // The core: members a shoulder's width or more from every free edge, and
   // the ridges of strips narrower than two shoulders (members no nearer to

@@ -171,40 +171,36 @@ TriMesh to_trimesh(const Solid& solid, bool top_only) {
 
 namespace snow::poly {
 
-void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& origin,
-              float overhang) {
-  if (!(overhang > 0.0f) || f.drop_edge.empty()) return;
-  const size_t faces = solid.top.size();
-  // Outline edges: those of a top face whose twin is a bottom face. Keyed by
-  // the (smaller, larger) vertex pair: the top face's direction (u -> v)
-  // and how many top and bottom faces use the edge.
-  struct Edge {
+namespace {
+
+// An outline edge of a solid: u -> v as its top face has it.
+struct OutlineEdge {
+  uint32_t u = 0, v = 0;
+};
+
+// The edges of `solid` that one top face and one bottom face share.
+std::vector<OutlineEdge> outline_edges(const Solid& solid) {
+  struct Use {
     uint32_t u = 0, v = 0;
     int top = 0, bottom = 0;
   };
-  std::vector<std::pair<uint64_t, Edge>> edges;
-  edges.reserve(faces * 3);
-  for (size_t t = 0; t < faces; ++t) {
+  std::vector<std::pair<uint64_t, Use>> uses;  // keyed by the (smaller, larger) vertex pair
+  uses.reserve(solid.tris.size());
+  for (size_t t = 0; t < solid.top.size(); ++t) {
     for (int e = 0; e < 3; ++e) {
       const uint32_t u = solid.tris[3 * t + size_t(e)], v = solid.tris[3 * t + size_t(e + 1) % 3];
       const uint64_t key = uint64_t(std::min(u, v)) << 32 | std::max(u, v);
-      Edge edge;
-      if (solid.top[t]) {
-        edge = {u, v, 1, 0};
-      } else {
-        edge.bottom = 1;
-      }
-      edges.push_back({key, edge});
+      uses.push_back({key, solid.top[t] ? Use{u, v, 1, 0} : Use{0, 0, 0, 1}});
     }
   }
-  std::sort(edges.begin(), edges.end(),
+  std::sort(uses.begin(), uses.end(),
             [](const auto& a, const auto& b) { return a.first < b.first; });
-  std::vector<Edge> outline;
-  for (size_t k = 0; k < edges.size();) {
-    Edge sum;
+  std::vector<OutlineEdge> out;
+  for (size_t k = 0; k < uses.size();) {
+    Use sum;
     size_t end = k;
-    for (; end < edges.size() && edges[end].first == edges[k].first; ++end) {
-      const Edge& e = edges[end].second;
+    for (; end < uses.size() && uses[end].first == uses[k].first; ++end) {
+      const Use& e = uses[end].second;
       if (e.top) {
         sum.u = e.u;
         sum.v = e.v;
@@ -212,15 +208,25 @@ void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& o
       sum.top += e.top;
       sum.bottom += e.bottom;
     }
-    if (sum.top == 1 && sum.bottom == 1) outline.push_back(sum);
+    if (sum.top == 1 && sum.bottom == 1) out.push_back({sum.u, sum.v});
     k = end;
   }
+  return out;
+}
+
+}  // namespace
+
+void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& origin,
+              float overhang) {
+  if (!(overhang > 0.0f) || f.drop_edge.empty()) return;
+  const size_t faces = solid.top.size();
+  const std::vector<OutlineEdge> outline = outline_edges(solid);
   // The outline vertices at a free edge, their outward direction (x, z) and
   // how far they reach out.
   const size_t n = solid.positions.size();
   std::vector<glm::dvec2> out(n, glm::dvec2(0.0));
   std::vector<uint8_t> on_outline(n, 0);
-  for (const Edge& e : outline) {
+  for (const OutlineEdge& e : outline) {
     const glm::dvec3 d = solid.positions[e.v] - solid.positions[e.u];
     const glm::dvec2 away(-d.z, d.x);  // the top lies to the left of u -> v seen from above
     out[e.u] += away;
@@ -270,7 +276,7 @@ void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& o
   }
   // The band under the lip: per outline edge u -> v (as the top had it), the
   // quad v' u' u v, a triangle where one end does not move.
-  for (const Edge& e : outline) {
+  for (const OutlineEdge& e : outline) {
     const uint32_t u2 = lip[e.u] != UINT32_MAX ? lip[e.u] : e.u;
     const uint32_t v2 = lip[e.v] != UINT32_MAX ? lip[e.v] : e.v;
     const auto add = [&](uint32_t a, uint32_t b, uint32_t c) {
