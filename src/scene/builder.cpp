@@ -516,14 +516,6 @@ double object_signed_volume(const Scene& scene, int object) {
   return signed_volume(positions, indices);
 }
 
-Bounds object_bounds(const Scene& scene, int object) {
-  const SceneObject& o = object_at(scene, object);
-  const size_t first = size_t(o.first_triangle) * 3, count = size_t(o.triangle_count) * 3;
-  Bounds b;
-  for (size_t k = first; k < first + count; ++k) b.extend(scene.positions[k]);
-  return b;
-}
-
 int find_object(const Scene& scene, const std::string& name) {
   for (size_t i = 0; i < scene.objects.size(); ++i)
     if (scene.objects[i].name == name) return int(i);

@@ -159,8 +159,6 @@ TopologyReport check_object_topology(const Scene& scene, int object);
 double signed_volume(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& indices);
 /// Same for the triangles of one object of a Scene.
 double object_signed_volume(const Scene& scene, int object);
-/// Bounds of one object of a Scene.
-Bounds object_bounds(const Scene& scene, int object);
 /// Index of the object with that name in a Scene, or -1.
 int find_object(const Scene& scene, const std::string& name);
 

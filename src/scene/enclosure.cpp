@@ -10,13 +10,6 @@ namespace {
 // Samples per side of the footprint grid that the cover is measured on.
 constexpr int kCoverSamples = 32;
 
-Bounds bounds_of(const Scene& scene, const SceneObject& o) {
-  Bounds b;
-  const size_t begin = size_t(o.first_triangle) * 3, end = begin + size_t(o.triangle_count) * 3;
-  for (size_t v = begin; v < end && v < scene.positions.size(); ++v) b.extend(scene.positions[v]);
-  return b;
-}
-
 // The share of the kCoverSamples^2 sample points over `footprint` (x, z)
 // under which a triangle of object `o` lies at or above `above` (world y).
 double cover_share(const Scene& scene, const SceneObject& o, const Bounds& footprint, float above) {
@@ -60,7 +53,7 @@ double cover_share(const Scene& scene, const SceneObject& o, const Bounds& footp
 std::vector<int> find_sky_enclosures(const Scene& scene, double min_cover) {
   const size_t objects = scene.objects.size();
   std::vector<Bounds> bounds(objects);
-  for (size_t o = 0; o < objects; ++o) bounds[o] = bounds_of(scene, scene.objects[o]);
+  for (size_t o = 0; o < objects; ++o) bounds[o] = object_bounds(scene, int(o));
   std::vector<uint8_t> left(objects, 1);
   std::vector<int> found;
   for (;;) {

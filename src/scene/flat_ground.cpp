@@ -10,23 +10,13 @@ namespace {
 // Area (m^2) that a level ground's triangles must cover of its bounds'.
 constexpr double kFillShare = 0.999;
 
-Bounds bounds_of(const Scene& scene, const SceneObject& o) {
-  Bounds b;
-  const size_t begin = size_t(o.first_triangle) * 3;
-  for (size_t v = begin; v < begin + size_t(o.triangle_count) * 3 && v < scene.positions.size();
-       ++v) {
-    b.extend(scene.positions[v]);
-  }
-  return b;
-}
-
 }  // namespace
 
 std::optional<FlatGround> find_flat_ground(const Scene& scene) {
   const size_t objects = scene.objects.size();
   if (objects < 2) return std::nullopt;
   std::vector<Bounds> bounds(objects);
-  for (size_t o = 0; o < objects; ++o) bounds[o] = bounds_of(scene, scene.objects[o]);
+  for (size_t o = 0; o < objects; ++o) bounds[o] = object_bounds(scene, int(o));
   std::optional<FlatGround> best;
   double best_area = 0.0;
   for (size_t o = 0; o < objects; ++o) {

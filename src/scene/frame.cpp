@@ -38,13 +38,8 @@ void to_file_frame(TriMesh& mesh, const FileFrame& frame) {
 FrameFigures frame_figures(const Scene& scene) {
   FrameFigures out;
   std::vector<float> sizes;
-  for (const SceneObject& o : scene.objects) {
-    Bounds b;
-    const size_t begin = size_t(o.first_triangle) * 3;
-    for (size_t v = begin; v < begin + size_t(o.triangle_count) * 3 && v < scene.positions.size();
-         ++v) {
-      b.extend(scene.positions[v]);
-    }
+  for (size_t o = 0; o < scene.objects.size(); ++o) {
+    const Bounds b = object_bounds(scene, int(o));
     if (!b.empty()) {
       const glm::vec3 s = b.size();
       sizes.push_back(std::max({s.x, s.y, s.z}));

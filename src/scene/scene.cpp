@@ -2,9 +2,21 @@
 
 #include <algorithm>
 
+#include "core/error.h"
 #include "core/parallel.h"
 
 namespace snow {
+
+Bounds object_bounds(const Scene& scene, int object) {
+  if (object < 0 || object >= int(scene.objects.size()))
+    throw InputError("scene: object " + std::to_string(object) + " does not exist");
+  const SceneObject& o = scene.objects[size_t(object)];
+  const size_t first = size_t(o.first_triangle) * 3;
+  const size_t end = std::min(first + size_t(o.triangle_count) * 3, scene.positions.size());
+  Bounds b;
+  for (size_t k = first; k < end; ++k) b.extend(scene.positions[k]);
+  return b;
+}
 
 int Scene::object_of_triangle(size_t t) const {
   auto it =

@@ -89,6 +89,10 @@ struct Scene {
   int object_of_triangle(size_t t) const;
 };
 
+/// Bounds of `object`'s triangles (empty for an object without any).
+/// Throws InputError for an index out of range.
+Bounds object_bounds(const Scene& scene, int object);
+
 /// Triangle t's unit geometric normal as wound, as the peels write it into
 /// the maps (worked out in double; 0 for a degenerate triangle).
 glm::vec3 triangle_normal(const Scene& scene, size_t t);
