@@ -38,13 +38,7 @@ Scene without(Scene scene, Drop drop, const char* why) {
   bool any = false;
   for (size_t i = 0; i < scene.objects.size() && !any; ++i) any = drop(i, scene.objects[i]);
   if (!any) return scene;
-  Scene out;
-  out.materials = scene.materials;
-  out.images = scene.images;
-  out.stats = scene.stats;
-  out.warnings = scene.warnings;
-  out.source = scene.source;
-  out.generator = scene.generator;
+  Scene out = without_geometry(scene);
   for (size_t i = 0; i < scene.objects.size(); ++i) {
     const SceneObject& object = scene.objects[i];
     if (drop(i, object)) {

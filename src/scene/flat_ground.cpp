@@ -58,13 +58,7 @@ std::optional<FlatGround> find_flat_ground(const Scene& scene) {
 }
 
 Scene with_ground_clipped(const Scene& scene, const FlatGround& ground, const Bounds& region) {
-  Scene out;
-  out.materials = scene.materials;
-  out.images = scene.images;
-  out.stats = scene.stats;
-  out.warnings = scene.warnings;
-  out.source = scene.source;
-  out.generator = scene.generator;
+  Scene out = without_geometry(scene);
   const bool shading = !scene.normals.empty();
   const bool uvs = !scene.uvs.empty();
   for (size_t o = 0; o < scene.objects.size(); ++o) {

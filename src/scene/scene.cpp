@@ -7,6 +7,17 @@
 
 namespace snow {
 
+Scene without_geometry(const Scene& scene) {
+  Scene out;
+  out.materials = scene.materials;
+  out.images = scene.images;
+  out.stats = scene.stats;
+  out.warnings = scene.warnings;
+  out.source = scene.source;
+  out.generator = scene.generator;
+  return out;
+}
+
 Bounds object_bounds(const Scene& scene, int object) {
   if (object < 0 || object >= int(scene.objects.size()))
     throw InputError("scene: object " + std::to_string(object) + " does not exist");

@@ -89,6 +89,11 @@ struct Scene {
   int object_of_triangle(size_t t) const;
 };
 
+/// `scene` without its geometry: its materials, images, stats, warnings,
+/// source and generator, no objects or triangles (empty bounds); for the
+/// steps that rebuild a scene's objects.
+Scene without_geometry(const Scene& scene);
+
 /// Bounds of `object`'s triangles (empty for an object without any).
 /// Throws InputError for an index out of range.
 Bounds object_bounds(const Scene& scene, int object);
