@@ -3,7 +3,11 @@
 // downhill; snow leaving an edge falls through to the highest free surface
 // below in the neighbouring column (docs/ARCHITECTURE.md, "Stabilizer"; the
 // angle of repose relaxation of Fearing 2000, section 5, on Tokoi's snow
-// amount maps).
+// amount maps). Fresh snow is cohesive (snow/cohesion.h): per layer texel,
+// snow deeper than the holding depth of its support's slope is routed off
+// (the erosion starts no higher than ground + holding depth), and the snow
+// up to min(holding depth, standing height) is held: neither the erosion
+// nor the relaxation moves it.
 //
 // This header is the stage's interface; the code is in snow/stabilize/:
 //   stabilize.cpp  where the passes run (stabilizes_on_cpu), stabilize()
