@@ -130,6 +130,22 @@ TEST(FallDirections, WindTiltsTheMeanDownwind) {
   EXPECT_NEAR(std::atan2(mean.x, -mean.y), std::atan(0.5), 0.01);
 }
 
+// A storm's wind (10 m/s against a 1 m/s fall: atan 10 = 84 degrees) is
+// taken, its tilt capped at kMaxFallAngleDeg - flutter (75 - 15 = 60
+// degrees), along the wind; a light one keeps its atan tilt.
+TEST(FallDirections, StrongWindIsTakenWithItsTiltCapped) {
+  CoverageSettings s;
+  s.wind = glm::vec2(0.0f, 10.0f);
+  const glm::vec3 m = mean_fall_direction(s);
+  EXPECT_NEAR(std::atan2(m.z, -m.y), 60.0 * kPi / 180.0, 1e-6);
+  EXPECT_NEAR(m.x, 0.0f, 1e-7);
+  for (const glm::vec3& d : fall_directions(s)) {
+    EXPECT_GE(-d.y, std::cos(kMaxFallAngleDeg * kPi / 180.0) - 1e-6);  // 15 degrees above the horizon
+  }
+  s.wind = glm::vec2(0.0f, 1.0f);
+  EXPECT_NEAR(std::atan2(mean_fall_direction(s).z, -mean_fall_direction(s).y), kPi / 4.0, 1e-6);
+}
+
 TEST(FallDirections, SameSeedSameBitsDifferentSeedDifferentJitter) {
   CoverageSettings a;
   CoverageSettings b;
@@ -166,12 +182,13 @@ TEST(FallDirections, RejectsBadSettings) {
   s.fall_speed = 0;
   EXPECT_THROW(fall_directions(s), InputError);
   s = {};
-  s.wind = glm::vec2(10.0f, 0.0f);  // tilt 84 degrees
+  s.wind = glm::vec2(26.0f, 0.0f);  // over a storm's 25 m/s
   try {
     fall_directions(s);
     FAIL() << "no exception";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("tilts the snow"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("wind of 26 m/s is over the 25 m/s"), std::string::npos)
+        << e.what();
   }
   s = {};
   s.wind = glm::vec2(std::nanf(""), 0.0f);

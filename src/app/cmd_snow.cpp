@@ -287,7 +287,7 @@ std::optional<DetailMaps> detail_maps(const Scene& scene, const CoverageSettings
   if (!ground) return std::nullopt;
   const glm::vec3 g = ground->bounds.size(), d = ground->detail.size();
   const double tilt =
-      std::atan2(double(glm::length(coverage.wind)), double(coverage.fall_speed)) * 180.0 / M_PI +
+      std::acos(std::clamp(-double(mean_fall_direction(coverage).y), -1.0, 1.0)) * 180.0 / M_PI +
       double(coverage.flutter_deg);
   const double margin = plan::detail_margin(std::max(g.x, g.z), std::max(d.x, d.z),
                                             double(ground->detail.max.y - ground->y), tilt);

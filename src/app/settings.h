@@ -103,7 +103,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Flake flutter: half-angle of the cone of fall directions, degrees", s.coverage.flutter_deg,
     Range{0, 60});
   v("coverage.wind", "--wind",
-    "Horizontal wind X,Z in m/s, each (tilts the fall by atan(wind/fall speed))", s.coverage.wind,
+    "Horizontal wind X,Z in m/s, up to 25 m/s in all (tilts the fall by atan(wind/fall speed), "
+    "at most 75 degrees less the flutter)",
+    s.coverage.wind,
     Range{-100, 100});
   v("coverage.fall_speed", "--fall-speed", "Flakes' still-air fall speed in m/s",
     s.coverage.fall_speed, Range{0.01, 100});

@@ -284,8 +284,10 @@ void Viewer::draw_panel(double frame_ms) {
   bool release = false;
   ImGui::SliderFloat("flutter deg", &pending_.coverage.flutter_deg, 0.0f, 60.0f, "%.1f");
   release |= ImGui::IsItemDeactivatedAfterEdit();
-  ImGui::SliderFloat2("wind x,z m/s", &pending_.coverage.wind.x, -5.0f, 5.0f, "%.2f");
+  ImGui::SliderFloat2("wind x,z m/s", &pending_.coverage.wind.x, -kMaxWind, kMaxWind, "%.2f");
   release |= ImGui::IsItemDeactivatedAfterEdit();
+  const float wind = glm::length(pending_.coverage.wind);  // at most kMaxWind in all
+  if (wind > kMaxWind) pending_.coverage.wind *= kMaxWind / wind;
   ImGui::SliderInt("directions", &pending_.coverage.directions, 1, 256);
   release |= ImGui::IsItemDeactivatedAfterEdit();
   ImGui::SliderFloat("repose deg", &pending_.stabilize.repose_deg, 5.0f, 85.0f, "%.1f");

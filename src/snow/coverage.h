@@ -5,7 +5,10 @@
 // Snow falls along directions d (unit vectors pointing down, along the
 // flakes' travel). A flake's velocity is the wind plus its fall speed:
 // v = (wind.x, -fall_speed, wind.y), so the mean direction is tilted
-// downwind by tilt = atan(|wind| / fall_speed) from the vertical; flutter
+// downwind by tilt = atan(|wind| / fall_speed) from the vertical, at most
+// kMaxFallAngleDeg - flutter (flakes that would travel flatter are drawn
+// at that tilt: what a strong wind blows along the surface is transport's
+// part, not the fall's); flutter
 // spreads the directions uniformly (in solid angle) over a cone of half-angle
 // flutter_deg around it. Coverage p of a surface point = the share of the K
 // directions from which the point sees the sky (nothing above it along -d).
@@ -82,12 +85,16 @@ inline CoverageMethod choose_coverage_method(const CoverageSettings& settings,
 /// or automatic where it is 0; at most settings.directions.
 int shadow_batch(const CoverageSettings& settings, double shadow_texels);
 
-/// Largest tilt + flutter allowed (degrees): directions closer than 15
-/// degrees to the horizon would need shadow maps many times the scene's size.
+/// Largest tilt + flutter (degrees): directions closer than 15 degrees to the
+/// horizon would need shadow maps many times the scene's size, so the mean
+/// direction's tilt is capped at this minus the flutter.
 constexpr float kMaxFallAngleDeg = 75.0f;
+/// Strongest wind accepted (m/s, the length of settings.wind): a storm's.
+constexpr float kMaxWind = 25.0f;
 
 /// Mean fall direction (unit, pointing down) for the settings' wind and fall
-/// speed. Throws InputError for fall_speed <= 0 or a non-finite wind.
+/// speed, its tilt capped at kMaxFallAngleDeg - flutter_deg. Throws
+/// InputError for fall_speed <= 0, a non-finite wind or one over kMaxWind.
 glm::vec3 mean_fall_direction(const CoverageSettings& settings);
 
 /// K unit vectors pointing down along the flakes' travel, in a cone of
@@ -97,7 +104,7 @@ glm::vec3 mean_fall_direction(const CoverageSettings& settings);
 /// ratio + rotation), with a random rotation per seed. Uses its own RNG
 /// (splitmix64), so the same settings give bit-identical directions.
 /// Throws InputError for directions outside 1..4096, flutter outside 0..60,
-/// bad wind or fall speed, or tilt + flutter over kMaxFallAngleDeg.
+/// bad wind or fall speed.
 std::vector<glm::vec3> fall_directions(const CoverageSettings& settings);
 
 /// Sub-texel jitter of each shadow map's origin, in [0, 1)^2 shadow texels,

@@ -67,15 +67,7 @@ void validate_settings(const CoverageSettings& s) {
         "coverage method must be auto, shadow-maps, rays, cpu-rays or cpu-shadow-maps, got '" +
         s.method + "'");
   }
-  const glm::dvec3 m(mean_fall_direction(s));
-  const double tilt = std::acos(std::clamp(-m.y, -1.0, 1.0)) * 180.0 / kPi;
-  if (tilt + s.flutter_deg > kMaxFallAngleDeg) {
-    throw InputError("wind of " + number(glm::length(s.wind)) + " m/s against a fall speed of " +
-                     number(s.fall_speed) + " m/s tilts the snow by " + number(tilt) +
-                     " degrees; with " + number(s.flutter_deg) +
-                     " degrees of flutter that exceeds " + number(kMaxFallAngleDeg) +
-                     " degrees from the vertical");
-  }
+  mean_fall_direction(s);  // checks the wind and the fall speed
 }
 
 }  // namespace cov
@@ -88,8 +80,15 @@ glm::vec3 mean_fall_direction(const CoverageSettings& s) {
   if (!std::isfinite(s.wind.x) || !std::isfinite(s.wind.y)) {
     throw InputError("wind must be finite");
   }
-  const glm::dvec3 v(s.wind.x, -double(s.fall_speed), s.wind.y);
-  return glm::vec3(v / glm::length(v));
+  const double wind = glm::length(glm::dvec2(s.wind));
+  if (wind > double(kMaxWind)) {
+    throw InputError("wind of " + number(wind) + " m/s is over the " + number(kMaxWind) +
+                     " m/s snowmodel takes (--wind)");
+  }
+  const double cap = std::max(0.0, double(kMaxFallAngleDeg) - double(s.flutter_deg)) * kPi / 180.0;
+  const double tilt = std::min(std::atan2(wind, double(s.fall_speed)), cap);
+  const glm::dvec2 along = wind > 0.0 ? glm::dvec2(s.wind) / wind : glm::dvec2(0.0);
+  return glm::vec3(glm::dvec3(along.x * std::sin(tilt), -std::cos(tilt), along.y * std::sin(tilt)));
 }
 
 std::vector<glm::vec3> fall_directions(const CoverageSettings& s) {
