@@ -23,6 +23,7 @@
 #include "scene/frame.h"
 #include "support/command.h"
 #include "support/enclosures.h"
+#include "support/files.h"
 
 namespace fs = std::filesystem;
 
@@ -33,6 +34,8 @@ const fs::path kCourtyard = fs::path(SNOW_SOURCE_DIR) / "assets/scenes/courtyard
 const std::string kFast = " --max-side 96 --directions 16 --layers 6";
 
 using RunResult = snow::test::CommandResult;
+using snow::test::read_all;
+using snow::test::write_all;
 
 RunResult run(const std::string& args) {
   return snow::test::run_command(std::string(SNOWMODEL_EXE) + " " + args);
@@ -43,15 +46,6 @@ fs::path temp_dir(const std::string& name) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
-}
-
-std::string read_all(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-void write_all(const fs::path& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary) << bytes;
 }
 
 size_t file_count(const fs::path& dir) {

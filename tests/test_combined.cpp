@@ -21,6 +21,7 @@
 #include "mesh/export.h"
 #include "scene/load_gltf.h"
 #include "support/base64.h"
+#include "support/files.h"
 #include "support/validator.h"
 
 namespace snow {
@@ -50,15 +51,6 @@ std::string bytes_of(const void* data, size_t size) {
   return std::string(static_cast<const char*>(data), size);
 }
 
-void write_file(const fs::path& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary) << bytes;
-}
-
-std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
 /// Three triangles, each with its positions in its own buffer: buffer 0 a
 /// .bin whose byteLength (37) is not a multiple of 8, buffer 1 a .bin whose
 /// view starts 4 bytes in, buffer 2 a data URI. Each a mesh, node, root.
@@ -66,8 +58,8 @@ json three_buffer_gltf(const fs::path& folder) {
   const float a[9] = {0, 0, 0, 0, 0, 1, 1, 0, 0};
   const float b[9] = {2, 0, 0, 2, 0, 1, 3, 0, 0};
   const float c[9] = {4, 1, 0, 4, 1, 1, 5, 1, 0};
-  write_file(folder / "a.bin", bytes_of(a, 36) + "x");
-  write_file(folder / "b.bin", "junk" + bytes_of(b, 36));
+  test::write_all(folder / "a.bin", bytes_of(a, 36) + "x");
+  test::write_all(folder / "b.bin", "junk" + bytes_of(b, 36));
   const std::string c_bytes = bytes_of(c, 36);
   json g;
   g["asset"] = {{"version", "2.0"}};
@@ -105,7 +97,7 @@ std::shared_ptr<const SourceGltf> source_of(const fs::path& path) {
 
 /// The JSON of a .glb or .gltf output.
 json json_of(const fs::path& out) {
-  const std::string bytes = read_file(out);
+  const std::string bytes = test::read_all(out);
   if (out.extension() == ".gltf") return json::parse(bytes);
   uint32_t length = 0;
   std::memcpy(&length, bytes.data() + 12, 4);
@@ -129,7 +121,7 @@ TEST(Combined, MergesEveryBufferIntoOne) {
   set_log_level(LogLevel::Quiet);
   const Folder folder;
   const fs::path& dir = folder.path;
-  write_file(dir / "three.gltf", three_buffer_gltf(dir).dump());
+  test::write_all(dir / "three.gltf", three_buffer_gltf(dir).dump());
   const Scene before = load_scene(dir / "three.gltf");
   const auto source = source_of(dir / "three.gltf");
   for (const char* name : {"out.glb", "out.gltf"}) {
@@ -170,7 +162,7 @@ TEST(Combined, PointsMeshoptViewsIntoTheOneBuffer) {
                                   {"count", 1},
                                   {"byteStride", 4},
                                   {"mode", "ATTRIBUTES"}}}}}});
-  write_file(dir / "meshopt.gltf", g.dump());
+  test::write_all(dir / "meshopt.gltf", g.dump());
   write_combined_gltf(*source_of(dir / "meshopt.gltf"), {}, dir / "out" / "x.glb");
   const json view = json_of(dir / "out" / "x.glb")["bufferViews"][3];
   EXPECT_EQ(view["extensions"]["EXT_meshopt_compression"]["buffer"], 0);
@@ -183,8 +175,8 @@ TEST(Combined, ReadsBufferFilesOnlyAsFarAsTheirByteLength) {
   set_log_level(LogLevel::Quiet);
   const Folder folder;
   const fs::path& dir = folder.path;
-  write_file(dir / "three.gltf", three_buffer_gltf(dir).dump());
-  const std::string a = read_file(dir / "a.bin");
+  test::write_all(dir / "three.gltf", three_buffer_gltf(dir).dump());
+  const std::string a = test::read_all(dir / "a.bin");
   fs::resize_file(dir / "a.bin", uint64_t(64) << 20);
   const auto source = source_of(dir / "three.gltf");
   for (const char* name : {"big.glb", "big.gltf"}) {
@@ -195,7 +187,7 @@ TEST(Combined, ReadsBufferFilesOnlyAsFarAsTheirByteLength) {
     EXPECT_LT(fs::file_size(buffer), uint64_t(1) << 20);
     const json g = json_of(out);
     EXPECT_EQ(g["buffers"][0]["byteLength"], 116);  // 37, 40 from 40, 36 from 80
-    const std::string bytes = read_file(buffer);
+    const std::string bytes = test::read_all(buffer);
     const size_t bin = out.extension() == ".glb" ? bytes.size() - 116 : 0;
     EXPECT_EQ(bytes.substr(bin, 37), a);
   }
@@ -210,9 +202,9 @@ TEST(Combined, RefusesABufferTheInputCannotFill) {
   const Folder folder;
   const fs::path& dir = folder.path;
   fs::create_directories(dir / "scene");
-  write_file(dir / "outside.bin", std::string(64, 'x'));
+  test::write_all(dir / "outside.bin", std::string(64, 'x'));
   const json good = three_buffer_gltf(dir / "scene");
-  write_file(dir / "scene" / "short.bin", "1234");
+  test::write_all(dir / "scene" / "short.bin", "1234");
   fs::create_directories(dir / "scene" / "folder.bin");
   ASSERT_EQ(mkfifo((dir / "scene" / "fifo.bin").c_str(), 0600), 0);
   fs::create_symlink(dir / "outside.bin", dir / "scene" / "link.bin");
@@ -228,7 +220,7 @@ TEST(Combined, RefusesABufferTheInputCannotFill) {
     SCOPED_TRACE(uri);
     json g = good;
     g["buffers"].push_back({{"uri", uri}, {"byteLength", 16}});
-    write_file(dir / "scene" / "unused.gltf", g.dump());
+    test::write_all(dir / "scene" / "unused.gltf", g.dump());
     try {
       // The loader refuses a symlink out of the folder itself.
       write_combined_gltf(*source_of(dir / "scene" / "unused.gltf"), {}, dir / "out" / "x.glb");

@@ -140,7 +140,8 @@ TEST(FallDirections, StrongWindIsTakenWithItsTiltCapped) {
   EXPECT_NEAR(std::atan2(m.z, -m.y), 60.0 * kPi / 180.0, 1e-6);
   EXPECT_NEAR(m.x, 0.0f, 1e-7);
   for (const glm::vec3& d : fall_directions(s)) {
-    EXPECT_GE(-d.y, std::cos(kMaxFallAngleDeg * kPi / 180.0) - 1e-6);  // 15 degrees above the horizon
+    EXPECT_GE(-d.y,
+              std::cos(kMaxFallAngleDeg * kPi / 180.0) - 1e-6);  // 15 degrees above the horizon
   }
   s.wind = glm::vec2(0.0f, 1.0f);
   EXPECT_NEAR(std::atan2(mean_fall_direction(s).z, -mean_fall_direction(s).y), kPi / 4.0, 1e-6);

@@ -33,6 +33,7 @@
 #include "mesh/gltf_writer.h"
 #include "scene/load_gltf.h"
 #include "support/command.h"
+#include "support/files.h"
 
 extern char** environ;
 
@@ -46,6 +47,7 @@ const fs::path kCourtyard = fs::path(SNOW_SOURCE_DIR) / "assets/scenes/courtyard
 const std::string kTiny = " --max-side 24 --directions 4 --layers 2";
 
 using RunResult = snow::test::CommandResult;
+using snow::test::temporaries;
 
 std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
 
@@ -467,17 +469,6 @@ pid_t spawn(const std::vector<std::string>& args) {
   if (posix_spawn(&pid, exe.c_str(), &actions, nullptr, argv.data(), environ) != 0) pid = -1;
   posix_spawn_file_actions_destroy(&actions);
   return pid;
-}
-
-/// Every file in `dir` whose name starts with '.' and holds ".tmp".
-std::vector<std::string> temporaries(const fs::path& dir) {
-  std::vector<std::string> found;
-  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
-    const std::string name = entry.path().filename().string();
-    if (name.size() > 1 && name[0] == '.' && name.find(".tmp") != std::string::npos)
-      found.push_back(entry.path().string());
-  }
-  return found;
 }
 
 TEST_F(Hostile, KilledRunsNeverLeaveAPartialOutput) {

@@ -28,10 +28,14 @@
 #include "scene/builder.h"
 #include "scene/load_gltf.h"
 #include "support/command.h"
+#include "support/files.h"
 
 namespace snow {
 namespace {
 namespace fs = std::filesystem;
+using test::read_all;
+using test::temporaries;
+using test::write_all;
 
 const fs::path kCourtyard = fs::path(SNOW_SOURCE_DIR) / "assets/scenes/courtyard.glb";
 const std::string kFast = " --max-side 48 --directions 8 --layers 4";
@@ -48,27 +52,6 @@ fs::path temp_dir(const std::string& name) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
-}
-
-std::string read_all(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-void write_all(const fs::path& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary) << bytes;
-}
-
-/// Hidden temporary files or folders (".<name>.tmp<pid>_<n>",
-/// ".snowmodel.tmp...") anywhere under `dir`.
-std::vector<std::string> temporaries(const fs::path& dir) {
-  std::vector<std::string> found;
-  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
-    const std::string name = entry.path().filename().string();
-    if (name.size() > 1 && name[0] == '.' && name.find(".tmp") != std::string::npos)
-      found.push_back(entry.path().string());
-  }
-  return found;
 }
 
 /// A 1 m floor with a table top, as a .gltf (with "<stem>.bin") or .glb.

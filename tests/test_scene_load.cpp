@@ -593,9 +593,9 @@ TEST_F(SceneLoad, DracoWithIndices) {
 #ifdef SNOW_TEST_DRACO_ENCODER
   if (!snow::gltf_draco_supported()) GTEST_SKIP() << "this build has no Draco decoder";
   Gltf g = draco_quad_gltf(true);
-  for (const fs::path& path : {g.write_glb(dir_, "draco_indexed"),
-                               g.write_gltf(dir_, "draco_indexed"),
-                               g.write_data_uri(dir_, "draco_indexed_data")}) {
+  for (const fs::path& path :
+       {g.write_glb(dir_, "draco_indexed"), g.write_gltf(dir_, "draco_indexed"),
+        g.write_data_uri(dir_, "draco_indexed_data")}) {
     const snow::Scene s = snow::load_scene(path);
     ASSERT_EQ(s.triangle_count(), 2u) << path;
     EXPECT_NEAR(total_area(s), 1.0, 1e-5) << path;

@@ -105,8 +105,7 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("coverage.wind", "--wind",
     "Horizontal wind X,Z in m/s, up to 25 m/s in all (tilts the fall by atan(wind/fall speed), "
     "at most 75 degrees less the flutter)",
-    s.coverage.wind,
-    Range{-100, 100});
+    s.coverage.wind, Range{-100, 100});
   v("coverage.fall_speed", "--fall-speed", "Flakes' still-air fall speed in m/s",
     s.coverage.fall_speed, Range{0.01, 100});
   // Every uint64_t is a seed (the CLI refuses what does not fit, not wraps it).
