@@ -4,6 +4,8 @@
 //                                     writes a benchmark terrain (snow::make_terrain)
 //   snowmodel_gen_assets --truck <file.glb>
 //                                     writes a delivery truck (snow::make_truck)
+//   snowmodel_gen_assets --wind-yard <file.glb>
+//                                     writes the wind's test yard (snow::make_wind_yard)
 // The project's copy lives in assets/scenes/courtyard.glb; regenerate it with
 //   build/<dir>/tools/snowmodel_gen_assets assets/scenes
 // Output is deterministic: the same build writes byte-identical files.
@@ -36,19 +38,23 @@ void write(const snow::SceneBuilder& builder, const std::string& root,
 int main(int argc, char** argv) {
   const bool terrain = argc == 4 && std::string(argv[1]) == "--terrain";
   const bool truck = argc == 3 && std::string(argv[1]) == "--truck";
-  if (!(argc == 2 || terrain || truck) || std::string(argv[1]) == "-h" ||
+  const bool wind_yard = argc == 3 && std::string(argv[1]) == "--wind-yard";
+  if (!(argc == 2 || terrain || truck || wind_yard) || std::string(argv[1]) == "-h" ||
       std::string(argv[1]) == "--help") {
     std::cerr << "usage: snowmodel_gen_assets <out_dir>\n"
                  "         writes <out_dir>/courtyard.glb (the demo courtyard scene)\n"
                  "       snowmodel_gen_assets --terrain <triangles> <file.glb>\n"
                  "         writes a benchmark terrain of about that many triangles\n"
                  "       snowmodel_gen_assets --truck <file.glb>\n"
-                 "         writes a delivery truck on a ground (snow::make_truck)\n";
+                 "         writes a delivery truck on a ground (snow::make_truck)\n"
+                 "       snowmodel_gen_assets --wind-yard <file.glb>\n"
+                 "         writes a cube, a fence and a roof step (snow::make_wind_yard)\n";
     return argc == 2 ? 0 : snow::kExitBadInput;
   }
   try {
-    if (argc == 3 && std::string(argv[1]) == "--truck") {
-      write(snow::make_truck(), "Truck", argv[2]);
+    if (truck || wind_yard) {
+      write(truck ? snow::make_truck() : snow::make_wind_yard(), truck ? "Truck" : "WindYard",
+            argv[2]);
       return snow::kExitOk;
     }
     if (terrain) {

@@ -90,6 +90,8 @@ void run_preview(PreviewOptions o) {
   v.sim.stabilize = s.stabilize;
   v.sim.total_depth = s.accumulate.fall_depth;
   v.sim.snow_on_snow_every = s.accumulate.snow_on_snow_every;
+  v.sim.snow_kind = snow_kind_from_name(s.snow_kind);
+  v.sim.wind_transport = s.wind_transport;
   v.mesh = s.polygonize;
   // Fail before the window opens.
   std::vector<OutputPath> outputs;

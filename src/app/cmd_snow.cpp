@@ -247,20 +247,26 @@ void log_summary(const StageClock& clock, size_t triangles_in,
   size_t triangles_out = 0;
   for (const SnowPatch& p : patches) triangles_out += p.mesh.indices.size() / 3;
   const auto [timing, total] = clock.report();
-  char summary[512];
-  std::snprintf(
-      summary, sizeof summary,
-      "summary: %.2f s (%s); peak memory %.0f MiB; triangles in %zu, snow out %zu in %zu "
-      "patches; snow %.3f m^3 (fell %.3f, lost off the domain %.3f); coverage by %s; stabilizer "
-      "%d passes on the %s%s",
-      total, timing.c_str(), peak_memory_mib(), triangles_in, triangles_out, patches.size(),
-      snow.volume, snow.fallen_volume, snow.lost_volume,
-      snow.coverage_method == CoverageMethod::CpuRays         ? "rays on the CPU"
-      : snow.coverage_method == CoverageMethod::GpuRays       ? "rays on the GPU"
-      : snow.coverage_method == CoverageMethod::CpuShadowMaps ? "shadow maps on the CPU"
-                                                              : "shadow maps",
-      snow.iterations, snow.stabilized_on_cpu ? "CPU" : "GPU",
-      gl_used ? "" : "; OpenGL not started");
+  std::string drift;
+  if (snow.drifted > 0.0) {
+    char part[160];
+    std::snprintf(part, sizeof part, "; the wind moved %.3f, carried in %.3f and out %.3f",
+                  snow.drifted, snow.drifted_in, snow.drifted_out);
+    drift = part;
+  }
+  char summary[640];
+  std::snprintf(summary, sizeof summary,
+                "summary: %.2f s (%s); peak memory %.0f MiB; triangles in %zu, snow out %zu in %zu "
+                "patches; snow %.3f m^3 (fell %.3f, lost off the domain %.3f%s); coverage by %s; "
+                "stabilizer %d passes on the %s%s",
+                total, timing.c_str(), peak_memory_mib(), triangles_in, triangles_out,
+                patches.size(), snow.volume, snow.fallen_volume, snow.lost_volume, drift.c_str(),
+                snow.coverage_method == CoverageMethod::CpuRays         ? "rays on the CPU"
+                : snow.coverage_method == CoverageMethod::GpuRays       ? "rays on the GPU"
+                : snow.coverage_method == CoverageMethod::CpuShadowMaps ? "shadow maps on the CPU"
+                                                                        : "shadow maps",
+                snow.iterations, snow.stabilized_on_cpu ? "CPU" : "GPU",
+                gl_used ? "" : "; OpenGL not started");
   log_info(summary);
 }
 
@@ -304,6 +310,26 @@ std::optional<DetailMaps> detail_maps(const Scene& scene, const CoverageSettings
   return out;
 }
 
+/// What the wind does in this run, in one line (none without wind).
+void log_wind(const PipelineSettings& s) {
+  const double speed = glm::length(glm::dvec2(s.coverage.wind));
+  if (!(speed > 0.0)) return;
+  char line[256];
+  if (s.accumulate.drift.transport > 0.0f) {
+    std::snprintf(line, sizeof line,
+                  "wind: %.3g m/s blows %s snow into drifts (it carries %.3g m of the fallen snow "
+                  "per metre of width)",
+                  speed, s.snow_kind.c_str(), double(s.accumulate.drift.transport));
+  } else if (!s.wind_transport) {
+    std::snprintf(line, sizeof line, "wind: %.3g m/s tilts the fall; transport is off", speed);
+  } else {
+    std::snprintf(line, sizeof line,
+                  "wind: %.3g m/s tilts the fall; it is too light to move %s snow", speed,
+                  s.snow_kind.c_str());
+  }
+  log_info(line);
+}
+
 void log_plan(const plan::RunPlan& run) {
   for (const std::string& line : plan::describe(run)) log_debug(line);
 }
@@ -312,6 +338,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   MeshFormat format = MeshFormat::Glb;
   PipelineSettings s = checked_settings(o, format);
   const FileFrame frame = file_frame(s);
+  log_wind(s);
   StageClock clock;
 
   // The machine's facts; the renderer is probed beside the load.

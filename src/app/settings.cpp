@@ -137,6 +137,14 @@ void resolve_snow_settings(PipelineSettings& s) {
   s.stabilize.cohesion = cohesion_of(snow_kind_from_name(s.snow_kind));
   if (s.stand_height >= 0.0f) s.stabilize.cohesion.stand_height = s.stand_height;
   if (s.hold_depth >= 0.0f) s.stabilize.cohesion.hold_depth = s.hold_depth;
+  s.accumulate.drift = drift_for_wind(s.wind_transport ? s.coverage.wind : glm::vec2(0.0f),
+                                      snow_kind_from_name(s.snow_kind));
+  const DriftSettings& drift = s.accumulate.drift;
+  s.polygonize.cornice = Cornice{};
+  if (drift.transport > 0.0f) {
+    s.polygonize.cornice.direction = glm::normalize(drift.direction);
+    s.polygonize.cornice.length = float(plan::cornice_length(double(drift.transport)));
+  }
 }
 
 plan::Settings plan_settings(const PipelineSettings& settings) {
@@ -210,7 +218,7 @@ bool is_developer_setting(const std::string& key) {
       "maps.merge_distance",  "maps.device",       "coverage.batch",     "coverage.bias",
       "coverage.method",      "snow.min_move",     "snow.max_stride",    "snow.adaptive_stride",
       "snow.device",          "snow.route_steep",  "snow.deposit_piles", "snow.drain_edges",
-      "mesh.piece_triangles", "snow.stand_height", "snow.hold_depth"};
+      "mesh.piece_triangles", "snow.stand_height", "snow.hold_depth",    "snow.wind_transport"};
   for (const char* k : kDeveloper) {
     if (key == k) return true;
   }

@@ -37,6 +37,7 @@ struct PipelineSettings {
   std::vector<std::string> slippery;    // name globs: surfaces that shed snow sooner
   std::vector<std::string> rough;       // name globs: surfaces that hold more snow
   bool keep_enclosures = false;         // keep sky domes and boxes (scene/enclosure.h)
+  bool wind_transport = true;           // the wind moves fallen snow (snow/drift.h)
 };
 
 /// The values a numeric setting accepts: lo..hi, both included, every value
@@ -103,8 +104,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Flake flutter: half-angle of the cone of fall directions, degrees", s.coverage.flutter_deg,
     Range{0, 60});
   v("coverage.wind", "--wind",
-    "Horizontal wind X,Z in m/s, up to 25 m/s in all (tilts the fall by atan(wind/fall speed), "
-    "at most 75 degrees less the flutter)",
+    "Horizontal wind X,Z in m/s, up to 25 m/s in all: tilts the fall (by atan(wind/fall "
+    "speed), at most 75 degrees less the flutter) and, above the snow's drift threshold "
+    "(powder 3.5, fresh 4, wet 9 m/s), blows the fallen snow into drifts",
     s.coverage.wind, Range{-100, 100});
   v("coverage.fall_speed", "--fall-speed", "Flakes' still-air fall speed in m/s",
     s.coverage.fall_speed, Range{0.01, 100});
@@ -171,6 +173,10 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Lay routed snow as a pile at the angle of repose where it comes to rest, not on one texel "
     "(true/false)",
     s.stabilize.deposit_piles, kNoRange);
+  v("snow.wind_transport", "--wind-transport",
+    "Let a wind above the drift threshold move the fallen snow (true/false; false: the wind "
+    "only tilts the fall)",
+    s.wind_transport, kNoRange);
   v("snow.drain_edges", "--drain-edges",
     "Once snow creeps off an edge into the void, drain what will leave in one go (true/false)",
     s.stabilize.drain_edges, kNoRange);

@@ -11,6 +11,7 @@
 #include "core/log.h"
 #include "gl/gl.h"
 #include "snow/accumulate.h"
+#include "snow/drift.h"
 #include "snow/stabilize_cpu.h"
 
 namespace snow::live {
@@ -88,6 +89,7 @@ void LiveSim::peel() {
   compute_coverage(nullptr);
   fallen_depth_ = 0;
   fallen_volume_ = 0;
+  lost_before_ = 0;
   frame_ = 0;
   last_ = StabilizeResult();
 }
@@ -123,7 +125,9 @@ unsigned LiveSim::depth_texture() const { return cpu_ ? cpu_depth_.id() : gpu_->
 
 std::vector<float> LiveSim::depth() const { return cpu_ ? cpu_->depth() : gpu_->depth(); }
 
-double LiveSim::lost_volume() const { return cpu_ ? cpu_->lost_volume() : gpu_->lost_volume(); }
+double LiveSim::lost_volume() const {
+  return lost_before_ + (cpu_ ? cpu_->lost_volume() : gpu_->lost_volume());
+}
 
 void LiveSim::compute_coverage(const std::vector<float>* lying) {
   const auto start = Clock::now();
@@ -157,6 +161,19 @@ void LiveSim::step() {
     on_either(cpu_.get(), gpu_.get(), [&](auto& s) { s.add_snow(coverage_, amount); });
     fallen_depth_ += amount;
     fallen_volume_ += double(amount) * coverage_area_;
+    const DriftSettings drift = drift_for_wind(
+        settings_.wind_transport ? settings_.coverage.wind : glm::vec2(0.0f), settings_.snow_kind);
+    if (drift.transport > 0.0f) {
+      std::vector<float> lying = depth();
+      const DriftResult moved = drift_snow(maps_, lying, amount, drift);
+      on_either(cpu_.get(), gpu_.get(), [&](auto& s) {
+        lost_before_ += s.lost_volume();  // set_depth restarts the count
+        s.set_depth(lying);
+      });
+      fallen_volume_ += moved.entered;
+      lost_before_ += moved.left;
+      last_.converged = false;
+    }
   }
   timings_.add = seconds_since(start);
   start = Clock::now();
@@ -179,6 +196,7 @@ void LiveSim::reset() {
   upload_depth(maps_);
   fallen_depth_ = 0;
   fallen_volume_ = 0;
+  lost_before_ = 0;
   frame_ = 0;
   last_ = StabilizeResult();
   if (settings_.snow_on_snow_every > 0) compute_coverage(nullptr);
@@ -195,7 +213,10 @@ void LiveSim::apply(const LiveSettings& settings) {
     }
     if (!same(old.stabilize, settings.stabilize)) {
       const std::vector<float> lying = depth();
+      const double lost =
+          on_either(cpu_.get(), gpu_.get(), [](auto& s) { return s.lost_volume(); });
       make_stabilizer(maps_, &lying);
+      lost_before_ += lost;  // the new stabilizer counts from 0
       last_.converged = false;
     }
     if (!same(old.coverage, settings.coverage)) {

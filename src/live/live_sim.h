@@ -12,6 +12,7 @@
 #include "gl/objects.h"
 #include "plan/rules.h"
 #include "scene/scene.h"
+#include "snow/cohesion.h"
 #include "snow/coverage.h"
 #include "snow/maps.h"
 #include "snow/peel.h"
@@ -37,6 +38,9 @@ struct LiveSettings {
   int passes_per_frame = 4;    // stabilizer relaxation passes per frame (>= 0)
   int snow_on_snow_every = 0;  // frames between coverage updates that include the lying snow
                                // (drifts shade what lies behind them); 0 = off
+  SnowKind snow_kind = SnowKind::Fresh;  // its drift threshold (snow::drift_for_wind)
+  bool wind_transport = true;            // a wind above the threshold moves each addition's snow
+                                         // (snow/drift.h) before the passes
 };
 
 /// Wall seconds of the work of the last frame, by stage (with glFinish at
@@ -66,7 +70,8 @@ class LiveSim {
   LiveSim& operator=(const LiveSim&) = delete;
 
   /// One frame: every add_every frames adds min(add_every * fall_rate *
-  /// frame_time, what is left of total_depth) metres times the coverage, recomputes the coverage
+  /// frame_time, what is left of total_depth) metres times the coverage and
+  /// lets the wind move it (wind_transport), recomputes the coverage
   /// with the lying snow when snow_on_snow_every says so, and runs passes_per_frame stabilizer
   /// passes (none once nothing falls and the last passes converged: the snow is at rest).
   void step();
@@ -89,16 +94,20 @@ class LiveSim {
   unsigned depth_texture() const;
   /// Current snow depth (metres per layer texel; a full readback).
   std::vector<float> depth() const;
-  /// m^3 of snow that left the maps since the last reset or re-peel.
+  /// m^3 of snow that left the maps since the last reset or re-peel (the
+  /// wind's included).
   double lost_volume() const;
   /// The stabilizer runs on the CPU (settings.stabilize.device).
   bool stabilizes_on_cpu() const { return cpu_ != nullptr; }
   const StabilizeResult& last_result() const { return last_; }
   const LiveTimings& timings() const { return timings_; }
 
-  float fallen_depth() const { return fallen_depth_; }     // metres fallen on open flat ground
-  double fallen_volume() const { return fallen_volume_; }  // m^3 of fresh snow added
-  int64_t frame() const { return frame_; }                 // frames stepped since reset
+  float fallen_depth() const { return fallen_depth_; }  // metres fallen on open flat ground
+  double fallen_volume() const {
+    return fallen_volume_;
+  }                                         // m^3 of fresh snow added, and
+                                            // drifted in over the border
+  int64_t frame() const { return frame_; }  // frames stepped since reset
   /// Incremented whenever the maps change (re-peel) or the coverage does.
   uint64_t maps_version() const { return maps_version_; }
   uint64_t coverage_version() const { return coverage_version_; }
@@ -128,6 +137,7 @@ class LiveSim {
   LiveTimings timings_;
   float fallen_depth_ = 0;
   double fallen_volume_ = 0;
+  double lost_before_ = 0;  // m^3 lost before the stabilizer's last set_depth, and drifted out
   int64_t frame_ = 0;
   uint64_t maps_version_ = 0;
   uint64_t coverage_version_ = 0;

@@ -141,7 +141,8 @@ class Viewer {
   render::PreviewSettings shading_;
   OrbitView orbit_;
   Input input_;
-  LiveSettings pending_;  // edited by the panel, applied on release
+  LiveSettings pending_;           // edited by the panel, applied on release
+  float wind_heading_deg_ = 0.0f;  // the panel's wind heading, kept while the speed is 0
   SnowViewSettings view_settings_;
   int stride_ = 1;          // texels between drawn snow grid vertices, in use
   int stride_setting_ = 0;  // the panel's (0 = automatic)
@@ -284,10 +285,20 @@ void Viewer::draw_panel(double frame_ms) {
   bool release = false;
   ImGui::SliderFloat("flutter deg", &pending_.coverage.flutter_deg, 0.0f, 60.0f, "%.1f");
   release |= ImGui::IsItemDeactivatedAfterEdit();
-  ImGui::SliderFloat2("wind x,z m/s", &pending_.coverage.wind.x, -kMaxWind, kMaxWind, "%.2f");
+  // The wind as speed and heading (degrees from +x towards +z, where it
+  // blows to); the heading is kept while the speed is 0.
+  glm::vec2& wind = pending_.coverage.wind;
+  float speed = glm::length(wind);
+  if (speed > 0.0f) wind_heading_deg_ = glm::degrees(std::atan2(wind.y, wind.x));
+  bool wind_changed = ImGui::SliderFloat("wind m/s", &speed, 0.0f, kMaxWind, "%.1f");
   release |= ImGui::IsItemDeactivatedAfterEdit();
-  const float wind = glm::length(pending_.coverage.wind);  // at most kMaxWind in all
-  if (wind > kMaxWind) pending_.coverage.wind *= kMaxWind / wind;
+  wind_changed |=
+      ImGui::SliderFloat("wind towards deg", &wind_heading_deg_, -180.0f, 180.0f, "%.0f");
+  release |= ImGui::IsItemDeactivatedAfterEdit();
+  if (wind_changed) {
+    const float a = glm::radians(wind_heading_deg_);
+    wind = std::min(speed, kMaxWind) * glm::vec2(std::cos(a), std::sin(a));
+  }
   ImGui::SliderInt("directions", &pending_.coverage.directions, 1, 256);
   release |= ImGui::IsItemDeactivatedAfterEdit();
   ImGui::SliderFloat("repose deg", &pending_.stabilize.repose_deg, 5.0f, 85.0f, "%.1f");

@@ -13,6 +13,14 @@
 
 namespace snow {
 
+/// Cornices: snow blown over the lee edges of roofs and walls grows out over
+/// the air there (poly::add_lips).
+struct Cornice {
+  glm::vec2 direction{1.0f, 0.0f};  // where the wind blew to (x, z), unit length
+  float length = 0.0f;              // metres, the farthest reach at an edge facing
+                                    // straight downwind (>= 0; 0: none)
+};
+
 struct PolygonizeSettings {
   /// Snow thinner than this is no snow (metres). The outline of every patch
   /// is the marching-squares contour of the thickness field at this level.
@@ -32,6 +40,9 @@ struct PolygonizeSettings {
   /// (metres, >= 0; at most poly::kOverhangShare of its thickness there):
   /// a lip over the air, the closed solid no longer a height field there.
   float overhang = 0.03f;
+  /// With shoulders, cornices at the edges facing downwind (set from the
+  /// wind by the planner: plan::cornice_length).
+  Cornice cornice;
   /// The snow goes on past the border of this rectangle (x, z; empty:
   /// nowhere), as an even cover laid around the maps (mesh/far_ground.h):
   /// free edges there get no shoulder.

@@ -87,4 +87,10 @@ int preview_grid_side(const GlFacts& gl) {
   return gl.software ? kPreviewGridSideSoftware : kPreviewGridSide;
 }
 
+double drift_transport(double speed, double threshold) {
+  if (!(threshold > 0.0) || !(speed > threshold)) return 0.0;
+  const double r = speed / threshold;
+  return kDriftTransportScale * r * (r * r - 1.0);
+}
+
 }  // namespace snow::plan

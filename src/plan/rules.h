@@ -221,6 +221,63 @@ enum class StabilizerUse { Batch, Live };
 /// the GPU, whose depth texture is drawn without an upload per frame.
 bool stabilizer_on_cpu(const std::string& device, StabilizerUse use, const GlFacts& gl);
 
+// --- Wind transport (snow/drift.h) ---
+
+/// Wind speed (m/s, at the reference height of 10 m) below which the wind
+/// does not move lying snow, by the snow's kind (snow/cohesion.h). Li and
+/// Pomeroy (1997) observed thresholds of 4 to 11 m/s for dry snow, the low
+/// end for fresh, loose snow; wet snow sticks and hardly drifts.
+constexpr double kDriftThresholdPowder = 3.5;  // m/s
+constexpr double kDriftThresholdFresh = 4.0;   // m/s
+constexpr double kDriftThresholdWet = 9.0;     // m/s
+/// The storm's transport (DriftSettings::transport, metres of fallen snow
+/// carried per metre of width over the fallen depth) grows with the wind as
+/// the saltation flux does, u (u^2 - u_t^2) (Pomeroy and Gray 1990):
+/// kDriftTransportScale * r (r^2 - 1) for r = speed / threshold, 0 at or
+/// below the threshold.
+constexpr double kDriftTransportScale = 3.5;  // m
+double drift_transport(double speed, double threshold);
+/// The flux relaxes to the capacity over this distance (erosion and
+/// deposition outside shelters).
+constexpr double kDriftSaturationLength = 8.0;  // m
+/// Turbulent spreading of the carried snow across the wind: its lateral
+/// variance grows by this many m^2 per metre travelled.
+constexpr double kDriftMixingLength = 0.5;  // m
+/// An obstacle of height h shelters h / kDriftShelterSlope downwind (and in
+/// front of it): EN 1991-1-3's drift length at a step, ls = 2h.
+constexpr double kDriftShelterSlope = 0.5;  // tan of the horizon angle
+/// The height of the drifting layer: an obstacle of height h catches
+/// h^2 / (h^2 + kDriftLayerHeight^2) of the flux in its shelter (a step far
+/// taller than the layer nearly all, a ripple of the snow next to nothing).
+constexpr double kDriftLayerHeight = 0.3;  // m
+/// Share of the flux reaching a windward face that settles in front of it;
+/// the rest goes over. ASCE 7 takes windward drifts as 3/4 the height of
+/// leeward ones from the same fetch, so about half their volume.
+constexpr double kDriftWindwardCapture = 0.5;  // share, 0..1
+/// The wind's capacity beside an obstacle, where the flow goes round it (the
+/// scour at a cube's windward corners and sides, Tominaga et al. 2011),
+/// grows by up to this share.
+constexpr double kDriftSpeedupGain = 1.0;  // share
+/// The flow speeds up beside an obstacle, and slows down past it, over this
+/// distance along the wind.
+constexpr double kDriftSpeedupLength = 2.0;  // m
+/// The wind takes at most this share of the snow lying before the storm:
+/// what it scours packs into a crust that resists. EN 1991-1-3 keeps
+/// 0.8 x 0.8 = 0.64 of the ground's snow on a flat roof in windswept
+/// terrain (exposure coefficient 0.8).
+constexpr double kDriftMaxScour = 0.7;  // share, 0..1
+/// The storm in this many parts, each on the surface the last left.
+constexpr int kDriftSubsteps = 3;
+/// Cornices: at lee edges the snow's lip reaches out over the air by up to
+/// this share of the storm's transport (PolygonizeSettings::cornice), as
+/// far as the snow's thickness there allows (poly::kCorniceShare).
+constexpr double kCorniceShareOfTransport = 0.05;  // of DriftSettings::transport
+constexpr double kMaxCornice = 1.0;                // m
+/// The cornice's reach (m) for a storm of `transport` metres.
+inline double cornice_length(double transport) {
+  return std::min(kMaxCornice, kCorniceShareOfTransport * std::max(transport, 0.0));
+}
+
 // --- Live preview ---
 
 /// The live preview's automatic --snow-stride draws its snow grid with at

@@ -672,6 +672,19 @@ Scene make_bowl_scene(const BowlDims& d) {
   return b.build();
 }
 
+SceneBuilder make_wind_yard() {
+  SceneBuilder b;
+  add_floor(b, 40.0f);
+  const int stone = b.add_material("Stone", glm::vec4(0.62f, 0.6f, 0.56f, 1.0f));
+  const int wood = b.add_material("Wood", glm::vec4(0.45f, 0.3f, 0.18f, 1.0f));
+  const int brick = b.add_material("Brick", glm::vec4(0.6f, 0.28f, 0.2f, 1.0f));
+  b.add_box("Cube", glm::vec3(-9.0f, 0.0f, -9.0f), glm::vec3(-7.0f, 2.0f, -7.0f), stone);
+  b.add_box("Fence", glm::vec3(2.0f, 0.0f, -14.0f), glm::vec3(2.2f, 1.5f, -2.0f), wood);
+  b.add_box("LowerRoof", glm::vec3(4.0f, 0.0f, 4.0f), glm::vec3(12.0f, 3.0f, 12.0f), brick);
+  b.add_box("HigherBlock", glm::vec3(12.0f, 0.0f, 4.0f), glm::vec3(18.0f, 6.0f, 12.0f), brick);
+  return b;
+}
+
 // --- The courtyard ----------------------------------------------------------------
 
 SceneBuilder make_truck() {

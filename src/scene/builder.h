@@ -288,6 +288,13 @@ SceneBuilder make_courtyard();
 /// vehicle.
 SceneBuilder make_truck();
 
+/// The wind's test yard on a 40 x 40 m ground "Floor": a 2 m "Cube" at
+/// (-8, 0, -8), a "Fence" 1.5 m high across +x (x 2..2.2, z -14..-2), and
+/// a "LowerRoof" block 3 m high (x 4..12, z 4..12) against a "HigherBlock"
+/// 6 m high (x 12..18): a cube in a field (Tominaga et al. 2011), a snow
+/// fence and a roof step (EN 1991-1-3, 5.3.6), for a wind along +x.
+SceneBuilder make_wind_yard();
+
 /// A benchmark scene of about `triangles` triangles (>= 300): a rolling
 /// terrain "Terrain" over 100 x 100 m (heights within +-1.8 m) as a regular
 /// grid, with 8 table tops "Table<k>" (3 x 2 m at y 2.5..2.6) and 8 walls

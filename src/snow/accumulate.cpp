@@ -72,6 +72,7 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
     throw InputError("snow steps must be between 1 and " + std::to_string(kMaxSnowSteps) +
                      ", got " + std::to_string(settings.steps));
   }
+  check_drift_settings(settings.drift);
   if (settings.snow_on_snow_every < 0 || settings.snow_on_snow_every > kMaxSnowSteps) {
     throw InputError("snow-on-snow interval must be 0 (off) or 1.." +
                      std::to_string(kMaxSnowSteps) + " steps, got " +
@@ -102,6 +103,7 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
     const float per_step = settings.fall_depth / float(settings.steps);
     const double texel_area = double(maps.grid.texel) * double(maps.grid.texel);
     Progress progress("snowfall", settings.steps);
+    double lost_before = 0.0;  // m^3 the stabilizer lost before its last set_depth
     for (int step = 0; step < settings.steps; ++step) {
       const bool update =
           settings.snow_on_snow_every > 0 && step > 0 && step % settings.snow_on_snow_every == 0;
@@ -121,6 +123,16 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
             return part;
           });
       result.fallen_volume += added * texel_area;
+      if (settings.drift.transport > 0.0f && per_step > 0.0f) {
+        // The stabilizer's count of what left restarts with set_depth.
+        lost_before += stabilizer.lost_volume();
+        std::vector<float> depth = stabilizer.depth();
+        const DriftResult drift = drift_snow(maps, depth, per_step, settings.drift);
+        stabilizer.set_depth(depth);
+        result.drifted_in += drift.entered;
+        result.drifted_out += drift.left;
+        result.drifted += drift.moved;
+      }
       result.last = stabilize_step(stabilizer, stabilize,
                                    [&](double done) { progress.update(double(step) + done); });
       result.iterations += result.last.iterations;
@@ -129,7 +141,8 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
     progress.finish();
 
     result.depth = stabilizer.depth();
-    result.lost_volume = stabilizer.lost_volume();
+    result.fallen_volume += result.drifted_in;
+    result.lost_volume = lost_before + stabilizer.lost_volume() + result.drifted_out;
     result.volume = snow_volume(maps, result.depth);
   };
   // The volumes are summed once, at the end.

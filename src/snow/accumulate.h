@@ -8,6 +8,7 @@
 
 #include "scene/scene.h"
 #include "snow/coverage.h"
+#include "snow/drift.h"
 #include "snow/maps.h"
 #include "snow/stabilize.h"
 
@@ -25,6 +26,8 @@ struct AccumulateSettings {
   int snow_on_snow_every = 0;  // steps between coverage updates that include the lying snow
                                // (0..kMaxSnowSteps); 0 = off (coverage computed once, from the
                                // bare scene)
+  DriftSettings drift;         // the wind's transport of each step's snow before it is stabilized
+                               // (snow/drift.h; transport 0: none)
 };
 
 struct SnowResult {
@@ -35,14 +38,19 @@ struct SnowResult {
   int coverage_updates = 0;        // coverage computations (1 + snow-on-snow updates), count
   bool stabilized_on_cpu = false;  // the stabilizer ran on the CPU (StabilizeSettings::device)
   CoverageMethod coverage_method = CoverageMethod::ShadowMaps;  // of the first coverage
-  double fallen_volume = 0.0;                                   // m^3 of snow added
-  double lost_volume = 0.0;  // m^3 that left the maps (off the domain)
-  double volume = 0.0;       // m^3 lying at the end; fallen = volume + lost (up to rounding)
+  double fallen_volume = 0.0;  // m^3 of snow added, plus what the wind carried in over the
+                               // maps' border (drifted_in)
+  double lost_volume = 0.0;    // m^3 that left the maps (off the domain), the wind's included
+  double drifted_in = 0.0;     // m^3 the wind carried in over the maps' border
+  double drifted_out = 0.0;    // m^3 the wind carried off the maps
+  double drifted = 0.0;        // m^3 the wind eroded and carried on the maps
+  double volume = 0.0;         // m^3 lying at the end; fallen = volume + lost (up to rounding)
 };
 
 /// Runs the snowfall: coverage once (or every
 /// snow_on_snow_every steps with the lying snow included), then per step
-/// add fall_depth/steps * coverage and stabilize (Stabilizer::iterate in
+/// add fall_depth/steps * coverage, let the wind move it (settings.drift)
+/// and stabilize (Stabilizer::iterate in
 /// chunks, as Stabilizer::run, for progress reports; on the GPU, or on the
 /// CPU as stabilize.device says). Objects
 /// with receives[object] == 0 get no fresh snow (snow sliding onto them

@@ -198,7 +198,7 @@ void round_shoulders(PatchField& f, const SnowMaps& maps, const LayerArray<float
       if (drop) {
         steps[a] = 0.0f;
         if (f.drop_edge.empty()) f.drop_edge.assign(f.s.size(), 0);
-        f.drop_edge[a] = 1;
+        f.drop_edge[a] = l == kLandVoid ? kDropToVoid : kDropToSurface;
         edge.push_back(a);
         break;
       }

@@ -171,7 +171,7 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const LayerArray<float
   }
 
   if (settings.shoulder_radius > 0.0f) {
-    add_lips(solid, field, texel, maps.grid.origin, settings.overhang);
+    add_lips(solid, field, texel, maps.grid.origin, settings.overhang, settings.cornice);
   }
   const double solid_seconds = seconds();
   const TriMesh closed = to_trimesh(solid, false);

@@ -217,8 +217,9 @@ std::vector<OutlineEdge> outline_edges(const Solid& solid) {
 }  // namespace
 
 void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& origin,
-              float overhang) {
-  if (!(overhang > 0.0f) || f.drop_edge.empty()) return;
+              float overhang, const Cornice& cornice) {
+  if (!(overhang > 0.0f || cornice.length > 0.0f) || f.drop_edge.empty()) return;
+  const glm::dvec2 downwind(cornice.direction);
   const size_t faces = solid.top.size();
   const std::vector<OutlineEdge> outline = outline_edges(solid);
   // The outline vertices at a free edge, their outward direction (x, z) and
@@ -234,19 +235,26 @@ void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& o
     on_outline[e.u] = on_outline[e.v] = 1;
   }
   // The thickness near a point: the largest at free-edge members within a
-  // sample; 0 where none is near (not a free edge).
-  const auto edge_thickness = [&](const glm::dvec3& p) {
+  // sample (0 where none is near: not a free edge), and whether one of
+  // them drops onto a surface (not off the scene).
+  struct Edge {
+    float s = 0.0f;
+    bool over_surface = false;
+  };
+  const auto edge_near = [&](const glm::dvec3& p) {
     const int ci = int(std::floor((p.x - double(origin.x)) / double(texel))) - f.i0;
     const int cj = int(std::floor((p.z - double(origin.y)) / double(texel))) - f.j0;
-    float s = 0.0f;
+    Edge e;
     for (int j = cj - 1; j <= cj + 1; ++j) {
       for (int i = ci - 1; i <= ci + 1; ++i) {
         if (i < 0 || j < 0 || i >= f.w || j >= f.h) continue;
         const size_t a = f.at(i, j);
-        if (f.drop_edge[a]) s = std::max(s, f.s[a]);
+        if (!f.drop_edge[a]) continue;
+        e.s = std::max(e.s, f.s[a]);
+        e.over_surface |= f.drop_edge[a] == kDropToSurface;
       }
     }
-    return s;
+    return e;
   };
   double volume_before = 0.0;  // m^3 enclosed before the lips
   for (size_t t = 0; t < faces; ++t) {
@@ -259,13 +267,19 @@ void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& o
   for (size_t v = 0; v < n; ++v) {
     if (!on_outline[v]) continue;
     const double length = glm::length(out[v]);
-    const float s = edge_thickness(solid.positions[v]);
-    const double reach = std::min(double(overhang), double(kOverhangShare) * double(s));
-    if (!(length > 0.0) || !(reach > 0.0)) continue;
+    const Edge edge = edge_near(solid.positions[v]);
+    const float s = edge.s;
+    if (!(length > 0.0)) continue;
     const glm::dvec2 dir = out[v] / length;
+    const double lip_reach = std::min(double(overhang), double(kOverhangShare) * double(s));
+    const double lee = edge.over_surface ? std::max(0.0, glm::dot(dir, downwind)) : 0.0;
+    const double reach = std::max(
+        lip_reach, std::min(double(cornice.length) * lee, double(kCorniceShare) * double(s)));
+    if (!(reach > 0.0)) continue;
     lip[v] = uint32_t(solid.positions.size());
-    solid.positions.push_back(solid.positions[v] +
-                              glm::dvec3(dir.x * reach, 0.5 * reach, dir.y * reach));
+    solid.positions.push_back(solid.positions[v] + glm::dvec3(dir.x * reach,
+                                                              0.5 * std::max(lip_reach, 0.0),
+                                                              dir.y * reach));
   }
   for (size_t t = 0; t < faces; ++t) {
     if (!solid.top[t]) continue;

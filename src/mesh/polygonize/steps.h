@@ -23,10 +23,16 @@
 
 #include "core/parallel.h"
 #include "core/trimesh.h"
+#include "mesh/polygonize.h"
 #include "scene/scene.h"
 #include "snow/maps.h"
 
 namespace snow::poly {
+
+/// PatchField::drop_edge: the free edge drops onto a lower surface, or off
+/// the scene (no surface below).
+constexpr uint8_t kDropToSurface = 1;
+constexpr uint8_t kDropToVoid = 2;
 
 // ---------------------------------------------------------------------------
 // Patches (patches.cpp)
@@ -92,7 +98,8 @@ struct PatchField {
   LayerArray<float> g;             // ground height, m (extrapolated outside; NaN far away)
   LayerArray<float> gx, gz;        // ground slope dy/dx, dy/dz (members)
   std::vector<uint8_t> shoulder;   // 1 on the members round_shoulders shaped (empty: none)
-  std::vector<uint8_t> drop_edge;  // 1 on the members at a free edge (a drop; empty: none)
+  std::vector<uint8_t> drop_edge;  // on the members at a free edge (a drop): kDropToSurface or
+                                   // kDropToVoid, else 0 (empty: none)
 
   size_t at(int wi, int wj) const { return size_t(wj) * size_t(w) + size_t(wi); }
 };
@@ -217,14 +224,20 @@ size_t build_decimated_solid(const TopMesh& top, const PatchField& field, float 
 /// 2000): every outline vertex of `solid` within a sample of a free-edge
 /// member (f.drop_edge) splits in two, the bottom's staying where it is and
 /// the top's moving out (away from the top, horizontally) by
-/// min(overhang, kOverhangShare * thickness nearby) and up by half that; a
+/// min(overhang, kOverhangShare * thickness nearby) and up by half that;
+/// at lee edges over a lower surface (not off the scene's end; outward
+/// direction d, d . cornice.direction > 0) a
+/// cornice reaches out further, up to cornice.length * (d . direction)
+/// and kCorniceShare * thickness, level with the lip; a
 /// band of faces joins the two outlines, the lip's underside. The solid stays
 /// a closed 2-manifold; there it is no longer a height field. `texel`,
 /// `origin`: the maps' grid (metres).
 void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& origin,
-              float overhang);
+              float overhang, const Cornice& cornice);
 /// The lip reaches out at most this share of the snow's thickness.
 constexpr float kOverhangShare = 0.25f;
+/// A cornice reaches out at most this share of the snow's thickness.
+constexpr float kCorniceShare = 1.5f;
 
 /// Narrowest strip of window columns (samples) a top is cut into for
 /// decimation in pieces.
