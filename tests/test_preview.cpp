@@ -7,6 +7,7 @@
 #include <stb_image.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -165,6 +166,60 @@ TEST(LiveSim, CpuAndGpuStabilizersGiveTheSameSnow) {
   cpu.apply(settings);
   EXPECT_FALSE(cpu.stabilizes_on_cpu());
   EXPECT_EQ(cpu.depth(), depth);
+}
+
+// Wind in the live snowfall: a 2 m cube in a field, 0.3 m of snow in 6
+// frames with the panel's wind of 8 m/s along +x. Drifts form while it
+// snows (more lies behind the cube than in the open after the first frames,
+// and more than without the wind's transport), mass is conserved (lying +
+// lost = fallen, the wind's in and out included), and turning the wind off
+// in the panel keeps the snow.
+TEST(LiveSim, WindBuildsDriftsWhileItSnows) {
+  auto context = gl::create_context();
+  SceneBuilder b;
+  b.add_plane("Field", 0.0f, glm::vec2(-8.0f, -6.0f), glm::vec2(12.0f, 6.0f));
+  b.add_box("Cube", glm::vec3(-1.0f, 0.0f, -1.0f), glm::vec3(1.0f, 2.0f, 1.0f));
+  const Scene scene = b.build();
+  live::LiveSettings settings;
+  settings.peel.max_side = 200;
+  settings.peel.margin = 0.0f;
+  settings.coverage.directions = 16;
+  settings.coverage.wind = glm::vec2(8.0f, 0.0f);
+  settings.total_depth = 0.3f;
+  settings.fall_rate = 1.5f;  // 0.05 m per frame
+  settings.passes_per_frame = 64;
+  live::LiveSim sim(scene, settings, plan::current_gl());
+  settings.wind_transport = false;
+  live::LiveSim still(scene, settings, plan::current_gl());
+  const SnowMaps& maps = sim.maps();
+  const auto at = [&](const std::vector<float>& depth, float x, float z) {
+    const int i = int((x - maps.grid.origin.x) / maps.grid.texel);
+    const int j = int((z - maps.grid.origin.y) / maps.grid.texel);
+    return depth[maps.index(0, i, j)];
+  };
+  const auto lee = [&](const std::vector<float>& depth) {
+    float most = 0.0f;
+    for (float x = 1.5f; x < 6.0f; x += maps.grid.texel) most = std::max(most, at(depth, x, 0.05f));
+    return most;
+  };
+  for (int f = 0; f < 6; ++f) {
+    sim.step();
+    still.step();
+    if (f == 2) {
+      EXPECT_GT(lee(sim.depth()), at(sim.depth(), -6.0f, 4.0f)) << "frame " << f;
+    }
+  }
+  const std::vector<float> depth = sim.depth();
+  std::printf("after 0.3 m: lee peak %.3f m (no transport %.3f m), open field %.3f m\n",
+              double(lee(depth)), double(lee(still.depth())), double(at(depth, -6.0f, 4.0f)));
+  EXPECT_GT(lee(depth), 1.3f * 0.3f);
+  EXPECT_GT(lee(depth), lee(still.depth()) + 0.1f);
+  const double lying = snow_volume(maps, depth);
+  EXPECT_NEAR(lying + sim.lost_volume(), sim.fallen_volume(), 1e-4 * sim.fallen_volume());
+  live::LiveSettings calm = sim.settings();
+  calm.coverage.wind = glm::vec2(0.0f);
+  sim.apply(calm);
+  EXPECT_NEAR(snow_volume(maps, sim.depth()), lying, 1e-4 * lying);
 }
 
 // The live snowfall on a table (headless context): snow accumulates frame

@@ -99,7 +99,7 @@ Windy windy_snow(const Scene& scene, float texel, float fall, const glm::vec2& w
     if (!std::isnan(out.maps.ground[k])) depth[k] = fall * p[k];
   }
   out.fallen = snow_volume(out.maps, depth);
-  out.drift = drift_snow(out.maps, depth, fall, drift_for_wind(wind, SnowKind::Fresh));
+  out.drift = drift_snow(out.maps, depth, fall, drift_for_wind(wind, SnowKind::Fresh, fall));
   out.fallen += out.drift.entered;
   CpuStabilizer stabilizer(out.maps, StabilizeSettings{});
   stabilizer.set_depth(depth);
@@ -242,7 +242,8 @@ TEST(Wind, TransportConservesMassAndRepeatsItself) {
   }
   const double before = snow_volume(maps, fallen);
   for (float speed : {0.0f, 3.9f, 5.0f, 10.0f, 25.0f}) {
-    const DriftSettings settings = drift_for_wind(glm::vec2(0.6f, 0.8f) * speed, SnowKind::Fresh);
+    const DriftSettings settings =
+        drift_for_wind(glm::vec2(0.6f, 0.8f) * speed, SnowKind::Fresh, fall);
     std::vector<float> depth = fallen;
     const DriftResult r = drift_snow(maps, depth, fall, settings);
     const double after = snow_volume(maps, depth);
@@ -263,6 +264,25 @@ TEST(Wind, TransportConservesMassAndRepeatsItself) {
   }
 }
 
+// A snowfall in 8 steps, each drifted as it falls (the live preview, the
+// batch job's --steps), is scoured as one: no column of the field ends with
+// less than 1 - max_scour of what fell on it, as in one step.
+TEST(Wind, ASnowfallInStepsIsScouredAsOne) {
+  const SnowMaps maps = maps_of(cube_in_a_field(), 0.1f);
+  const float fall = 0.3f;
+  const DriftSettings settings = drift_for_wind(glm::vec2(10.0f, 0.0f), SnowKind::Fresh, fall);
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  for (int step = 0; step < 8; ++step) {
+    for (size_t c = 0; c < maps.grid.texels(); ++c) depth[c] += fall / 8.0f;
+    drift_snow(maps, depth, fall / 8.0f, settings);
+  }
+  const float least =
+      *std::min_element(depth.begin(), depth.begin() + ptrdiff_t(maps.grid.texels()));
+  std::printf("8 steps at 10 m/s: the most scoured column keeps %.3f m of %.2f\n", double(least),
+              double(fall));
+  EXPECT_GE(least, (1.0f - settings.max_scour) * fall - 1e-4f);
+}
+
 // Cornices: snow blown over a roof's lee edge grows out over the air. The
 // cube's snow in an 8 m/s wind along +x, meshed with the planner's cornice
 // for that wind: past the lee edge (x = 1) the snow reaches out further than
@@ -273,7 +293,7 @@ TEST(Wind, CorniceGrowsOverTheLeeEdgeAsAClosedSolid) {
   const Scene scene = cube_in_a_field();
   const glm::vec2 wind(8.0f, 0.0f);
   const Windy s = windy_snow(scene, 0.05f, 0.3f, wind);
-  const DriftSettings drift = drift_for_wind(wind, SnowKind::Fresh);
+  const DriftSettings drift = drift_for_wind(wind, SnowKind::Fresh, 0.3f);
   PolygonizeSettings settings;
   settings.cornice.direction = glm::normalize(drift.direction);
   settings.cornice.length = float(plan::cornice_length(double(drift.transport)));

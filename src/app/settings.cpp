@@ -138,7 +138,7 @@ void resolve_snow_settings(PipelineSettings& s) {
   if (s.stand_height >= 0.0f) s.stabilize.cohesion.stand_height = s.stand_height;
   if (s.hold_depth >= 0.0f) s.stabilize.cohesion.hold_depth = s.hold_depth;
   s.accumulate.drift = drift_for_wind(s.wind_transport ? s.coverage.wind : glm::vec2(0.0f),
-                                      snow_kind_from_name(s.snow_kind));
+                                      snow_kind_from_name(s.snow_kind), s.accumulate.fall_depth);
   const DriftSettings& drift = s.accumulate.drift;
   s.polygonize.cornice = Cornice{};
   if (drift.transport > 0.0f) {

@@ -162,7 +162,8 @@ void LiveSim::step() {
     fallen_depth_ += amount;
     fallen_volume_ += double(amount) * coverage_area_;
     const DriftSettings drift = drift_for_wind(
-        settings_.wind_transport ? settings_.coverage.wind : glm::vec2(0.0f), settings_.snow_kind);
+        settings_.wind_transport ? settings_.coverage.wind : glm::vec2(0.0f), settings_.snow_kind,
+        settings_.total_depth);
     if (drift.transport > 0.0f) {
       std::vector<float> lying = depth();
       const DriftResult moved = drift_snow(maps_, lying, amount, drift);

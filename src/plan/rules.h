@@ -261,11 +261,15 @@ constexpr double kDriftSpeedupGain = 1.0;  // share
 /// The flow speeds up beside an obstacle, and slows down past it, over this
 /// distance along the wind.
 constexpr double kDriftSpeedupLength = 2.0;  // m
-/// The wind takes at most this share of the snow lying before the storm:
-/// what it scours packs into a crust that resists. EN 1991-1-3 keeps
+/// The wind takes at most this share of the snow lying (and of the depth
+/// that fell, so a snowfall in steps is scoured as one): what it scours
+/// packs into a crust that resists. EN 1991-1-3 keeps
 /// 0.8 x 0.8 = 0.64 of the ground's snow on a flat roof in windswept
 /// terrain (exposure coefficient 0.8).
 constexpr double kDriftMaxScour = 0.7;  // share, 0..1
+/// No drift grows deeper than this many times the fallen depth: EN
+/// 1991-1-3 caps the drift coefficient mu_w at a step at 4 (section 5.3.6).
+constexpr double kDriftMaxCoefficient = 4.0;  // times the fallen depth
 /// The storm in this many parts, each on the surface the last left.
 constexpr int kDriftSubsteps = 3;
 /// Cornices: at lee edges the snow's lip reaches out over the air by up to

@@ -4,6 +4,7 @@
 #include "snow/accumulate.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <optional>
@@ -126,9 +127,18 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
       if (settings.drift.transport > 0.0f && per_step > 0.0f) {
         // The stabilizer's count of what left restarts with set_depth.
         lost_before += stabilizer.lost_volume();
+        const auto start = std::chrono::steady_clock::now();
         std::vector<float> depth = stabilizer.depth();
         const DriftResult drift = drift_snow(maps, depth, per_step, settings.drift);
         stabilizer.set_depth(depth);
+        char line[160];
+        std::snprintf(
+            line, sizeof line,
+            "wind: eroded and carried %.3g m^3, %.3g in and %.3g out over the border, "
+            "in %.2f s",
+            drift.moved, drift.entered, drift.left,
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        log_debug(line);
         result.drifted_in += drift.entered;
         result.drifted_out += drift.left;
         result.drifted += drift.moved;

@@ -219,9 +219,11 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
       float now = old;
       double carried = in[t];
       const float rate = shelter.rate[c];
+      // Drifts grow to max_depth at most (EN 1991-1-3's cap on mu_w).
+      const double space = std::max(0.0, double(s.max_depth) - double(old)) * area;
       if (rate > 0.0f) {
-        const double settle = std::min(carried * -std::expm1(-double(rate) * double(slabs.step)),
-                                       double(shelter.room[c]) * area);
+        const double settle = std::min({carried * -std::expm1(-double(rate) * double(slabs.step)),
+                                        double(shelter.room[c]) * area, space});
         now = old + float(settle / area);
       } else {
         const double capacity = open * double(shelter.speedup[c]);
@@ -232,7 +234,7 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
           now = std::max(floor[c], old - float(take / area));
           result.moved += double(old - now) * area;
         } else {
-          now = old + float((carried - target) / area);
+          now = old + float(std::min(carried - target, space) / area);
         }
       }
       depth[k] = now;
@@ -248,8 +250,9 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
 
 }  // namespace
 
-DriftSettings drift_for_wind(const glm::vec2& wind, SnowKind kind) {
+DriftSettings drift_for_wind(const glm::vec2& wind, SnowKind kind, float fall_depth) {
   DriftSettings s;
+  s.max_depth = float(plan::kDriftMaxCoefficient) * std::max(fall_depth, 0.0f);
   const double speed = glm::length(glm::dvec2(wind));
   const double threshold = kind == SnowKind::Powder ? plan::kDriftThresholdPowder
                            : kind == SnowKind::Wet  ? plan::kDriftThresholdWet
@@ -273,6 +276,7 @@ void check_drift_settings(const DriftSettings& s) {
     fail("the shelter slope must be in 0.05..5");
   if (!(s.windward_capture >= 0.0f && s.windward_capture <= 1.0f))
     fail("the windward capture must be in 0..1");
+  if (!(s.max_depth > 0.0f)) fail("the drifts' depth limit must be > 0 m");
   if (!(s.max_scour >= 0.0f && s.max_scour <= 1.0f)) fail("the scour share must be in 0..1");
   if (!(s.layer_height > 0.0f && s.layer_height <= 1e3f))
     fail("the drifting layer's height must be in (0, 1000] m");
@@ -291,10 +295,12 @@ DriftResult drift_snow(const SnowMaps& maps, std::vector<float>& depth, float fa
   DriftResult result;
   if (!(settings.transport > 0.0f) || !(fall_depth > 0.0f) || maps.layers < 1) return result;
   const double q = double(fall_depth) * double(settings.transport) / double(settings.substeps);
-  // The wind takes at most max_scour of what lay before the storm.
+  // The wind takes at most max_scour of the snow lying, and of the depth
+  // that fell: a snowfall in many parts is scoured as one.
   std::vector<float> floor(maps.grid.texels());
   for (size_t c = 0; c < floor.size(); ++c) {
-    floor[c] = (1.0f - settings.max_scour) * std::max(depth[c], 0.0f);
+    const float d = std::max(depth[c], 0.0f);
+    floor[c] = std::max(0.0f, d - settings.max_scour * std::min(d, fall_depth));
   }
   for (int part = 0; part < settings.substeps; ++part) {
     drift_part(maps, depth, floor, q, settings, result);

@@ -6,23 +6,28 @@
 //
 // The model is a saturation-length flux model (as dune and drifting-snow
 // models write it, e.g. Sauermann et al. 2001; Fearing 2000 and Cordonnier
-// et al. 2018 for snow on scenes): the snow the wind carries, per metre of
-// width, relaxes towards the wind's capacity over the saturation length,
-// eroding where it carries less (down to bare support) and settling where it
-// carries more; it takes at most max_scour of the snow a column held
-// (wind-packed snow resists). The capacity on open level ground is the flux of a storm
-// over the whole snowfall (DriftSettings::transport, the planner's from the
-// wind speed above a threshold); open ground in equilibrium neither gains
-// nor loses. Beside obstacles the flow speeds up (capacity x 1 +
-// speedup_gain near their sides). In the shelter of obstacles
-// (snow/exposure.h's horizons at shelter_slope) the carried snow settles
-// whatever the capacity: in the lee of a step of height h all of it, spread
-// as a triangle from the step to 2h downwind, and in front of a windward face
-// a share windward_capture of it, as a triangle rising towards the face,
-// the rest going over; this is EN 1991-1-3's drift at a step (section 5.3.6:
-// length 2h, triangular). The flux mixes across the wind (turbulent
-// spreading, mixing_length). The storm runs in `substeps` parts, each seeing
-// the surface the earlier parts left, so drifts fill their shelter.
+// et al. 2018 for snow on scenes), marched slab by slab along the wind
+// (snow/exposure.h's Slabs): the snow the wind carries per lane relaxes
+// towards the wind's capacity over saturation_length, eroding where it
+// carries less and settling where it carries more. A column loses at most
+// max_scour of its snow and of fall_depth (wind-packed snow resists), and no
+// drift grows deeper than max_depth. The capacity on open level ground is
+// the storm's (transport, the planner's from the wind speed above the snow's
+// threshold); open ground in equilibrium neither gains nor loses. Beside
+// obstacles the flow speeds up (capacity x up to 1 + speedup_gain, following
+// them along the wind over speedup_length). In their shelter (the horizons
+// at shelter_slope) the carried snow settles whatever the capacity, as
+// EN 1991-1-3 draws the drift at a step (section 5.3.6: a triangle of
+// length 2h): behind an obstacle of height h the share
+// h^2 / (h^2 + layer_height^2) of what arrives, as a triangle falling from
+// it to h / shelter_slope downwind; before a windward face windward_capture
+// times that share, as a triangle rising towards it; a shelter fills up to
+// its horizon line at most. Flux that meets a step up of height r climbs it
+// with the share layer_height^2 / (r^2 + layer_height^2); the rest goes
+// round the obstacle to the nearest lane beside it within r, or over where
+// none is. The flux spreads across the wind (turbulent mixing,
+// mixing_length). The storm runs in `substeps` parts, each on the surface
+// the earlier parts left, so drifts fill their shelter.
 //
 // The world goes on past the maps: flux enters over the upwind border (and
 // past columns without a surface) at the capacity, and what crosses the
@@ -65,9 +70,12 @@ struct DriftSettings {
   float speedup_length = float(plan::kDriftSpeedupLength);  // m (> 0): the gain follows the
                                                             // obstacles along the wind over
                                                             // this distance
-  float max_scour = float(plan::kDriftMaxScour);            // share (0..1) of the snow lying before
-                                                            // the storm that it can take away
-  int substeps = plan::kDriftSubsteps;                      // parts of the storm (1..64)
+  float max_depth = 1e30f;  // m: no drift grows deeper than this (the planner's:
+                            // plan::kDriftMaxCoefficient times the fallen depth)
+  float max_scour = float(plan::kDriftMaxScour);  // share (0..1): a column loses at most
+                                                  // this much of its snow and of the depth
+                                                  // that fell
+  int substeps = plan::kDriftSubsteps;            // parts of the storm (1..64)
 };
 
 struct DriftResult {
@@ -84,10 +92,10 @@ struct DriftResult {
 DriftResult drift_snow(const SnowMaps& maps, std::vector<float>& depth, float fall_depth,
                        const DriftSettings& settings);
 
-/// The planner's storm for a wind of `wind` (x, z, m/s) over snow of
-/// `kind` (plan/rules.h, "Wind transport"): no transport at or below the
-/// kind's threshold speed.
-DriftSettings drift_for_wind(const glm::vec2& wind, SnowKind kind);
+/// The planner's storm for a wind of `wind` (x, z, m/s) over `fall_depth`
+/// metres of snow of `kind` (plan/rules.h, "Wind transport"): no transport
+/// at or below the kind's threshold speed.
+DriftSettings drift_for_wind(const glm::vec2& wind, SnowKind kind, float fall_depth);
 
 /// Throws InputError naming the first setting out of range.
 void check_drift_settings(const DriftSettings& settings);

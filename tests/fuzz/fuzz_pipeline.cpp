@@ -5,6 +5,7 @@
 // input must end in an InputError; any other exception, crash, sanitizer
 // report or hang is a finding. Results are checked for non-finite values
 // and mass balance.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -55,12 +56,21 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   accumulate.fall_depth = 0.3f;
   accumulate.steps = 1 + ((b0 >> 4) & 1);
   accumulate.snow_on_snow_every = (b0 >> 5) & 1;
+  accumulate.drift = snow::drift_for_wind(coverage.wind, snow::SnowKind::Fresh, 0.3f);
   snow::PolygonizeSettings polygonize;
+  if (accumulate.drift.transport > 0.0f) {
+    polygonize.cornice.direction = glm::normalize(accumulate.drift.direction);
+    polygonize.cornice.length = 0.5f;
+  }
   try {
     const snow::SnowMaps maps = snow::peel_layers(scene, peel, snow::plan::current_gl());
     const snow::SnowResult snow =
         snow::accumulate(scene, maps, coverage, stabilize, accumulate, snow::plan::current_gl());
     if (!std::isfinite(snow.volume) || snow.volume < -1e-6) __builtin_trap();
+    // Mass: what lies plus what left is what fell (the wind's in and out included).
+    if (std::abs(snow.volume + snow.lost_volume - snow.fallen_volume) >
+        1e-3 * std::max(1.0, snow.fallen_volume))
+      __builtin_trap();
     for (float d : snow.depth) {
       if (!std::isfinite(d) || d < -1e-4f) __builtin_trap();
     }
