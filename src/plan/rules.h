@@ -267,6 +267,10 @@ constexpr double kDriftSpeedupLength = 2.0;  // m
 /// 0.8 x 0.8 = 0.64 of the ground's snow on a flat roof in windswept
 /// terrain (exposure coefficient 0.8).
 constexpr double kDriftMaxScour = 0.7;  // share, 0..1
+/// What settles in a shelter spreads across the wind so that the drift's
+/// flanks are no steeper than this: the angle of repose (45 degrees), so
+/// they stand as the stabilizer finds them.
+constexpr double kDriftFlankSlope = 1.0;  // tan of the angle
 /// No drift grows deeper than this many times the fallen depth: EN
 /// 1991-1-3 caps the drift coefficient mu_w at a step at 4 (section 5.3.6).
 constexpr double kDriftMaxCoefficient = 4.0;  // times the fallen depth

@@ -12,6 +12,9 @@
 namespace snow {
 namespace {
 
+// Lanes a settled drift spreads across at most, each way.
+constexpr int kMaxSpread = 256;
+
 // Lateral mixing passes per slab at most; beyond, the spread is less than
 // mixing_length asks (maps far finer than a metre).
 constexpr int kMaxMixPasses = 32;
@@ -155,6 +158,44 @@ void deflect(std::vector<double>& in, const std::vector<float>& z, const std::ve
   for (size_t t = 0; t < in.size(); ++t) in[t] += round[t];
 }
 
+// Spreads what settled in one slab (`settled`, m^3 per lane) across the
+// lanes, so that a drift's flanks are no steeper than `flank` (tan): each
+// lane's share is laid evenly over the lanes within (its height / flank)
+// of it, within the run of lanes on its level (a lane's ground within
+// `width` of its neighbour's; walls and columns without a surface end a
+// run). Returns the depth (m) each lane gets; the sum is kept.
+std::vector<double> spread_across(const std::vector<double>& settled,
+                                  const std::vector<float>& ground, float width, float flank,
+                                  double area) {
+  const int lanes = int(settled.size());
+  std::vector<double> add(settled.size() + 1, 0.0);  // a difference array
+  int lo = 0;
+  for (int t = 0; t < lanes; ++t) {
+    const bool joined = t > 0 && !std::isnan(ground[size_t(t)]) &&
+                        !std::isnan(ground[size_t(t - 1)]) &&
+                        std::abs(ground[size_t(t)] - ground[size_t(t - 1)]) <= width;
+    if (!joined) lo = t;
+    if (!(settled[size_t(t)] > 0.0)) continue;
+    int hi = t;
+    while (hi + 1 < lanes && !std::isnan(ground[size_t(hi + 1)]) &&
+           std::abs(ground[size_t(hi + 1)] - ground[size_t(hi)]) <= width && hi - t < kMaxSpread)
+      ++hi;
+    const double height = settled[size_t(t)] / area;
+    const int reach = int(std::min(double(kMaxSpread), height / (double(width) * double(flank))));
+    const int a = std::max(lo, t - reach), b = std::min(hi, t + reach);
+    const double each = settled[size_t(t)] / double(b - a + 1);
+    add[size_t(a)] += each;
+    add[size_t(b + 1)] -= each;
+  }
+  std::vector<double> out(settled.size());
+  double run = 0.0;
+  for (int t = 0; t < lanes; ++t) {
+    run += add[size_t(t)];
+    out[size_t(t)] = std::max(0.0, run) / area;
+  }
+  return out;
+}
+
 // One part of the storm: capacity `q` (m^2 per metre of width) on open
 // level ground.
 void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vector<float>& floor,
@@ -175,7 +216,8 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
   const float f = slabs.frac;
   const int step = slabs.lane_step;
   std::vector<double> in(lanes), out(lanes, 0.0);
-  std::vector<float> z(lanes), z_prev(lanes, kNoSurface), rise(lanes);
+  std::vector<float> z(lanes), z_prev(lanes, kNoSurface), rise(lanes), ground(lanes);
+  std::vector<double> settled(lanes);
   for (int sl = 0; sl < slabs.count; ++sl) {
     for (size_t t = 0; t < lanes; ++t) z[t] = top[slabs.column(sl, int(t))];
     // What arrives from the slab before (or from beyond the maps), and the
@@ -212,6 +254,8 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
     mix(in, z, passes, a);
     for (size_t t = 0; t < lanes; ++t) {
       out[t] = 0.0;
+      settled[t] = 0.0;
+      ground[t] = kNoSurface;
       if (std::isnan(z[t])) continue;
       const size_t c = slabs.column(sl, int(t));
       const size_t k = c;  // layer 0 comes first in the maps' layout
@@ -237,9 +281,20 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
           now = old + float(std::min(carried - target, space) / area);
         }
       }
-      depth[k] = now;
-      // The flux takes what the float depth really gave or got.
+      // The flux takes what the float depth really gave or got; what
+      // settled is laid across the lanes below.
       out[t] = carried - (double(now) - double(old)) * area;
+      ground[t] = maps.ground[k];
+      if (now > old) {
+        settled[t] = (double(now) - double(old)) * area;
+      } else {
+        depth[k] = now;
+      }
+    }
+    const std::vector<double> laid =
+        spread_across(settled, ground, slabs.width, s.flank_slope, area);
+    for (size_t t = 0; t < lanes; ++t) {
+      if (laid[t] > 0.0) depth[slabs.column(sl, int(t))] += float(laid[t]);
     }
     z_prev.swap(z);
   }
@@ -276,6 +331,8 @@ void check_drift_settings(const DriftSettings& s) {
     fail("the shelter slope must be in 0.05..5");
   if (!(s.windward_capture >= 0.0f && s.windward_capture <= 1.0f))
     fail("the windward capture must be in 0..1");
+  if (!(s.flank_slope > 0.0f && s.flank_slope <= 100.0f))
+    fail("the flank slope must be in (0, 100]");
   if (!(s.max_depth > 0.0f)) fail("the drifts' depth limit must be > 0 m");
   if (!(s.max_scour >= 0.0f && s.max_scour <= 1.0f)) fail("the scour share must be in 0..1");
   if (!(s.layer_height > 0.0f && s.layer_height <= 1e3f))

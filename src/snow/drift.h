@@ -25,8 +25,9 @@
 // its horizon line at most. Flux that meets a step up of height r climbs it
 // with the share layer_height^2 / (r^2 + layer_height^2); the rest goes
 // round the obstacle to the nearest lane beside it within r, or over where
-// none is. The flux spreads across the wind (turbulent mixing,
-// mixing_length). The storm runs in `substeps` parts, each on the surface
+// none is. What settles spreads across the wind so that a drift's flanks
+// are no steeper than flank_slope. The flux spreads across the wind too
+// (turbulent mixing, mixing_length). The storm runs in `substeps` parts, each on the surface
 // the earlier parts left, so drifts fill their shelter.
 //
 // The world goes on past the maps: flux enters over the upwind border (and
@@ -70,6 +71,9 @@ struct DriftSettings {
   float speedup_length = float(plan::kDriftSpeedupLength);  // m (> 0): the gain follows the
                                                             // obstacles along the wind over
                                                             // this distance
+  float flank_slope = float(plan::kDriftFlankSlope);        // tan (0..100]: what settles spreads
+                                                            // across the wind so that the drift's
+                                                            // flanks are no steeper than this
   float max_depth = 1e30f;  // m: no drift grows deeper than this (the planner's:
                             // plan::kDriftMaxCoefficient times the fallen depth)
   float max_scour = float(plan::kDriftMaxScour);  // share (0..1): a column loses at most
