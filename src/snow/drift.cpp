@@ -13,7 +13,7 @@ namespace snow {
 namespace {
 
 // Lanes a settled drift spreads across at most, each way.
-constexpr int kMaxSpread = 256;
+constexpr int kMaxSpread = 64;
 
 // Lateral mixing passes per slab at most; beyond, the spread is less than
 // mixing_length asks (maps far finer than a metre).
@@ -106,9 +106,9 @@ Shelter shelter_of(const MapGrid& grid, const std::vector<float>& top, const Dri
   return out;
 }
 
-// Spreads the carried snow across the lanes of one slab: pairs of
-// neighbouring lanes that both have a surface and lie within a lane's width
-// of each other in height exchange `a` of their difference per pass.
+// Spreads the carried snow across the lanes of one slab (`z`: their
+// surfaces, NaN where none): neighbouring lanes that both have a surface
+// exchange `a` (<= 1/4) of their difference per pass.
 void mix(std::vector<double>& flux, const std::vector<float>& z, int passes, double a) {
   const size_t n = flux.size();
   std::vector<double> moved(n);
@@ -160,38 +160,37 @@ void deflect(std::vector<double>& in, const std::vector<float>& z, const std::ve
 
 // Spreads what settled in one slab (`settled`, m^3 per lane) across the
 // lanes, so that a drift's flanks are no steeper than `flank` (tan): each
-// lane's share is laid evenly over the lanes within (its height / flank)
-// of it, within the run of lanes on its level (a lane's ground within
-// `width` of its neighbour's; walls and columns without a surface end a
-// run). Returns the depth (m) each lane gets; the sum is kept.
+// lane's share is laid as a tent around it, R lanes to each side with R^2 >=
+// its height / (flank * width), over the lanes of its run (a lane's ground
+// within `width` of its neighbour's; walls and columns without a surface
+// end a run). Returns the depth (m) each lane gets; the sum is kept.
 std::vector<double> spread_across(const std::vector<double>& settled,
                                   const std::vector<float>& ground, float width, float flank,
                                   double area) {
   const int lanes = int(settled.size());
-  std::vector<double> add(settled.size() + 1, 0.0);  // a difference array
-  int lo = 0;
-  for (int t = 0; t < lanes; ++t) {
-    const bool joined = t > 0 && !std::isnan(ground[size_t(t)]) &&
-                        !std::isnan(ground[size_t(t - 1)]) &&
-                        std::abs(ground[size_t(t)] - ground[size_t(t - 1)]) <= width;
-    if (!joined) lo = t;
-    if (!(settled[size_t(t)] > 0.0)) continue;
-    int hi = t;
-    while (hi + 1 < lanes && !std::isnan(ground[size_t(hi + 1)]) &&
-           std::abs(ground[size_t(hi + 1)] - ground[size_t(hi)]) <= width && hi - t < kMaxSpread)
-      ++hi;
-    const double height = settled[size_t(t)] / area;
-    const int reach = int(std::min(double(kMaxSpread), height / (double(width) * double(flank))));
-    const int a = std::max(lo, t - reach), b = std::min(hi, t + reach);
-    const double each = settled[size_t(t)] / double(b - a + 1);
-    add[size_t(a)] += each;
-    add[size_t(b + 1)] -= each;
+  // The runs: lane t joins lane t - 1 where both lie on one level.
+  const auto joined = [&](int t) {
+    return t > 0 && !std::isnan(ground[size_t(t)]) && !std::isnan(ground[size_t(t - 1)]) &&
+           std::abs(ground[size_t(t)] - ground[size_t(t - 1)]) <= width;
+  };
+  std::vector<int> last(settled.size());  // the last lane of each lane's run
+  for (int t = lanes - 1; t >= 0; --t) {
+    last[size_t(t)] = t + 1 < lanes && joined(t + 1) ? last[size_t(t + 1)] : t;
   }
-  std::vector<double> out(settled.size());
-  double run = 0.0;
+  std::vector<double> out(settled.size(), 0.0);
+  int first = 0;
   for (int t = 0; t < lanes; ++t) {
-    run += add[size_t(t)];
-    out[size_t(t)] = std::max(0.0, run) / area;
+    if (!joined(t)) first = t;
+    if (!(settled[size_t(t)] > 0.0)) continue;
+    const double height = settled[size_t(t)] / area;
+    const int reach = int(std::min(double(kMaxSpread),
+                                   std::ceil(std::sqrt(height / (double(width) * double(flank))))));
+    const int a = std::max(first, t - reach + 1), b = std::min(last[size_t(t)], t + reach - 1);
+    double weights = 0.0;
+    for (int u = a; u <= b; ++u) weights += double(reach - std::abs(u - t));
+    for (int u = a; u <= b; ++u) {
+      out[size_t(u)] += height * double(reach - std::abs(u - t)) / weights;
+    }
   }
   return out;
 }
