@@ -263,9 +263,9 @@ constexpr double kDriftSpeedupGain = 1.0;  // share
 constexpr double kDriftSpeedupLength = 2.0;  // m
 /// The wind takes at most this share of the snow lying (and of the depth
 /// that fell, so a snowfall in steps is scoured as one): what it scours
-/// packs into a crust that resists. EN 1991-1-3 keeps
-/// 0.8 x 0.8 = 0.64 of the ground's snow on a flat roof in windswept
-/// terrain (exposure coefficient 0.8).
+/// packs into a crust that resists. Set so that the drift behind a roof
+/// step, fed by the higher roof's scour, follows EN 1991-1-3
+/// (tests/test_wind.cpp).
 constexpr double kDriftMaxScour = 0.7;  // share, 0..1
 /// What settles in a shelter spreads across the wind so that the drift's
 /// flanks are no steeper than this: the angle of repose (45 degrees), so
