@@ -103,10 +103,8 @@ class LiveSim {
   const LiveTimings& timings() const { return timings_; }
 
   float fallen_depth() const { return fallen_depth_; }  // metres fallen on open flat ground
-  double fallen_volume() const {
-    return fallen_volume_;
-  }                                         // m^3 of fresh snow added, and
-                                            // drifted in over the border
+  /// m^3 of fresh snow added, and drifted in over the maps' border.
+  double fallen_volume() const { return fallen_volume_; }
   int64_t frame() const { return frame_; }  // frames stepped since reset
   /// Incremented whenever the maps change (re-peel) or the coverage does.
   uint64_t maps_version() const { return maps_version_; }

@@ -248,7 +248,8 @@ constexpr double kDriftMixingLength = 0.5;  // m
 constexpr double kDriftShelterSlope = 0.5;  // tan of the horizon angle
 /// The height of the drifting layer: an obstacle of height h catches
 /// h^2 / (h^2 + kDriftLayerHeight^2) of the flux in its shelter (a step far
-/// taller than the layer nearly all, a ripple of the snow next to nothing).
+/// taller than the layer nearly all, a ripple of the snow next to nothing);
+/// one narrower across the wind than twice it (a post, a rail) none.
 constexpr double kDriftLayerHeight = 0.3;  // m
 /// Share of the flux reaching a windward face that settles in front of it;
 /// the rest goes over. ASCE 7 takes windward drifts as 3/4 the height of

@@ -47,12 +47,49 @@ float settling_rate(float zone, float x, float w, float c, bool towards) {
   return rest > 0.0f ? c * w / rest : 1e30f;
 }
 
+// `top` with what is narrower across the wind than 2 `radius` metres taken
+// out: per column, the lowest surface within `radius` across the wind (NaN
+// where the column has none). A post or a railing does not shelter: the
+// flow closes behind it.
+std::vector<float> without_narrow(const MapGrid& grid, const std::vector<float>& top,
+                                  const glm::vec2& wind, float radius) {
+  const Slabs slabs(grid, wind);
+  const int reach = int(std::min(std::ceil(radius / slabs.width), float(slabs.lanes)));
+  std::vector<float> out(top.size());
+  for (int sl = 0; sl < slabs.count; ++sl) {
+    for (int t = 0; t < slabs.lanes; ++t) {
+      const size_t c = slabs.column(sl, t);
+      float low = top[c];
+      if (std::isnan(low)) {
+        out[c] = low;
+        continue;
+      }
+      for (int u = std::max(0, t - reach); u <= std::min(slabs.lanes - 1, t + reach); ++u) {
+        const float z = top[slabs.column(sl, u)];
+        if (z < low) low = z;
+      }
+      out[c] = low;
+    }
+  }
+  return out;
+}
+
 // The settling rate and the speed-up of every column (snow/drift.h).
 Shelter shelter_of(const MapGrid& grid, const std::vector<float>& top, const DriftSettings& s) {
   const glm::vec2 wind = glm::normalize(s.direction), across(-wind.y, wind.x);
   const float slope = s.shelter_slope, c = s.windward_capture;
-  const Horizon lee = horizon_along(grid, top, -wind, slope);
-  const Horizon front = horizon_along(grid, top, wind, slope);
+  // The shelters, of obstacles wider than twice the drifting layer, seen
+  // from each column's own surface.
+  const std::vector<float> wide = without_narrow(grid, top, wind, s.layer_height);
+  Horizon lee = horizon_along(grid, wide, -wind, slope);
+  Horizon front = horizon_along(grid, wide, wind, slope);
+  for (Horizon* h : {&lee, &front}) {
+    for (size_t k = 0; k < top.size(); ++k) {
+      const float below = wide[k] - top[k];  // <= 0
+      h->rise[k] += below;
+      h->height[k] += below;
+    }
+  }
   const Horizon side_a = horizon_along(grid, top, across, slope);
   const Horizon side_b = horizon_along(grid, top, -across, slope);
   Shelter out;

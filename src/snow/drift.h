@@ -16,7 +16,9 @@
 // threshold); open ground in equilibrium neither gains nor loses. Beside
 // obstacles the flow speeds up (capacity x up to 1 + speedup_gain, following
 // them along the wind over speedup_length). In their shelter (the horizons
-// at shelter_slope) the carried snow settles whatever the capacity, as
+// at shelter_slope, over obstacles wider across the wind than twice
+// layer_height: the flow closes behind posts and rails) the carried snow
+// settles whatever the capacity, as
 // EN 1991-1-3 draws the drift at a step (section 5.3.6: a triangle of
 // length 2h): behind an obstacle of height h the share
 // h^2 / (h^2 + layer_height^2) of what arrives, as a triangle falling from
