@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "core/error.h"
@@ -54,21 +55,29 @@ float settling_rate(float zone, float x, float w, float c, bool towards) {
 std::vector<float> without_narrow(const MapGrid& grid, const std::vector<float>& top,
                                   const glm::vec2& wind, float radius) {
   const Slabs slabs(grid, wind);
-  const int reach = int(std::min(std::ceil(radius / slabs.width), float(slabs.lanes)));
+  const int lanes = slabs.lanes;
+  const int reach = int(std::min(std::ceil(radius / slabs.width), float(lanes)));
   std::vector<float> out(top.size());
+  std::vector<float> value(static_cast<size_t>(lanes));
+  std::vector<int> window(static_cast<size_t>(lanes));  // a deque of lanes, values rising
   for (int sl = 0; sl < slabs.count; ++sl) {
-    for (int t = 0; t < slabs.lanes; ++t) {
-      const size_t c = slabs.column(sl, t);
-      float low = top[c];
-      if (std::isnan(low)) {
-        out[c] = low;
-        continue;
+    for (int t = 0; t < lanes; ++t) {
+      const float z = top[slabs.column(sl, t)];
+      value[size_t(t)] = std::isnan(z) ? std::numeric_limits<float>::infinity() : z;
+    }
+    // The lowest value over [c - reach, c + reach] for each centre c, as
+    // the window's right end t runs across the slab.
+    int head = 0, tail = 0;
+    for (int t = 0; t < lanes + reach; ++t) {
+      if (t < lanes) {
+        while (tail > head && value[size_t(window[size_t(tail - 1)])] >= value[size_t(t)]) --tail;
+        window[size_t(tail++)] = t;
       }
-      for (int u = std::max(0, t - reach); u <= std::min(slabs.lanes - 1, t + reach); ++u) {
-        const float z = top[slabs.column(sl, u)];
-        if (z < low) low = z;
-      }
-      out[c] = low;
+      while (window[size_t(head)] < t - 2 * reach) ++head;
+      const int centre = t - reach;
+      if (centre < 0) continue;
+      const size_t c = slabs.column(sl, centre);
+      out[c] = std::isnan(top[c]) ? top[c] : value[size_t(window[size_t(head)])];
     }
   }
   return out;
