@@ -38,11 +38,18 @@ size_t column_at(const MapGrid& g, float x, float z) {
   return size_t(j) * size_t(g.width) + size_t(i);
 }
 
-Scene cube_in_a_field() {
+// A box "Cube" from `low` to `high` on a level "Field" over [field_low,
+// field_high] (x, z), metres.
+Scene box_in_a_field(const glm::vec2& field_low, const glm::vec2& field_high, const glm::vec3& low,
+                     const glm::vec3& high) {
   SceneBuilder b;
-  b.add_plane("Field", 0.0f, glm::vec2(-20.0f, -20.0f), glm::vec2(40.0f, 20.0f));
-  b.add_box("Cube", glm::vec3(-1.0f, 0.0f, -1.0f), glm::vec3(1.0f, 2.0f, 1.0f));
+  b.add_plane("Field", 0.0f, field_low, field_high);
+  b.add_box("Cube", low, high);
   return b.build();
+}
+
+Scene cube_in_a_field() {
+  return box_in_a_field({-20.0f, -20.0f}, {40.0f, 20.0f}, {-1.0f, 0.0f, -1.0f}, {1.0f, 2.0f, 1.0f});
 }
 
 // A 2 m cube in a field, wind along +x, slope 0.5: the lee is sheltered
@@ -208,14 +215,12 @@ TEST(Wind, DriftBehindAStepFollowsEurocode) { expect_step_drift(-8.0f); }
 
 // A wall 1.5 m high and 0.2 m thick across a 6 m/s wind, as a snow fence:
 // the snow within 2h behind it reaches 1.3 times the open field's depth,
-// and the lee holds more than the same strip upwind of it.
+// and more lies there than fell.
 TEST(Wind, FenceAcrossTheWindHasADriftInItsLee) {
-  SceneBuilder b;
-  b.add_plane("Field", 0.0f, glm::vec2(-20.0f, -15.0f), glm::vec2(30.0f, 15.0f));
-  b.add_box("Fence", glm::vec3(-0.1f, 0.0f, -8.0f), glm::vec3(0.1f, 1.5f, 8.0f));
-  const Scene scene = b.build();
   const float fall = 0.3f;
-  const Windy s = windy_snow(scene, 0.1f, fall, glm::vec2(6.0f, 0.0f));
+  const Windy s = windy_snow(
+      box_in_a_field({-20.0f, -15.0f}, {30.0f, 15.0f}, {-0.1f, 0.0f, -8.0f}, {0.1f, 1.5f, 8.0f}),
+      0.1f, fall, glm::vec2(6.0f, 0.0f));
   print_profile(s, 0.05f, -5.0f, 10.0f, 0.5f);
   float lee = 0.0f;
   for (float x = 0.15f; x < 3.1f; x += 0.1f) lee = std::max(lee, s.depth_at(x, 0.05f));
@@ -232,12 +237,10 @@ TEST(Wind, FenceAcrossTheWindHasADriftInItsLee) {
 // closes behind it): 1 to 8 m downwind no snow lies 15 % deeper than on the
 // open field (the tilted fall's thin shadow may leave less).
 TEST(Wind, APostCastsNoDriftTail) {
-  SceneBuilder b;
-  b.add_plane("Field", 0.0f, glm::vec2(-10.0f, -6.0f), glm::vec2(20.0f, 6.0f));
-  b.add_box("Post", glm::vec3(-0.1f, 0.0f, -0.1f), glm::vec3(0.1f, 4.0f, 0.1f));
-  const Scene scene = b.build();
   const float fall = 0.3f;
-  const Windy s = windy_snow(scene, 0.05f, fall, glm::vec2(8.0f, 0.0f));
+  const Windy s = windy_snow(
+      box_in_a_field({-10.0f, -6.0f}, {20.0f, 6.0f}, {-0.1f, 0.0f, -0.1f}, {0.1f, 4.0f, 0.1f}),
+      0.05f, fall, glm::vec2(8.0f, 0.0f));
   float high = 0.0f;
   for (float x = 1.1f; x < 8.1f; x += 0.05f) {
     for (float z = -0.475f; z < 0.5f; z += 0.05f) high = std::max(high, s.depth_at(x, z));
