@@ -306,7 +306,7 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
       const size_t k = c;  // layer 0 comes first in the maps' layout
       const float old = std::max(depth[k], 0.0f);
       float now = old;
-      double carried = in[t];
+      const double carried = in[t];
       const float rate = shelter.rate[c];
       // Drifts grow to max_depth at most (EN 1991-1-3's cap on mu_w).
       const double space = std::max(0.0, double(s.max_depth) - double(old)) * area;
@@ -317,7 +317,7 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
       } else {
         const double capacity = open * double(shelter.speedup[c]);
         const double target = capacity + (carried - capacity) * keep;
-        if (target > carried) {  // erodes, down to the bare support
+        if (target > carried) {  // erodes, down to the scour limit
           const double room = std::max(0.0, double(old) - double(floor[c])) * area;
           const double take = std::min(target - carried, room);
           now = std::max(floor[c], old - float(take / area));
