@@ -161,15 +161,12 @@ void LiveSim::step() {
     on_either(cpu_.get(), gpu_.get(), [&](auto& s) { s.add_snow(coverage_, amount); });
     fallen_depth_ += amount;
     fallen_volume_ += double(amount) * coverage_area_;
-    const DriftSettings drift = drift_for_wind(
-        settings_.wind_transport ? settings_.coverage.wind : glm::vec2(0.0f), settings_.snow_kind,
-        settings_.total_depth);
+    const DriftSettings drift =
+        drift_for_wind(settings_.wind_transport ? settings_.coverage.wind : glm::vec2(0.0f),
+                       settings_.snow_kind, settings_.total_depth);
     if (drift.transport > 0.0f) {
-      std::vector<float> lying = depth();
-      const DriftResult moved = drift_snow(maps_, lying, amount, drift);
-      on_either(cpu_.get(), gpu_.get(), [&](auto& s) {
-        lost_before_ += s.lost_volume();  // set_depth restarts the count
-        s.set_depth(lying);
+      const DriftResult moved = on_either(cpu_.get(), gpu_.get(), [&](auto& s) {
+        return drift_lying_snow(s, maps_, amount, drift, lost_before_);
       });
       fallen_volume_ += moved.entered;
       lost_before_ += moved.left;

@@ -125,12 +125,9 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
           });
       result.fallen_volume += added * texel_area;
       if (settings.drift.transport > 0.0f && per_step > 0.0f) {
-        // The stabilizer's count of what left restarts with set_depth.
-        lost_before += stabilizer.lost_volume();
         const auto start = std::chrono::steady_clock::now();
-        std::vector<float> depth = stabilizer.depth();
-        const DriftResult drift = drift_snow(maps, depth, per_step, settings.drift);
-        stabilizer.set_depth(depth);
+        const DriftResult drift =
+            drift_lying_snow(stabilizer, maps, per_step, settings.drift, lost_before);
         char line[160];
         std::snprintf(
             line, sizeof line,

@@ -47,6 +47,20 @@ struct SnowResult {
   double volume = 0.0;         // m^3 lying at the end; fallen = volume + lost (up to rounding)
 };
 
+/// Lets the wind move the snow lying on `stabilizer` (a Stabilizer or a
+/// CpuStabilizer): its depth through drift_snow (`fall_depth` metres fell
+/// since the last call) and back. set_depth restarts the stabilizer's count
+/// of what left the maps, so that count is added to `lost` first.
+template <class AnyStabilizer>
+DriftResult drift_lying_snow(AnyStabilizer& stabilizer, const SnowMaps& maps, float fall_depth,
+                             const DriftSettings& drift, double& lost) {
+  lost += stabilizer.lost_volume();
+  std::vector<float> depth = stabilizer.depth();
+  const DriftResult result = drift_snow(maps, depth, fall_depth, drift);
+  stabilizer.set_depth(depth);
+  return result;
+}
+
 /// Runs the snowfall: coverage once (or every
 /// snow_on_snow_every steps with the lying snow included), then per step
 /// add fall_depth/steps * coverage, let the wind move it (settings.drift)

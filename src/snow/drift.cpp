@@ -139,11 +139,10 @@ Shelter shelter_of(const MapGrid& grid, const std::vector<float>& top, const Dri
   std::vector<float> prev(size_t(slabs.lanes), 1.0f), next(prev.size());
   for (int sl = 0; sl < slabs.count; ++sl) {
     for (int t = 0; t < slabs.lanes; ++t) {
-      const int near = t - slabs.lane_step, far = near - 1;
-      const auto at = [&](int lane) {
-        return lane >= 0 && lane < slabs.lanes ? prev[size_t(lane)] : 1.0f;
-      };
-      const float before = (1.0f - slabs.frac) * at(near) + slabs.frac * at(far);
+      float before = 0.0f;
+      for (const auto& [lane, w] : slabs.sources(t)) {
+        before += w * (lane >= 0 && lane < slabs.lanes ? prev[size_t(lane)] : 1.0f);
+      }
       const size_t c = slabs.column(sl, t);
       next[size_t(t)] = out.speedup[c] = before * keep + out.speedup[c] * (1.0f - keep);
     }
@@ -258,8 +257,6 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
       double(s.mixing_length) * double(slabs.step) / (double(slabs.width) * double(slabs.width));
   const int passes = std::min(kMaxMixPasses, int(std::ceil(spread / 0.5)));
   const double a = passes > 0 ? std::min(0.25, spread / (2.0 * passes)) : 0.0;
-  const float f = slabs.frac;
-  const int step = slabs.lane_step;
   std::vector<double> in(lanes), out(lanes, 0.0);
   std::vector<float> z(lanes), z_prev(lanes, kNoSurface), rise(lanes), ground(lanes);
   std::vector<double> settled(lanes);
@@ -272,7 +269,7 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
       rise[size_t(t)] = 0.0f;
       if (std::isnan(z[size_t(t)])) continue;
       float from = 0.0f, weight = 0.0f;
-      for (const auto& [src, w] : {std::pair{t - step, 1.0f - f}, std::pair{t - step - 1, f}}) {
+      for (const auto& [src, w] : slabs.sources(t)) {
         if (!(w > 0.0f)) continue;
         if (sl > 0 && src >= 0 && src < int(lanes) && !std::isnan(z_prev[size_t(src)])) {
           in[size_t(t)] += double(w) * out[size_t(src)];
@@ -289,7 +286,7 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
     if (sl > 0) {
       for (int t = 0; t < int(lanes); ++t) {
         if (std::isnan(z_prev[size_t(t)])) continue;
-        for (const auto& [dst, w] : {std::pair{t + step, 1.0f - f}, std::pair{t + step + 1, f}}) {
+        for (const auto& [dst, w] : slabs.targets(t)) {
           if (w > 0.0f && (dst < 0 || dst >= int(lanes) || std::isnan(z[size_t(dst)])))
             result.left += double(w) * out[size_t(t)];
         }

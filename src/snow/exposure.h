@@ -10,6 +10,7 @@
 // 0.5 a step of height h shelters 2h downwind, EN 1991-1-3's drift length
 // at a step (section 5.3.6). The same sweep looking downwind finds the
 // windward faces of obstacles, and across the wind their sides.
+#include <array>
 #include <cstddef>
 #include <vector>
 
@@ -38,6 +39,20 @@ struct Slabs {
   float width = 0.0f;  // metres across `along` per lane
   /// The column (j * width + i) of slab s, lane t (both in range).
   size_t column(int s, int t) const;
+  /// A lane and its weight in a step between slabs (the lane may lie
+  /// outside 0..lanes - 1; the weight may be 0).
+  struct Link {
+    int lane;
+    float weight;
+  };
+  /// The lanes of the slab before that lane t draws from.
+  std::array<Link, 2> sources(int t) const {
+    return {{{t - lane_step, 1.0f - frac}, {t - lane_step - 1, frac}}};
+  }
+  /// The lanes of the slab after that lane t sends to.
+  std::array<Link, 2> targets(int t) const {
+    return {{{t + lane_step, 1.0f - frac}, {t + lane_step + 1, frac}}};
+  }
 
  private:
   bool x_main_ = true;
