@@ -214,18 +214,6 @@ std::vector<OutlineEdge> outline_edges(const Solid& solid) {
   return out;
 }
 
-// The volume (m^3) `solid` encloses: the sum of its faces' signed tetrahedra.
-double enclosed_volume(const Solid& solid) {
-  double v6 = 0.0;
-  for (size_t t = 0; t < solid.top.size(); ++t) {
-    const glm::dvec3 a = solid.positions[solid.tris[3 * t]],
-                     b = solid.positions[solid.tris[3 * t + 1]],
-                     c = solid.positions[solid.tris[3 * t + 2]];
-    v6 += glm::dot(a, glm::cross(b, c));
-  }
-  return v6 / 6.0;
-}
-
 }  // namespace
 
 void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& origin,
@@ -268,7 +256,13 @@ void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& o
     }
     return e;
   };
-  const double volume_before = enclosed_volume(solid);  // m^3, before the lips
+  double volume_before = 0.0;  // m^3 enclosed before the lips
+  for (size_t t = 0; t < faces; ++t) {
+    const glm::dvec3 a = solid.positions[solid.tris[3 * t]],
+                     b = solid.positions[solid.tris[3 * t + 1]],
+                     c = solid.positions[solid.tris[3 * t + 2]];
+    volume_before += glm::dot(a, glm::cross(b, c)) / 6.0;
+  }
   std::vector<uint32_t> lip(n, UINT32_MAX);  // the top's copy of each outline vertex that moves
   for (size_t v = 0; v < n; ++v) {
     if (!on_outline[v]) continue;
@@ -309,6 +303,16 @@ void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& o
   // The lip's snow comes off the top (as it creeps out over the edge): the
   // top's other vertices go down by the lip's volume over the top's plan
   // area, so the solid holds what it held.
+  const auto volume = [&] {
+    double v6 = 0.0;
+    for (size_t t = 0; t < solid.top.size(); ++t) {
+      const glm::dvec3 a = solid.positions[solid.tris[3 * t]],
+                       b = solid.positions[solid.tris[3 * t + 1]],
+                       c = solid.positions[solid.tris[3 * t + 2]];
+      v6 += glm::dot(a, glm::cross(b, c));
+    }
+    return v6 / 6.0;
+  };
   std::vector<uint8_t> lowered(solid.positions.size(), 0);
   double plan_area = 0.0;
   for (size_t t = 0; t < faces; ++t) {
@@ -322,7 +326,7 @@ void add_lips(Solid& solid, const PatchField& f, float texel, const glm::vec2& o
       if (v < n && !on_outline[v]) lowered[v] = 1;
     }
   }
-  const double added = enclosed_volume(solid) - volume_before;
+  const double added = volume() - volume_before;
   if (plan_area > 0.0 && added > 0.0) {
     const double drop = added / plan_area;
     for (size_t v = 0; v < lowered.size(); ++v) {
