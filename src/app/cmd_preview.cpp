@@ -1,4 +1,5 @@
-// `snowmodel preview IN [options]`: the live accumulation preview window.
+// `snowmodel preview IN [options]`: the live accumulation preview window
+// (or, with --headless, its frame loop off-screen).
 // This file only turns flags into settings; the window, the per-frame
 // physics (the batch stages, stepped) and the drawing live in src/live.
 #include <cmath>
@@ -194,11 +195,17 @@ void register_preview(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--overlay", o->overlay, "Snow drawn as: snow, coverage or depth")
       ->check(CLI::IsMember({"snow", "coverage", "depth"}))
       ->capture_default_str();
+  cmd->add_flag("--headless", v.headless,
+                "No window: draw off-screen on a headless GL context (needs --frames; for "
+                "benchmarks, screenshots and exports on machines without a display)");
   cmd->add_flag("--paused", v.paused, "Start paused (space resumes)");
   cmd->add_flag("!--no-panel", v.panel, "Hide the settings panel (H shows it)");
   add_settings_options(*cmd, o->settings, global.help_all);
   cmd->add_flag("--help-all", "Print this help with the developer options (backends, speed-ups)");
-  cmd->callback([o] { run_preview(*o); });
+  cmd->callback([o, &global] {
+    o->viewer.gl_backend = global.gl_backend;
+    run_preview(*o);
+  });
 }
 
 }  // namespace snow::app

@@ -1,5 +1,6 @@
 // The live preview window: GLFW input, the frame loop (simulate, draw scene
-// and snow, panel), screenshots and exports. The physics is LiveSim's (the
+// and snow, panel), screenshots and exports; headless, the same loop draws
+// into an off-screen framebuffer. The physics is LiveSim's (the
 // batch stages); the drawing is PreviewRenderer's and SnowView's.
 #include "live/viewer.h"
 
@@ -52,14 +53,16 @@ void on_key(GLFWwindow* window, int key, int /*scancode*/, int action, int /*mod
     static_cast<Input*>(glfwGetWindowUserPointer(window))->keys.push_back(key);
 }
 
-/// The bound back buffer as an image (rows top to bottom).
-render::ImageRGBA8 read_back_buffer(int width, int height) {
+/// The frame drawn into `fbo` (0: the window's back buffer) as an image
+/// (rows top to bottom).
+render::ImageRGBA8 read_frame(unsigned fbo, int width, int height) {
   render::ImageRGBA8 image;
   image.width = width;
   image.height = height;
   image.pixels.resize(size_t(width) * size_t(height) * 4);
   std::vector<uint8_t> rows(image.pixels.size());
-  glReadBuffer(GL_BACK);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo);
+  glReadBuffer(fbo ? GL_COLOR_ATTACHMENT0 : GL_BACK);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
   glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, rows.data());
   gl::check_error("preview: reading the screenshot");
@@ -90,6 +93,24 @@ std::string export_snow(const Scene& scene, const LiveSim& sim, const ViewerOpti
   return "wrote " + path + " (" + std::to_string(patches.size()) + " patches, " +
          std::to_string(triangles) + " triangles)";
 }
+
+/// The headless preview's frame: colour and depth renderbuffers.
+struct Offscreen {
+  gl::Renderbuffer color, depth;
+  gl::Framebuffer fbo;
+
+  Offscreen(int width, int height) {
+    color = gl::create_renderbuffer();
+    depth = gl::create_renderbuffer();
+    fbo = gl::create_framebuffer();
+    glNamedRenderbufferStorage(color.id(), GL_RGBA8, width, height);
+    glNamedRenderbufferStorage(depth.id(), GL_DEPTH_COMPONENT32F, width, height);
+    gl::check_error("headless preview: allocating the framebuffer");
+    glNamedFramebufferRenderbuffer(fbo.id(), GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color.id());
+    glNamedFramebufferRenderbuffer(fbo.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id());
+    gl::check_framebuffer(fbo, "headless preview framebuffer");
+  }
+};
 
 /// Scene bounds grown upwards by the snow that can pile up.
 Bounds with_snow(const Bounds& scene_bounds, float total_depth) {
@@ -135,6 +156,7 @@ class Viewer {
 
   const Scene& scene_;
   const ViewerOptions& options_;
+  unsigned target_ = 0;  // the framebuffer drawn into: 0 (the window's) or the off-screen one
   std::unique_ptr<LiveSim> sim_;
   std::unique_ptr<SnowView> snow_;
   std::unique_ptr<render::PreviewRenderer> scene_renderer_;
@@ -367,7 +389,7 @@ void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
   // Draw scene and snow.
   const Bounds view_bounds = with_snow(scene_.bounds, sim_->settings().total_depth);
   const render::PreviewCamera camera = orbit_.camera(view_bounds, aspect_);
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glBindFramebuffer(GL_FRAMEBUFFER, target_);
   glViewport(0, 0, fb_w, fb_h);
   glClearColor(shading_.background.x, shading_.background.y, shading_.background.z, 1.0f);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
@@ -388,7 +410,7 @@ void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
     want_screenshot_ = false;
     try {
       check_screenshot_path();
-      render::write_png(read_back_buffer(fb_w, fb_h), screenshot_path_);
+      render::write_png(read_frame(target_, fb_w, fb_h), screenshot_path_);
       set_status(std::string("wrote ") + screenshot_path_);
     } catch (const Error& e) {
       if (last) throw;
@@ -396,45 +418,104 @@ void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
     }
   }
 
-  if (panel_) draw_panel(frame_ms);
+  const bool panel = panel_ || (shot_at_exit && options_.screenshot_panel);
+  if (panel) draw_panel(frame_ms);
   ImGui::Render();
-  if (panel_) ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+  glBindFramebuffer(GL_FRAMEBUFFER, target_);
+  if (panel) ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
   if (shot_at_exit && options_.screenshot_panel) {
     check_screenshot_path();
-    render::write_png(read_back_buffer(fb_w, fb_h), screenshot_path_);
+    render::write_png(read_frame(target_, fb_w, fb_h), screenshot_path_);
   }
 }
 
-ViewerReport Viewer::run() {
-  gl::ContextOptions context_options;
-  context_options.backend = gl::Backend::Glfw;
-  context_options.window_width = options_.width;
-  context_options.window_height = options_.height;
-  context_options.title =
-      "snowmodel preview - " + std::filesystem::path(options_.input).filename().string();
-  auto context = gl::create_context(context_options);
-  const std::string description = context->description();
-  log_info("OpenGL: " + description);
-  gl_ = plan::current_gl();
-  GLFWwindow* window = static_cast<GLFWwindow*>(context->native_window());
-  glfwSetWindowUserPointer(window, &input_);
-  glfwSetScrollCallback(window, on_scroll);
-  glfwSetKeyCallback(window, on_key);
-  glfwSwapInterval(options_.frames > 0 ? 0 : 1);
-
-  IMGUI_CHECKVERSION();
-  ImGui::CreateContext();
-  ImGui::GetIO().IniFilename = nullptr;
-  ImGui::StyleColorsDark();
-  ImGui_ImplGlfw_InitForOpenGL(window, true);  // chains the callbacks above
-  ImGui_ImplOpenGL3_Init("#version 430 core");
-  struct ImGuiGuard {
-    ~ImGuiGuard() {
-      ImGui_ImplOpenGL3_Shutdown();
-      ImGui_ImplGlfw_Shutdown();
-      ImGui::DestroyContext();
+/// The window's context (GLFW) or, headless, a context of `backend` drawing
+/// into an Offscreen; Dear ImGui set up on either (its GLFW backend only with
+/// the window). Destroyed in reverse order.
+class Surface {
+ public:
+  Surface(const ViewerOptions& options, Input* input) {
+    gl::ContextOptions context_options;
+    if (options.headless) {
+      context_options.backend = gl::parse_backend(options.gl_backend);
+    } else {
+      context_options.backend = gl::Backend::Glfw;
+      context_options.window_width = options.width;
+      context_options.window_height = options.height;
+      context_options.title =
+          "snowmodel preview - " + std::filesystem::path(options.input).filename().string();
     }
-  } imgui_guard;
+    context_ = gl::create_context(context_options);
+    log_info("OpenGL: " + context_->description());
+    window_ = static_cast<GLFWwindow*>(context_->native_window());
+    if (window_) {
+      glfwSetWindowUserPointer(window_, input);
+      glfwSetScrollCallback(window_, on_scroll);
+      glfwSetKeyCallback(window_, on_key);
+      glfwSwapInterval(options.frames > 0 ? 0 : 1);
+    } else {
+      offscreen_ = std::make_unique<Offscreen>(options.width, options.height);
+      size_ = {options.width, options.height};
+    }
+    IMGUI_CHECKVERSION();
+    ImGui::CreateContext();
+    ImGui::GetIO().IniFilename = nullptr;
+    ImGui::StyleColorsDark();
+    if (window_) ImGui_ImplGlfw_InitForOpenGL(window_, true);  // chains the callbacks above
+    ImGui_ImplOpenGL3_Init("#version 430 core");
+  }
+  ~Surface() {
+    ImGui_ImplOpenGL3_Shutdown();
+    if (window_) ImGui_ImplGlfw_Shutdown();
+    ImGui::DestroyContext();
+    offscreen_.reset();
+  }
+
+  GLFWwindow* window() const { return window_; }
+  /// The framebuffer frames are drawn into (0: the window's).
+  unsigned target() const { return offscreen_ ? offscreen_->fbo.id() : 0; }
+  bool closed() const { return window_ && glfwWindowShouldClose(window_); }
+  /// Polls the window's events; its framebuffer size (pixels).
+  glm::ivec2 poll() {
+    if (window_) {
+      glfwPollEvents();
+      glfwGetFramebufferSize(window_, &size_.x, &size_.y);
+    }
+    return size_;
+  }
+  void new_frame(double seconds) {
+    ImGui_ImplOpenGL3_NewFrame();
+    if (window_) {
+      ImGui_ImplGlfw_NewFrame();
+    } else {
+      ImGuiIO& io = ImGui::GetIO();
+      io.DisplaySize = ImVec2(float(size_.x), float(size_.y));
+      io.DeltaTime = float(std::max(seconds, 1e-4));
+    }
+    ImGui::NewFrame();
+  }
+  /// Shows the frame (headless: waits until it is drawn).
+  void present() {
+    if (window_) {
+      glfwSwapBuffers(window_);
+    } else {
+      glFinish();
+    }
+  }
+
+ private:
+  std::unique_ptr<gl::Context> context_;
+  GLFWwindow* window_ = nullptr;
+  std::unique_ptr<Offscreen> offscreen_;
+  glm::ivec2 size_{0, 0};
+};
+
+ViewerReport Viewer::run() {
+  Surface surface(options_, &input_);
+  gl_ = plan::current_gl();
+  target_ = surface.target();
+  GLFWwindow* window = surface.window();
+  if (!window) panel_ = false;  // headless: the panel only in --screenshot-panel
 
   // GL objects go before the context, also when a frame throws.
   struct GlGuard {
@@ -456,35 +537,31 @@ ViewerReport Viewer::run() {
     log_info("live snow grid: " + std::to_string(snow_->triangle_count()) + " triangles (stride " +
              std::to_string(stride_) + ")");
 
-    int fb_w = 0, fb_h = 0;
-    glfwGetFramebufferSize(window, &fb_w, &fb_h);
-    aspect_ = float(std::max(fb_w, 1)) / float(std::max(fb_h, 1));
+    glm::ivec2 size = surface.poll();
+    aspect_ = float(std::max(size.x, 1)) / float(std::max(size.y, 1));
     orbit_.azimuth = options_.azimuth;
     orbit_.elevation = options_.elevation;
     orbit_.fov = options_.fov;
     orbit_.top = options_.top_view;
     orbit_.frame(scene_.bounds, aspect_);
     orbit_.distance /= options_.zoom;
-    glfwGetCursorPos(window, &last_x_, &last_y_);
+    if (window) glfwGetCursorPos(window, &last_x_, &last_y_);
 
     const auto start = Clock::now();
     Clock::time_point steady_start = start;
     double sum_stabilize = 0, sum_scene = 0, sum_snow = 0;
     double frame_ms = 0;
     int64_t frames = 0;
-    while (!glfwWindowShouldClose(window)) {
+    while (!surface.closed()) {
       const auto frame_start = Clock::now();
-      glfwPollEvents();
-      glfwGetFramebufferSize(window, &fb_w, &fb_h);
-      if (fb_w < 1 || fb_h < 1) {  // minimised
+      size = surface.poll();
+      if (size.x < 1 || size.y < 1) {  // minimised
         glfwWaitEvents();
         continue;
       }
-      aspect_ = float(fb_w) / float(fb_h);
-      ImGui_ImplOpenGL3_NewFrame();
-      ImGui_ImplGlfw_NewFrame();
-      ImGui::NewFrame();
-      handle_input(window, fb_h);
+      aspect_ = float(size.x) / float(size.y);
+      surface.new_frame(frame_ms * 1e-3);
+      if (window) handle_input(window, size.y);
       if (want_frame_) {
         orbit_.frame(scene_.bounds, aspect_);
         want_frame_ = false;
@@ -498,8 +575,8 @@ ViewerReport Viewer::run() {
       sync_view();
 
       const bool last = options_.frames > 0 && frames + 1 >= options_.frames;
-      draw_frame(fb_w, fb_h, last, frame_ms);
-      glfwSwapBuffers(window);
+      draw_frame(size.x, size.y, last, frame_ms);
+      surface.present();
 
       ++frames;
       frame_ms = ms_since(frame_start);
@@ -542,6 +619,10 @@ ViewerReport run_viewer(const Scene& scene, const ViewerOptions& options) {
   if (!(options.zoom > 0.0f) || !std::isfinite(options.zoom))
     throw InputError("--zoom must be a positive number");
   if (options.frames < 0) throw InputError("--frames must be 0 (until closed) or more");
+  if (options.headless && options.frames == 0)
+    throw InputError("--headless needs --frames N (no window to close)");
+  if (options.headless && gl::parse_backend(options.gl_backend) == gl::Backend::Glfw)
+    throw InputError("--headless draws off-screen; --gl-backend glfw opens a window");
   Viewer viewer(scene, options);
   return viewer.run();
 }

@@ -16,27 +16,30 @@
 namespace snow::live {
 
 struct ViewerOptions {
-  std::string input;              // the glTF file shown (the export checks its path against it)
-  LiveSettings sim;               // the snowfall
-  PolygonizeSettings mesh;        // export
-  SnowViewSettings view;          // drawing the snow
-  int snow_stride = 0;            // texels between drawn snow grid vertices; 0 = automatic
-  int width = 1280;               // window width, pixels
-  int height = 800;               // window height, pixels
-  bool top_view = false;          // start in the orthographic top view
-  float azimuth = 45.0f;          // degrees from south (+Z) towards east (+X), start camera
-  float elevation = 30.0f;        // degrees above the horizon, start camera
-  float fov = 35.0f;              // vertical field of view, degrees
-  float zoom = 1.0f;              // start camera: the framed eye distance divided by this (> 0)
-  bool panel = true;              // show the ImGui panel (H toggles)
-  bool paused = false;            // start paused
-  int frames = 0;                 // > 0: quit after this many frames (scripts, tests)
-  std::string screenshot;         // PNG of the last frame (scene and snow, no panel) at exit
-  bool screenshot_panel = false;  // the screenshot at exit shows the panel too
-  std::string export_path;        // snow meshes (.glb/.gltf with the scene, .obj/.ply) at exit
-  bool snow_only = false;         // export the snow only, also to .glb/.gltf
-  FileFrame frame;                // the file's frame: the export goes back to it
-  std::vector<uint8_t> receives;  // per scene object: 0 = no fresh snow (may be empty)
+  std::string input;                // the glTF file shown (the export checks its path against it)
+  LiveSettings sim;                 // the snowfall
+  PolygonizeSettings mesh;          // export
+  SnowViewSettings view;            // drawing the snow
+  int snow_stride = 0;              // texels between drawn snow grid vertices; 0 = automatic
+  int width = 1280;                 // window width, pixels
+  int height = 800;                 // window height, pixels
+  bool top_view = false;            // start in the orthographic top view
+  float azimuth = 45.0f;            // degrees from south (+Z) towards east (+X), start camera
+  float elevation = 30.0f;          // degrees above the horizon, start camera
+  float fov = 35.0f;                // vertical field of view, degrees
+  float zoom = 1.0f;                // start camera: the framed eye distance divided by this (> 0)
+  bool panel = true;                // show the ImGui panel (H toggles)
+  bool paused = false;              // start paused
+  int frames = 0;                   // > 0: quit after this many frames (scripts, tests)
+  bool headless = false;            // draw off-screen (an EGL or OSMesa context, no window and no
+                                    // display): same frame loop, no input; needs frames > 0
+  std::string gl_backend = "auto";  // headless: the context's backend (gl::parse_backend)
+  std::string screenshot;           // PNG of the last frame (scene and snow, no panel) at exit
+  bool screenshot_panel = false;    // the screenshot at exit shows the panel too
+  std::string export_path;          // snow meshes (.glb/.gltf with the scene, .obj/.ply) at exit
+  bool snow_only = false;           // export the snow only, also to .glb/.gltf
+  FileFrame frame;                  // the file's frame: the export goes back to it
+  std::vector<uint8_t> receives;    // per scene object: 0 = no fresh snow (may be empty)
 };
 
 /// What a run measured.
@@ -52,11 +55,13 @@ struct ViewerReport {
   size_t snow_triangles = 0;  // triangles of the snow grid
 };
 
-/// Opens the window (GLFW backend; needs a display) and runs until it is
-/// closed, Escape is pressed or options.frames frames have been drawn; then
-/// writes options.screenshot and options.export_path if given. Throws
-/// GLError when no window can be opened, InputError for bad settings,
-/// IOError when an output cannot be written.
+/// Opens the window (GLFW backend; needs a display), or with
+/// options.headless an off-screen framebuffer of options.width x height on a
+/// headless context, and runs until it is closed, Escape is pressed or
+/// options.frames frames have been drawn; then writes options.screenshot and
+/// options.export_path if given. Throws GLError when no window or context
+/// can be made, InputError for bad settings (headless without frames, or
+/// with the glfw backend), IOError when an output cannot be written.
 ViewerReport run_viewer(const Scene& scene, const ViewerOptions& options);
 
 }  // namespace snow::live
