@@ -418,11 +418,10 @@ void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
     }
   }
 
-  const bool panel = panel_ || (shot_at_exit && options_.screenshot_panel);
-  if (panel) draw_panel(frame_ms);
+  if (panel_) draw_panel(frame_ms);
   ImGui::Render();
   glBindFramebuffer(GL_FRAMEBUFFER, target_);
-  if (panel) ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+  if (panel_) ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
   if (shot_at_exit && options_.screenshot_panel) {
     check_screenshot_path();
     render::write_png(read_frame(target_, fb_w, fb_h), screenshot_path_);
@@ -515,7 +514,8 @@ ViewerReport Viewer::run() {
   gl_ = plan::current_gl();
   target_ = surface.target();
   GLFWwindow* window = surface.window();
-  if (!window) panel_ = false;  // headless: the panel only in --screenshot-panel
+  // Headless, the panel is drawn for --screenshot-panel only.
+  if (!window) panel_ = options_.panel && options_.screenshot_panel;
 
   // GL objects go before the context, also when a frame throws.
   struct GlGuard {
