@@ -1,8 +1,9 @@
-// The live preview window (`snowmodel preview`, src/live) run as a script:
-// N frames on the bundled courtyard under a virtual X server (the ctest
-// entry test_preview_xvfb runs this binary under xvfb-run), then its
-// screenshot is checked at world points projected with the same camera:
-// snow-white on the roof and on open ground, none under the table.
+// The live preview (`snowmodel preview`, src/live) run as a script: N frames
+// on the bundled courtyard, headless and in a window under a virtual X
+// server (the ctest entry test_preview_xvfb runs this binary under
+// xvfb-run), then its screenshot is checked at world points projected with
+// the same camera: snow-white on the roof and on open ground, none under the
+// table; and the headless preview's snow against the batch job's.
 #include <gtest/gtest.h>
 #include <stb_image.h>
 #include <unistd.h>
@@ -28,6 +29,7 @@
 #include "scene/builder.h"
 #include "scene/load_gltf.h"
 #include "support/command.h"
+#include "support/exr.h"
 
 namespace snow {
 namespace {
@@ -294,10 +296,13 @@ TEST(Preview, AppliesIgnoreBeforeOpeningAWindow) {
   EXPECT_NE(run.output.find("--ignore removed every object"), std::string::npos) << run.output;
 }
 
-TEST(Preview, CourtyardScreenshotHasSnowOnRoofAndGroundNoneUnderTheTable) {
-  if (!has_display()) GTEST_SKIP() << "no DISPLAY (the xvfb-run ctest entry runs this)";
+/// The courtyard's preview (in a window, or `headless`) after 250 frames:
+/// its screenshot has snow on the roof and the open ground and none under
+/// the table, where the same camera projects them.
+void check_courtyard_screenshot(bool headless) {
   const fs::path dir =
-      fs::temp_directory_path() / ("snow_test_preview_" + std::to_string(getpid()));
+      fs::temp_directory_path() /
+      ("snow_test_preview_" + std::to_string(getpid()) + (headless ? "_headless" : ""));
   fs::create_directories(dir);
   const fs::path shot = dir / "shot.png";
   const fs::path exported = dir / "snow.ply";
@@ -309,7 +314,8 @@ TEST(Preview, CourtyardScreenshotHasSnowOnRoofAndGroundNoneUnderTheTable) {
       "preview " + kCourtyard.string() + " --frames 250 --size " + std::to_string(w) + "x" +
       std::to_string(h) + " --max-side 128 --layers 4 --passes-per-frame 2 --fall-rate 0.1 " +
       "--depth 0.3 --flakes 0 --azimuth 0 --elevation 38 --fov 35 --zoom 2 --no-snow-on 'Table*' " +
-      "--screenshot " + shot.string() + " --export " + exported.string());
+      "--screenshot " + shot.string() + " --export " + exported.string() +
+      (headless ? " --headless" : ""));
   ASSERT_EQ(run.code, 0) << run.output;
   const size_t summary = run.output.find("preview: 250 frames");
   ASSERT_NE(summary, std::string::npos) << run.output;
@@ -370,6 +376,74 @@ TEST(Preview, CourtyardScreenshotHasSnowOnRoofAndGroundNoneUnderTheTable) {
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) white += snow_white(picture.at(x, y));
   EXPECT_GT(white, w * h / 10);
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir);
+}
+
+TEST(Preview, CourtyardScreenshotHasSnowOnRoofAndGroundNoneUnderTheTable) {
+  if (!has_display()) GTEST_SKIP() << "no DISPLAY (the xvfb-run ctest entry runs this)";
+  check_courtyard_screenshot(false);
+}
+
+TEST(Preview, HeadlessCourtyardScreenshotHasSnowOnRoofAndGroundNoneUnderTheTable) {
+  check_courtyard_screenshot(true);
+}
+
+/// The m^3 after `key` ("lying of ", "fell ") in a summary line, or -1.
+double summary_volume(const std::string& output, const std::string& key) {
+  const size_t at = output.find(key);
+  return at == std::string::npos ? -1.0 : std::atof(output.c_str() + at + key.size());
+}
+
+// The headless preview, once the snow has fallen and come to rest, holds the
+// snow the batch job lays with the same settings (the same maps): the same
+// fallen and lying volume within 0.5 % (the preview adds the snow frame by
+// frame, and the stabilizer routes what each addition brings), and the same
+// depth on the top layer within 1 mm on 98 % of its texels and 2 mm on
+// average (piles against walls form in a different order).
+TEST(Preview, HeadlessSnowMatchesTheBatchJob) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("snow_test_preview_batch_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const std::string settings = " --max-side 128 --layers 4 --depth 0.3 --directions 16 ";
+  const snow::test::CommandResult preview = run_snowmodel(
+      "preview " + kCourtyard.string() + settings +
+      "--headless --frames 120 --fall-rate 0.6 --passes-per-frame 64 --flakes 0 --size 320x200 " +
+      "--maps " + (dir / "live").string());
+  ASSERT_EQ(preview.code, 0) << preview.output;
+  const snow::test::CommandResult batch =
+      run_snowmodel("snow " + kCourtyard.string() + settings + "-o " + (dir / "snow.glb").string() +
+                    " --maps " + (dir / "batch").string());
+  ASSERT_EQ(batch.code, 0) << batch.output;
+  const double live_lying = summary_volume(preview.output, "m^3 lying of ");
+  const double live_fallen = summary_volume(preview.output, "lying of ");
+  const double batch_lying = summary_volume(batch.output, "; snow ");
+  const double batch_fallen = summary_volume(batch.output, "(fell ");
+  ASSERT_GT(batch_fallen, 1.0) << batch.output;
+  EXPECT_NEAR(live_fallen, batch_fallen, 0.005 * batch_fallen);
+  EXPECT_NEAR(live_lying, batch_lying, 0.005 * batch_lying);
+
+  int w = 0, h = 0, bw = 0, bh = 0;
+  const std::vector<float> live = snow::test::read_exr(dir / "live" / "layer0_depth.exr", &w, &h);
+  const std::vector<float> ref = snow::test::read_exr(dir / "batch" / "layer0_depth.exr", &bw, &bh);
+  ASSERT_EQ(w, bw);
+  ASSERT_EQ(h, bh);
+  ASSERT_EQ(live.size(), ref.size());
+  std::vector<double> errors(live.size());
+  double sum = 0;
+  for (size_t k = 0; k < live.size(); ++k) {
+    errors[k] = std::abs(double(live[k]) - double(ref[k]));
+    sum += errors[k];
+  }
+  std::sort(errors.begin(), errors.end());
+  const double mean = sum / double(errors.size());
+  const double p98 = errors[errors.size() * 98 / 100];
+  std::printf(
+      "preview %.3f of %.3f m^3 lying, batch %.3f of %.3f; top layer depth: mean "
+      "difference %.2f mm, 98th percentile %.2f mm, largest %.1f mm\n",
+      live_lying, live_fallen, batch_lying, batch_fallen, mean * 1e3, p98 * 1e3,
+      errors.back() * 1e3);
+  EXPECT_LE(mean, 0.002);
+  EXPECT_LE(p98, 0.001);
   if (!HasFailure()) fs::remove_all(dir);
 }
 

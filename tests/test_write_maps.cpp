@@ -17,10 +17,12 @@
 #include "core/error.h"
 #include "core/fs.h"
 #include "mesh/write_maps.h"
+#include "support/exr.h"
 
 namespace snow {
 namespace {
 namespace fs = std::filesystem;
+using snow::test::read_exr;
 
 fs::path fresh_dir(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() /
@@ -47,31 +49,6 @@ SnowMaps make_maps() {
   }
   maps.overflow_columns = 3;
   return maps;
-}
-
-std::vector<float> read_exr(const fs::path& path, int* width, int* height) {
-  const std::vector<uint8_t> bytes = read_file_bytes(path);
-  EXRVersion version;
-  EXPECT_EQ(ParseEXRVersionFromMemory(&version, bytes.data(), bytes.size()), TINYEXR_SUCCESS);
-  EXRHeader header;
-  InitEXRHeader(&header);
-  const char* err = nullptr;
-  EXPECT_EQ(ParseEXRHeaderFromMemory(&header, &version, bytes.data(), bytes.size(), &err),
-            TINYEXR_SUCCESS);
-  EXPECT_EQ(header.num_channels, 1);
-  EXPECT_STREQ(header.channels[0].name, "Y");
-  EXPECT_EQ(header.pixel_types[0], TINYEXR_PIXELTYPE_FLOAT);
-  EXRImage image;
-  InitEXRImage(&image);
-  EXPECT_EQ(LoadEXRImageFromMemory(&image, &header, bytes.data(), bytes.size(), &err),
-            TINYEXR_SUCCESS);
-  *width = image.width;
-  *height = image.height;
-  const float* plane = reinterpret_cast<const float*>(image.images[0]);
-  std::vector<float> out(plane, plane + size_t(image.width) * size_t(image.height));
-  FreeEXRImage(&image);
-  FreeEXRHeader(&header);
-  return out;
 }
 
 std::vector<uint16_t> read_png16(const fs::path& path, int* width, int* height) {

@@ -102,6 +102,7 @@ void run_preview(PreviewOptions o) {
     outputs.push_back(
         {"--export", v.export_path, OutputKind::Mesh, format_from_path(v.export_path), {}});
   }
+  if (!v.maps_path.empty()) outputs.push_back({"--maps", v.maps_path, OutputKind::Maps, {}, {}});
   check_output_paths(o.input, outputs);
 
   // Ignored objects are neither simulated nor drawn (a sky dome would hide
@@ -121,12 +122,13 @@ void run_preview(PreviewOptions o) {
   warn_if_not_metres_y_up(scene);
   const live::ViewerReport r = live::run_viewer(scene, v);
   char summary[400];
-  std::snprintf(summary, sizeof summary,
-                "preview: %lld frames in %.2f s, %.2f fps (after 5 frames); per frame: snowfall "
-                "and stabilizer %.1f ms, scene %.1f ms, snow %.1f ms; snow grid %zu triangles; "
-                "snow %.3f m^3 lying of %.3f fallen",
-                static_cast<long long>(r.frames), r.seconds, r.fps, r.stabilize_ms, r.scene_ms,
-                r.snow_ms, r.snow_triangles, r.volume, r.fallen);
+  std::snprintf(
+      summary, sizeof summary,
+      "preview: %lld frames in %.2f s, %.2f fps (after 5 frames); per frame: snowfall "
+      "and stabilizer %.1f ms, scene %.1f ms, snow %.1f ms; snow grid %zu triangles drawn; "
+      "snow %.3f m^3 lying of %.3f fallen",
+      static_cast<long long>(r.frames), r.seconds, r.fps, r.stabilize_ms, r.scene_ms, r.snow_ms,
+      r.snow_triangles, r.volume, r.fallen);
   log_info(summary);
 }
 
@@ -154,6 +156,9 @@ void register_preview(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--export", v.export_path,
                   "Snow meshes at exit: .glb/.gltf (scene plus snow), .obj/.ply (snow only)");
   cmd->add_flag("--export-snow-only", v.snow_only, "Export only the snow, also to .glb/.gltf");
+  cmd->add_option("--maps", v.maps_path,
+                  "Folder for the snow maps at exit (height, coverage, depth per layer; as the "
+                  "snow command's --maps)");
   cmd->add_option("--size", o->size, "Window size WIDTHxHEIGHT in pixels [1..16384 each]")
       ->capture_default_str();
   cmd->add_option("--view", o->view, "Start camera: orbit (perspective) or top (orthographic)")
@@ -186,8 +191,8 @@ void register_preview(CLI::App& app, const GlobalOptions& global) {
                   ranged("Stabilizer relaxation passes per frame", kPassesPerFrame))
       ->capture_default_str();
   cmd->add_option("--snow-stride", v.snow_stride,
-                  ranged("Texels between drawn snow grid vertices (0 = automatic: at most 768 per "
-                         "side, 256 on a software renderer)",
+                  ranged("Texels between the snow grid's vertices at its finest level of detail "
+                         "(0 = automatic: at most 768 per side, 256 on a software renderer)",
                          kSnowStride))
       ->capture_default_str();
   cmd->add_option("--flakes", v.view.flakes, ranged("Falling flakes drawn (0 = none)", kFlakes))

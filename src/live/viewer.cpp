@@ -112,11 +112,25 @@ struct Offscreen {
   }
 };
 
+/// Metres the snow can rise above its ground: the deepest drift (the
+/// planner's cap on drifts, times the fall) and a centimetre.
+float snow_rise(float total_depth) {
+  return std::max(total_depth, 0.0f) * float(plan::kDriftMaxCoefficient) + 0.01f;
+}
+
+/// Writes the maps with the coverage and the current snow like the batch
+/// job's --maps.
+std::string export_maps(const LiveSim& sim, const ViewerOptions& options, const std::string& path) {
+  check_output_paths(options.input, {{"maps", path, OutputKind::Maps, {}, {}}});
+  const std::vector<float> depth = sim.depth();
+  write_maps(path, sim.maps(), &sim.coverage(), &depth);
+  return "wrote maps to " + path;
+}
+
 /// Scene bounds grown upwards by the snow that can pile up.
 Bounds with_snow(const Bounds& scene_bounds, float total_depth) {
   Bounds b = scene_bounds;
-  if (!b.empty())
-    b.extend(b.max + glm::vec3(0.0f, std::max(total_depth, 0.0f) * 3.0f + 0.01f, 0.0f));
+  if (!b.empty()) b.extend(b.max + glm::vec3(0.0f, snow_rise(total_depth), 0.0f));
   return b;
 }
 
@@ -131,7 +145,8 @@ class Viewer {
                   options.export_path.empty() ? "snow_preview.glb" : options.export_path.c_str());
     std::snprintf(screenshot_path_, sizeof screenshot_path_, "%s",
                   options.screenshot.empty() ? "snow_preview.png" : options.screenshot.c_str());
-    std::snprintf(maps_path_, sizeof maps_path_, "%s", "snow_maps");
+    std::snprintf(maps_path_, sizeof maps_path_, "%s",
+                  options.maps_path.empty() ? "snow_maps" : options.maps_path.c_str());
   }
 
   ViewerReport run();
@@ -366,10 +381,7 @@ void Viewer::draw_panel(double frame_ms) {
   ImGui::SameLine();
   if (ImGui::Button("Export maps")) {
     try {
-      check_output_paths(options_.input, {{"maps", maps_path_, OutputKind::Maps, {}, {}}});
-      const std::vector<float> depth = sim.depth();
-      write_maps(maps_path_, maps, &sim.coverage(), &depth);
-      set_status(std::string("wrote maps to ") + maps_path_);
+      set_status(export_maps(sim, options_, maps_path_));
     } catch (const Error& e) {
       set_status(std::string("maps export failed: ") + e.what());
     }
@@ -398,7 +410,8 @@ void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
   glFinish();
   scene_ms_ = ms_since(t);
   t = Clock::now();
-  snow_->draw(camera, shading_, sim_->depth_texture(), view_settings_);
+  snow_->draw(camera, fb_h, shading_, sim_->depth_texture(),
+              snow_rise(sim_->settings().total_depth), view_settings_);
   const float time = float(sim_->frame()) * sim_->settings().frame_time;
   snow_->draw_flakes(camera, view_bounds, time, sim_->settings().coverage.fall_speed,
                      sim_->settings().coverage.wind, view_settings_);
@@ -512,6 +525,7 @@ class Surface {
 ViewerReport Viewer::run() {
   Surface surface(options_, &input_);
   gl_ = plan::current_gl();
+  view_settings_.quad_pixels = plan::preview_quad_pixels(gl_);
   target_ = surface.target();
   GLFWwindow* window = surface.window();
   // Headless, the panel is drawn for --screenshot-panel only.
@@ -533,9 +547,8 @@ ViewerReport Viewer::run() {
     snow_ = std::make_unique<SnowView>();
     scene_renderer_ = std::make_unique<render::PreviewRenderer>(scene_);
     sync_view();
-    report.snow_triangles = snow_->triangle_count();
-    log_info("live snow grid: " + std::to_string(snow_->triangle_count()) + " triangles (stride " +
-             std::to_string(stride_) + ")");
+    log_info("live snow grid: " + std::to_string(snow_->triangle_count()) +
+             " triangles at its finest level (stride " + std::to_string(stride_) + ")");
 
     glm::ivec2 size = surface.poll();
     aspect_ = float(std::max(size.x, 1)) / float(std::max(size.y, 1));
@@ -600,12 +613,14 @@ ViewerReport Viewer::run() {
     } else if (report.seconds > 0) {
       report.fps = double(frames) / report.seconds;
     }
+    report.snow_triangles = snow_->drawn_triangles();
     report.volume = snow_volume(sim_->maps(), sim_->depth());
     report.fallen = sim_->fallen_volume();
 
     if (!options_.export_path.empty()) {
       log_info(export_snow(scene_, *sim_, options_, options_.export_path, options_.snow_only));
     }
+    if (!options_.maps_path.empty()) log_info(export_maps(*sim_, options_, options_.maps_path));
   }
   return report;
 }

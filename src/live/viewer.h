@@ -37,6 +37,7 @@ struct ViewerOptions {
   std::string screenshot;           // PNG of the last frame (scene and snow, no panel) at exit
   bool screenshot_panel = false;    // the screenshot at exit shows the panel too
   std::string export_path;          // snow meshes (.glb/.gltf with the scene, .obj/.ply) at exit
+  std::string maps_path;            // the maps with coverage and depth (mesh/write_maps.h) at exit
   bool snow_only = false;           // export the snow only, also to .glb/.gltf
   FileFrame frame;                  // the file's frame: the export goes back to it
   std::vector<uint8_t> receives;    // per scene object: 0 = no fresh snow (may be empty)
@@ -52,7 +53,7 @@ struct ViewerReport {
   double snow_ms = 0;         // mean per frame: drawing the snow (and flakes)
   double volume = 0;          // m^3 of snow lying at the end
   double fallen = 0;          // m^3 of snow fallen
-  size_t snow_triangles = 0;  // triangles of the snow grid
+  size_t snow_triangles = 0;  // triangles of the snow grid drawn in the last frame
 };
 
 /// Opens the window (GLFW backend; needs a display), or with

@@ -87,6 +87,10 @@ int preview_grid_side(const GlFacts& gl) {
   return gl.software ? kPreviewGridSideSoftware : kPreviewGridSide;
 }
 
+float preview_quad_pixels(const GlFacts& gl) {
+  return gl.software ? kPreviewQuadPixelsSoftware : kPreviewQuadPixels;
+}
+
 double drift_transport(double speed, double threshold) {
   if (!(threshold > 0.0) || !(speed > threshold)) return 0.0;
   const double r = speed / threshold;

@@ -290,10 +290,17 @@ inline double cornice_length(double transport) {
 // --- Live preview ---
 
 /// The live preview's automatic --snow-stride draws its snow grid with at
-/// most this many vertices per map side, fewer where the renderer is
-/// software (the grid's triangles are the frame's largest cost there).
+/// most this many vertices per map side at its finest level of detail,
+/// fewer where the renderer is software (the grid's triangles are a large
+/// share of its frame).
 constexpr int kPreviewGridSide = 768;          // vertices
 constexpr int kPreviewGridSideSoftware = 256;  // vertices
 int preview_grid_side(const GlFacts& gl);
+/// The snow grid's level of detail: each chunk is drawn at the coarsest
+/// level whose quads span at most this on screen, coarser where the renderer
+/// is software.
+constexpr float kPreviewQuadPixels = 3.0f;          // pixels
+constexpr float kPreviewQuadPixelsSoftware = 8.0f;  // pixels
+float preview_quad_pixels(const GlFacts& gl);
 
 }  // namespace snow::plan
