@@ -17,6 +17,7 @@
 #include <vector>
 
 #include <glm/glm.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "core/error.h"
 #include "gl/context.h"
@@ -30,6 +31,7 @@
 #include "scene/load_gltf.h"
 #include "support/command.h"
 #include "support/exr.h"
+#include "support/gl_context.h"
 
 namespace snow {
 namespace {
@@ -123,6 +125,65 @@ TEST(SnowView, AutoStrideKeepsTheDrawnGridSmall) {
   EXPECT_EQ(live::auto_stride(768, 768), 1);
   EXPECT_EQ(live::auto_stride(1024, 1024), 2);
   EXPECT_EQ(live::auto_stride(4096, 100), 6);
+}
+
+/// A camera at `eye` looking at `target` (perspective, 35 degrees).
+render::PreviewCamera look_at(const glm::vec3& eye, const glm::vec3& target) {
+  render::PreviewCamera camera;
+  camera.eye = eye;
+  camera.forward = glm::normalize(target - eye);
+  camera.view = glm::lookAt(eye, target, glm::vec3(0, 1, 0));
+  camera.projection = glm::perspective(glm::radians(35.0f), 1.6f, 0.1f, 1000.0f);
+  return camera;
+}
+
+// The snow grid's levels of detail: a 100 m flat field of 0.25 m texels
+// seen from 300 m off is drawn with far fewer triangles than its finest
+// level, looking away none, and seen from 2 m above one edge with more than
+// from afar (the chunks near the eye fine) but fewer than all (the chunks
+// behind the eye and beside the view left out).
+TEST(SnowView, DrawsChunksInViewAtTheirLevelOfDetail) {
+  REQUIRE_GL();
+  MapGrid grid;
+  grid.origin = glm::vec2(-50.0f);
+  grid.texel = 0.25f;
+  grid.width = grid.height = 400;
+  SnowMaps maps;
+  maps.allocate(grid, 1);
+  std::fill(maps.ground.begin(), maps.ground.end(), 0.0f);
+  live::SnowView view;
+  view.set_maps(maps, 1);
+  const size_t finest = view.triangle_count();
+  EXPECT_GE(finest, size_t(2 * 399 * 399));  // quads plus skirts
+  const gl::Texture depth =
+      gl::create_texture_2d_array(GL_RG32F, grid.width, grid.height, 1, "test depth");
+  // A framebuffer to draw into (a surfaceless context has none).
+  const gl::Renderbuffer color = gl::create_renderbuffer(),
+                         depth_buffer = gl::create_renderbuffer();
+  glNamedRenderbufferStorage(color.id(), GL_RGBA8, 1280, 800);
+  glNamedRenderbufferStorage(depth_buffer.id(), GL_DEPTH_COMPONENT32F, 1280, 800);
+  const gl::Framebuffer fbo = gl::create_framebuffer();
+  glNamedFramebufferRenderbuffer(fbo.id(), GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color.id());
+  glNamedFramebufferRenderbuffer(fbo.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_buffer.id());
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo.id());
+  glViewport(0, 0, 1280, 800);
+  live::SnowViewSettings settings;
+  settings.quad_pixels = 4.0f;
+  const render::PreviewSettings shading;
+  auto drawn = [&](const render::PreviewCamera& camera) {
+    view.draw(camera, 800, shading, depth.id(), 1.0f, settings);
+    return view.drawn_triangles();
+  };
+  const size_t far = drawn(look_at(glm::vec3(0, 300, 300), glm::vec3(0)));
+  const size_t away = drawn(look_at(glm::vec3(0, 10, 60), glm::vec3(0, 10, 200)));
+  const size_t close = drawn(look_at(glm::vec3(0, 2, 48), glm::vec3(0, 0, 40)));
+  std::printf("triangles: finest %zu, far %zu, looking away %zu, close %zu\n", finest, far, away,
+              close);
+  EXPECT_LT(far, finest / 8);
+  EXPECT_EQ(away, 0u);
+  EXPECT_GT(close, far);
+  EXPECT_LT(close, finest);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
 }
 
 // Live snowfall on the table scene's small maps: 0.2 m in 4 frames (0.05 m
