@@ -38,7 +38,7 @@ constexpr Range kZoom{0.01, 100};
 constexpr Range kFov{1, 170};
 constexpr Range kFallRate{0, 1000};
 constexpr Range kFrameTime{1e-4, 3600};
-constexpr Range kAddEvery{1, 100000};
+constexpr Range kAddEvery{0, 100000};
 constexpr Range kPassesPerFrame{0, 100000};
 constexpr Range kSnowStride{0, 4096};
 constexpr Range kFlakes{0, 1e6};
@@ -184,7 +184,8 @@ void register_preview(CLI::App& app, const GlobalOptions& global) {
                   ranged("Simulated seconds per frame", kFrameTime))
       ->capture_default_str();
   cmd->add_option("--add-every", v.sim.add_every,
-                  ranged("Add snow every N frames, N frames' worth at once (cheaper on slow GPUs)",
+                  ranged("Add snow every N frames, N frames' worth at once (0 = automatic: 1, or 4 "
+                         "where GL renders in software)",
                          kAddEvery))
       ->capture_default_str();
   cmd->add_option("--passes-per-frame", v.sim.passes_per_frame,

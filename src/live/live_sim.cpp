@@ -59,8 +59,8 @@ void check(const LiveSettings& s) {
     throw InputError("frame time must be between 0 and 3600 s");
   if (s.passes_per_frame < 0 || s.passes_per_frame > 100000)
     throw InputError("stabilizer passes per frame must be between 0 and 100000");
-  if (s.add_every < 1 || s.add_every > 100000)
-    throw InputError("snow addition interval must be between 1 and 100000 frames");
+  if (s.add_every < 0 || s.add_every > 100000)
+    throw InputError("snow addition interval must be between 0 (automatic) and 100000 frames");
   if (s.snow_on_snow_every < 0)
     throw InputError("snow-on-snow interval must be 0 (off) or a positive number of frames");
   fall_directions(s.coverage);             // throws InputError for bad coverage settings
@@ -144,6 +144,10 @@ void LiveSim::compute_coverage(const std::vector<float>* lying) {
   ++coverage_version_;
 }
 
+int LiveSim::add_every() const {
+  return settings_.add_every > 0 ? settings_.add_every : plan::preview_add_every(gl_);
+}
+
 void LiveSim::step() {
   timings_.coverage = 0;
   const int every = settings_.snow_on_snow_every;
@@ -152,11 +156,12 @@ void LiveSim::step() {
     compute_coverage(&lying);
   }
   auto start = Clock::now();
-  const bool adds = frame_ % settings_.add_every == 0;
-  const float amount =
-      adds ? std::min(float(settings_.add_every) * settings_.fall_rate * settings_.frame_time,
-                      settings_.total_depth - fallen_depth_)
-           : 0.0f;
+  const int add_every = this->add_every();
+  const bool adds = frame_ % add_every == 0;
+  const float amount = adds
+                           ? std::min(float(add_every) * settings_.fall_rate * settings_.frame_time,
+                                      settings_.total_depth - fallen_depth_)
+                           : 0.0f;
   if (amount > 0.0f) {
     on_either(cpu_.get(), gpu_.get(), [&](auto& s) { s.add_snow(coverage_, amount); });
     fallen_depth_ += amount;

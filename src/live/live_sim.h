@@ -33,8 +33,9 @@ struct LiveSettings {
   float total_depth = 0.3f;     // metres of fresh snow on open flat ground; snowfall stops there
   float fall_rate = 0.05f;      // metres of fresh snow per simulated second on open flat ground
   float frame_time = 1.0f / 30.0f;  // simulated seconds per frame (fixed: same frames, same snow)
-  int add_every = 1;  // frames between snow additions, each adding that many frames' worth
-                      // (routing runs after each addition: fewer, larger additions cost less)
+  int add_every = 0;           // frames between snow additions, each adding that many frames' worth
+                               // (routing runs after each addition: fewer, larger additions cost
+                               // less); 0 = automatic (plan::preview_add_every)
   int passes_per_frame = 4;    // stabilizer relaxation passes per frame (>= 0)
   int snow_on_snow_every = 0;  // frames between coverage updates that include the lying snow
                                // (drifts shade what lies behind them); 0 = off
@@ -69,7 +70,8 @@ class LiveSim {
   LiveSim(const LiveSim&) = delete;
   LiveSim& operator=(const LiveSim&) = delete;
 
-  /// One frame: every add_every frames adds min(add_every * fall_rate *
+  /// One frame: every add_every frames (add_every() when automatic) adds
+  /// min(add_every * fall_rate *
   /// frame_time, what is left of total_depth) metres times the coverage and
   /// lets the wind move it (wind_transport), recomputes the coverage
   /// with the lying snow when snow_on_snow_every says so, and runs passes_per_frame stabilizer
@@ -85,6 +87,9 @@ class LiveSim {
   void apply(const LiveSettings& settings);
 
   const LiveSettings& settings() const { return settings_; }
+  /// Frames between snow additions: settings().add_every, or the planner's
+  /// where that is 0.
+  int add_every() const;
   const SnowMaps& maps() const { return maps_; }
   const std::vector<float>& coverage() const { return coverage_; }
   /// The snow depth as a GL_TEXTURE_2D_ARRAY, one layer per map layer, r =

@@ -258,8 +258,9 @@ void SnowView::draw(const render::PreviewCamera& camera, int viewport_height,
         c.lo -
         glm::vec3(0.0f, kSkirtStrides * g.grid.texel * float(g.stride << (kLevels - 1)), 0.0f);
     if (outside_view(view_projection, lo, hi)) continue;
-    const int level =
-        level_for(camera, viewport_height, lo, hi, g.grid.texel, g.stride, settings.quad_pixels);
+    // The level from the ground's box: the snow on it is near enough.
+    const int level = level_for(camera, viewport_height, c.lo, c.hi, g.grid.texel, g.stride,
+                                settings.quad_pixels);
     const size_t first = c.first[size_t(level)], count = c.first[size_t(level) + 1] - first;
     if (count == 0) continue;
     counts.push_back(GLsizei(count));

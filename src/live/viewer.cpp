@@ -314,7 +314,7 @@ void Viewer::draw_panel(double frame_ms) {
   cheap |= ImGui::SliderFloat("fall rate m/s", &pending_.fall_rate, 0.0f, 0.5f, "%.3f");
   cheap |= ImGui::SliderFloat("total depth m", &pending_.total_depth, 0.0f, 2.0f, "%.2f");
   cheap |= ImGui::SliderInt("passes/frame", &pending_.passes_per_frame, 0, 256);
-  cheap |= ImGui::SliderInt("add snow every", &pending_.add_every, 1, 60);
+  cheap |= ImGui::SliderInt("add snow every (0 auto)", &pending_.add_every, 0, 60);
   cheap |= ImGui::SliderInt("snow on snow every", &pending_.snow_on_snow_every, 0, 300);
   if (cheap) apply_pending();
 

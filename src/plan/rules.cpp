@@ -87,6 +87,10 @@ int preview_grid_side(const GlFacts& gl) {
   return gl.software ? kPreviewGridSideSoftware : kPreviewGridSide;
 }
 
+int preview_add_every(const GlFacts& gl) {
+  return gl.software ? kPreviewAddEverySoftware : kPreviewAddEvery;
+}
+
 float preview_quad_pixels(const GlFacts& gl) {
   return gl.software ? kPreviewQuadPixelsSoftware : kPreviewQuadPixels;
 }

@@ -302,5 +302,12 @@ int preview_grid_side(const GlFacts& gl);
 constexpr float kPreviewQuadPixels = 3.0f;          // pixels
 constexpr float kPreviewQuadPixelsSoftware = 8.0f;  // pixels
 float preview_quad_pixels(const GlFacts& gl);
+/// The live preview adds its snow every this many frames (each addition
+/// that many frames' worth), more where the stabilizer's passes run on the
+/// CPU beside a software renderer: the routing after each addition is most
+/// of a frame's simulation there.
+constexpr int kPreviewAddEvery = 1;          // frames
+constexpr int kPreviewAddEverySoftware = 4;  // frames
+int preview_add_every(const GlFacts& gl);
 
 }  // namespace snow::plan
