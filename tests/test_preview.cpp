@@ -32,6 +32,7 @@
 #include "support/command.h"
 #include "support/exr.h"
 #include "support/gl_context.h"
+#include "support/stabilize_maps.h"
 
 namespace snow {
 namespace {
@@ -200,8 +201,9 @@ live::LiveSettings table_live_settings(int passes_per_frame) {
 }
 
 // The live snowfall with the stabilizer on the GPU and on the CPU: the same
-// snow frame by frame, and the CPU's depth uploaded into the texture the
-// snow is drawn from.
+// snow frame by frame within the backends' tolerance (1 mm per texel, 0.1 %
+// of the volume), and the CPU's depth uploaded into the texture the snow is
+// drawn from.
 TEST(LiveSim, CpuAndGpuStabilizersGiveTheSameSnow) {
   auto context = gl::create_context();
   const Scene scene = make_table_scene(0.75f, 1.0f, 4.0f);
@@ -216,9 +218,10 @@ TEST(LiveSim, CpuAndGpuStabilizersGiveTheSameSnow) {
     gpu.step();
     cpu.step();
     SCOPED_TRACE(f);
-    ASSERT_EQ(gpu.depth(), cpu.depth());
+    test::expect_agree(gpu.maps(), gpu.depth(), cpu.depth());
   }
-  EXPECT_EQ(gpu.lost_volume(), cpu.lost_volume());
+  EXPECT_NEAR(gpu.lost_volume(), cpu.lost_volume(),
+              test::kBackendVolumeTolerance * cpu.fallen_volume());
   const std::vector<float> depth = cpu.depth();
   std::vector<float> drawn(depth.size(), -1.0f);
   glGetTextureImage(cpu.depth_texture(), 0, GL_RED, GL_FLOAT, GLsizei(drawn.size() * sizeof(float)),

@@ -430,7 +430,8 @@ TEST(StabilizeReference, LeanToRoofs) {
 // --- Piles: GPU against the CPU reference ------------------------------------
 
 // The GPU stabilizer pours the same piles (on the CPU, from its readback):
-// a spike on a snowy floor, routing and pouring only, bit for bit.
+// a spike on a snowy floor, routing and pouring only, within the backends'
+// tolerance (support/stabilize_maps.h).
 TEST(StabilizeGpu, PilesMatchReference) {
   REQUIRE_GL();
   const int side = 33, mid = 16;
@@ -447,7 +448,7 @@ TEST(StabilizeGpu, PilesMatchReference) {
   EXPECT_GT(rc.routed_volume, 0.0);
   EXPECT_NEAR(rg.routed_volume, rc.routed_volume, 1e-6);
   EXPECT_LT(*std::max_element(cpu.begin(), cpu.end()), 0.2f + 0.3f);  // poured, no spike
-  EXPECT_EQ(gpu, cpu);
+  expect_agree(maps, gpu, cpu);
 }
 
 TEST(StabilizeGpu, DrainingMatchesReference) {
@@ -463,7 +464,7 @@ TEST(StabilizeGpu, DrainingMatchesReference) {
   EXPECT_GE(rc.drains, 1);
   EXPECT_EQ(rg.drains, rc.drains);
   EXPECT_EQ(rg.iterations, rc.iterations);
-  EXPECT_EQ(gpu, cpu);
+  expect_agree(maps, gpu, cpu);
 }
 
 TEST(StabilizeGpu, PressedSnowPoursMatchReference) {
@@ -477,7 +478,7 @@ TEST(StabilizeGpu, PressedSnowPoursMatchReference) {
   EXPECT_GE(rc.pours, 1);
   EXPECT_EQ(rg.pours, rc.pours);
   EXPECT_EQ(rg.iterations, rc.iterations);
-  EXPECT_EQ(gpu, cpu);
+  expect_agree(maps, gpu, cpu);
 }
 
 // --- Builder scenes (reference peel, GPU stabilizer) -------------------------

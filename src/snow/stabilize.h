@@ -115,8 +115,9 @@ struct StabilizeSettings {
                                    // results; off: every texel every pass, for comparisons;
                                    // also off where GL points cannot be 4 pixels wide)
   std::string device = "auto";     // where the passes run: "gpu" (fragment passes), "cpu"
-                                   // (snow::CpuStabilizer: the same passes on all cores, bit
-                                   // for bit), or "auto": plan::stabilizer_on_cpu (the CPU for
+                                   // (snow::CpuStabilizer: the same passes on all cores, within
+                                   // the backends' tolerance, snow/stabilize_cpu.h), or
+                                   // "auto": plan::stabilizer_on_cpu (the CPU for
                                    // the batch job; for the live preview the CPU where the GL
                                    // renderer is a software rasterizer, else the GPU)
   bool count_tiles = false;        // GPU: count the active tiles (a small readback per pass)

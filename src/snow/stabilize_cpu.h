@@ -1,9 +1,11 @@
 #pragma once
 // The stabilizer passes (snow/stabilize.h) on the CPU: the same outflow,
 // gather, erosion, receiver, jump, scatter and apply passes as the GPU
-// fragment passes, in the same order and with the same float math, on the
-// cells of snow::stabilize_cells (zeros where there is no surface: only the
-// flags of those are read), so the two agree bit for bit. The erosion alone
+// fragment passes, in the same order, on the cells of
+// snow::stabilize_cells (zeros where there is no surface: only the flags of
+// those are read). The two agree within the backends' tolerance (1 mm per
+// layer texel, 0.1 % of the volume; docs/ARCHITECTURE.md, "Stabilizer"),
+// each deterministic on its own. The erosion alone
 // runs differently, in place (CpuStabilizer::erode), to the same kept
 // heights in fewer rounds than the GPU's passes; StabilizeResult's
 // route_passes counts those rounds.

@@ -5,7 +5,8 @@
 // erosion and pointer jumping. One draw per map layer and pass (the gather
 // pass: one draw for all layers, one fragment per column, written through an
 // image), ping-pong between two depth texture arrays; the CPU backend is
-// CpuStabilizer (snow/stabilize_cpu.h), bit for bit the same.
+// CpuStabilizer (snow/stabilize_cpu.h), the same within the backends'
+// tolerance (snow/stabilize_cpu.h).
 #include "snow/stabilize.h"
 
 #include <algorithm>
