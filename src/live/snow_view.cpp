@@ -172,13 +172,17 @@ size_t SnowView::drawn_triangles() const { return gpu_->drawn; }
 
 namespace {
 
+/// Corner k (0..7) of the box [lo, hi].
+glm::vec3 corner(const glm::vec3& lo, const glm::vec3& hi, int k) {
+  return glm::vec3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z);
+}
+
 /// Whether the box [lo, hi] lies wholly outside one plane of the view
 /// volume of `view_projection`.
 bool outside_view(const glm::mat4& view_projection, const glm::vec3& lo, const glm::vec3& hi) {
   int out[6] = {0, 0, 0, 0, 0, 0};
   for (int k = 0; k < 8; ++k) {
-    const glm::vec4 p = view_projection * glm::vec4(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y,
-                                                    k & 4 ? hi.z : lo.z, 1.0f);
+    const glm::vec4 p = view_projection * glm::vec4(corner(lo, hi, k), 1.0f);
     out[0] += p.x < -p.w;
     out[1] += p.x > p.w;
     out[2] += p.y < -p.w;
@@ -199,10 +203,8 @@ int level_for(const render::PreviewCamera& camera, int viewport_height, const gl
   float z = 1.0f;
   if (!camera.orthographic) {
     z = std::numeric_limits<float>::max();
-    for (int k = 0; k < 8; ++k) {
-      const glm::vec3 p(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z);
-      z = std::min(z, glm::dot(p - camera.eye, camera.forward));
-    }
+    for (int k = 0; k < 8; ++k)
+      z = std::min(z, glm::dot(corner(lo, hi, k) - camera.eye, camera.forward));
     if (!(z > 1e-3f)) return 0;
   }
   const float pixels = camera.projection[1][1] * 0.5f * float(viewport_height) / z * texel;

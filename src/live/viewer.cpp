@@ -8,7 +8,6 @@
 #include <GLFW/glfw3.h>
 #include <imgui.h>
 
-#include <backends/imgui_impl_glfw.h>
 #include <backends/imgui_impl_opengl3.h>
 
 #include <algorithm>
@@ -22,6 +21,7 @@
 #include "gl/context.h"
 #include "gl/gl.h"
 #include "live/orbit.h"
+#include "live/surface.h"
 #include "mesh/export.h"
 #include "mesh/output_policy.h"
 #include "mesh/write_maps.h"
@@ -36,21 +36,6 @@ using Clock = std::chrono::steady_clock;
 
 double ms_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
-/// Input gathered by the GLFW callbacks between frames.
-struct Input {
-  double scroll = 0;
-  std::vector<int> keys;  // keys pressed (GLFW_KEY_*)
-};
-
-void on_scroll(GLFWwindow* window, double /*x*/, double y) {
-  static_cast<Input*>(glfwGetWindowUserPointer(window))->scroll += y;
-}
-
-void on_key(GLFWwindow* window, int key, int /*scancode*/, int action, int /*mods*/) {
-  if (action == GLFW_PRESS)
-    static_cast<Input*>(glfwGetWindowUserPointer(window))->keys.push_back(key);
 }
 
 /// The frame drawn into `fbo` (0: the window's back buffer) as an image
@@ -93,24 +78,6 @@ std::string export_snow(const Scene& scene, const LiveSim& sim, const ViewerOpti
   return "wrote " + path + " (" + std::to_string(patches.size()) + " patches, " +
          std::to_string(triangles) + " triangles)";
 }
-
-/// The headless preview's frame: colour and depth renderbuffers.
-struct Offscreen {
-  gl::Renderbuffer color, depth;
-  gl::Framebuffer fbo;
-
-  Offscreen(int width, int height) {
-    color = gl::create_renderbuffer();
-    depth = gl::create_renderbuffer();
-    fbo = gl::create_framebuffer();
-    glNamedRenderbufferStorage(color.id(), GL_RGBA8, width, height);
-    glNamedRenderbufferStorage(depth.id(), GL_DEPTH_COMPONENT32F, width, height);
-    gl::check_error("headless preview: allocating the framebuffer");
-    glNamedFramebufferRenderbuffer(fbo.id(), GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color.id());
-    glNamedFramebufferRenderbuffer(fbo.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id());
-    gl::check_framebuffer(fbo, "headless preview framebuffer");
-  }
-};
 
 /// Metres the snow can rise above its ground: the deepest drift (the
 /// planner's cap on drifts, times the fall) and a centimetre.
@@ -440,87 +407,6 @@ void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
     render::write_png(read_frame(target_, fb_w, fb_h), screenshot_path_);
   }
 }
-
-/// The window's context (GLFW) or, headless, a context of `backend` drawing
-/// into an Offscreen; Dear ImGui set up on either (its GLFW backend only with
-/// the window). Destroyed in reverse order.
-class Surface {
- public:
-  Surface(const ViewerOptions& options, Input* input) {
-    gl::ContextOptions context_options;
-    if (options.headless) {
-      context_options.backend = gl::parse_backend(options.gl_backend);
-    } else {
-      context_options.backend = gl::Backend::Glfw;
-      context_options.window_width = options.width;
-      context_options.window_height = options.height;
-      context_options.title =
-          "snowmodel preview - " + std::filesystem::path(options.input).filename().string();
-    }
-    context_ = gl::create_context(context_options);
-    log_info("OpenGL: " + context_->description());
-    window_ = static_cast<GLFWwindow*>(context_->native_window());
-    if (window_) {
-      glfwSetWindowUserPointer(window_, input);
-      glfwSetScrollCallback(window_, on_scroll);
-      glfwSetKeyCallback(window_, on_key);
-      glfwSwapInterval(options.frames > 0 ? 0 : 1);
-    } else {
-      offscreen_ = std::make_unique<Offscreen>(options.width, options.height);
-      size_ = {options.width, options.height};
-    }
-    IMGUI_CHECKVERSION();
-    ImGui::CreateContext();
-    ImGui::GetIO().IniFilename = nullptr;
-    ImGui::StyleColorsDark();
-    if (window_) ImGui_ImplGlfw_InitForOpenGL(window_, true);  // chains the callbacks above
-    ImGui_ImplOpenGL3_Init("#version 430 core");
-  }
-  ~Surface() {
-    ImGui_ImplOpenGL3_Shutdown();
-    if (window_) ImGui_ImplGlfw_Shutdown();
-    ImGui::DestroyContext();
-    offscreen_.reset();
-  }
-
-  GLFWwindow* window() const { return window_; }
-  /// The framebuffer frames are drawn into (0: the window's).
-  unsigned target() const { return offscreen_ ? offscreen_->fbo.id() : 0; }
-  bool closed() const { return window_ && glfwWindowShouldClose(window_); }
-  /// Polls the window's events; its framebuffer size (pixels).
-  glm::ivec2 poll() {
-    if (window_) {
-      glfwPollEvents();
-      glfwGetFramebufferSize(window_, &size_.x, &size_.y);
-    }
-    return size_;
-  }
-  void new_frame(double seconds) {
-    ImGui_ImplOpenGL3_NewFrame();
-    if (window_) {
-      ImGui_ImplGlfw_NewFrame();
-    } else {
-      ImGuiIO& io = ImGui::GetIO();
-      io.DisplaySize = ImVec2(float(size_.x), float(size_.y));
-      io.DeltaTime = float(std::max(seconds, 1e-4));
-    }
-    ImGui::NewFrame();
-  }
-  /// Shows the frame (headless: waits until it is drawn).
-  void present() {
-    if (window_) {
-      glfwSwapBuffers(window_);
-    } else {
-      glFinish();
-    }
-  }
-
- private:
-  std::unique_ptr<gl::Context> context_;
-  GLFWwindow* window_ = nullptr;
-  std::unique_ptr<Offscreen> offscreen_;
-  glm::ivec2 size_{0, 0};
-};
 
 ViewerReport Viewer::run() {
   Surface surface(options_, &input_);

@@ -1,0 +1,122 @@
+// The live preview's window or off-screen framebuffer (live/surface.h).
+#include "live/surface.h"
+
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <string>
+
+#include "core/log.h"
+#include "gl/context.h"
+#include "gl/gl.h"
+#include "gl/objects.h"
+
+namespace snow::live {
+namespace {
+
+void on_scroll(GLFWwindow* window, double /*x*/, double y) {
+  static_cast<Input*>(glfwGetWindowUserPointer(window))->scroll += y;
+}
+
+void on_key(GLFWwindow* window, int key, int /*scancode*/, int action, int /*mods*/) {
+  if (action == GLFW_PRESS)
+    static_cast<Input*>(glfwGetWindowUserPointer(window))->keys.push_back(key);
+}
+
+}  // namespace
+
+/// The headless preview's frame: colour and depth renderbuffers.
+struct Surface::Offscreen {
+  gl::Renderbuffer color, depth;
+  gl::Framebuffer fbo;
+
+  Offscreen(int width, int height) {
+    color = gl::create_renderbuffer();
+    depth = gl::create_renderbuffer();
+    fbo = gl::create_framebuffer();
+    glNamedRenderbufferStorage(color.id(), GL_RGBA8, width, height);
+    glNamedRenderbufferStorage(depth.id(), GL_DEPTH_COMPONENT32F, width, height);
+    gl::check_error("headless preview: allocating the framebuffer");
+    glNamedFramebufferRenderbuffer(fbo.id(), GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color.id());
+    glNamedFramebufferRenderbuffer(fbo.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id());
+    gl::check_framebuffer(fbo, "headless preview framebuffer");
+  }
+};
+
+Surface::Surface(const ViewerOptions& options, Input* input) {
+  gl::ContextOptions context_options;
+  if (options.headless) {
+    context_options.backend = gl::parse_backend(options.gl_backend);
+  } else {
+    context_options.backend = gl::Backend::Glfw;
+    context_options.window_width = options.width;
+    context_options.window_height = options.height;
+    context_options.title =
+        "snowmodel preview - " + std::filesystem::path(options.input).filename().string();
+  }
+  context_ = gl::create_context(context_options);
+  log_info("OpenGL: " + context_->description());
+  window_ = static_cast<GLFWwindow*>(context_->native_window());
+  if (window_) {
+    glfwSetWindowUserPointer(window_, input);
+    glfwSetScrollCallback(window_, on_scroll);
+    glfwSetKeyCallback(window_, on_key);
+    glfwSwapInterval(options.frames > 0 ? 0 : 1);
+  } else {
+    offscreen_ = std::make_unique<Offscreen>(options.width, options.height);
+    size_ = {options.width, options.height};
+  }
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGui::GetIO().IniFilename = nullptr;
+  ImGui::StyleColorsDark();
+  if (window_) ImGui_ImplGlfw_InitForOpenGL(window_, true);  // chains the callbacks above
+  ImGui_ImplOpenGL3_Init("#version 430 core");
+}
+
+Surface::~Surface() {
+  ImGui_ImplOpenGL3_Shutdown();
+  if (window_) ImGui_ImplGlfw_Shutdown();
+  ImGui::DestroyContext();
+  offscreen_.reset();
+}
+
+unsigned Surface::target() const { return offscreen_ ? offscreen_->fbo.id() : 0; }
+
+bool Surface::closed() const { return window_ && glfwWindowShouldClose(window_); }
+
+glm::ivec2 Surface::poll() {
+  if (window_) {
+    glfwPollEvents();
+    glfwGetFramebufferSize(window_, &size_.x, &size_.y);
+  }
+  return size_;
+}
+
+void Surface::new_frame(double seconds) {
+  ImGui_ImplOpenGL3_NewFrame();
+  if (window_) {
+    ImGui_ImplGlfw_NewFrame();
+  } else {
+    ImGuiIO& io = ImGui::GetIO();
+    io.DisplaySize = ImVec2(float(size_.x), float(size_.y));
+    io.DeltaTime = float(std::max(seconds, 1e-4));
+  }
+  ImGui::NewFrame();
+}
+
+void Surface::present() {
+  if (window_) {
+    glfwSwapBuffers(window_);
+  } else {
+    glFinish();
+  }
+}
+
+}  // namespace snow::live
