@@ -14,6 +14,8 @@
 #include "live/viewer.h"
 #include "mesh/export.h"
 #include "mesh/output_policy.h"
+#include "plan/plan.h"
+#include "snow/peel.h"
 
 namespace snow::app {
 namespace {
@@ -119,6 +121,14 @@ void run_preview(PreviewOptions o) {
   warn_unmatched(scene, s.slippery, "--slippery");
   warn_unmatched(scene, s.rough, "--rough");
   v.sim.stabilize.grip = object_grip(scene, s.slippery, s.rough);
+  // The maps' side: the planner's, as for the batch job, from the preview's
+  // coarser automatic side (--max-side or --texel override it).
+  plan::Settings wanted = plan_settings(s);
+  wanted.auto_side = plan::kPreviewMaxSide;
+  const plan::SceneStats stats = scene_stats(scene, s.peel, wanted, 0);
+  const plan::MapPlan maps = plan::plan_maps(wanted, stats.asked_grid_side, stats.asked_grid_texel);
+  if (!maps.note.empty()) log_info(maps.note);
+  if (s.peel.texel <= 0.0f) v.sim.peel.max_side = maps.max_side;
   warn_if_not_metres_y_up(scene);
   const live::ViewerReport r = live::run_viewer(scene, v);
   char summary[400];
@@ -136,7 +146,7 @@ void run_preview(PreviewOptions o) {
 
 void register_preview(CLI::App& app, const GlobalOptions& global) {
   auto o = std::make_shared<PreviewOptions>();
-  o->settings.peel.max_side = plan::kPreviewMaxSide;  // --max-side overrides
+  o->settings.peel.max_side = 0;  // automatic (the planner's); --max-side overrides
   o->settings.coverage.directions = plan::kPreviewDirections;
   CLI::App* cmd = app.add_subcommand(
       "preview",

@@ -50,7 +50,7 @@ MapPlan plan_maps(const Settings& settings, int grid_side, float grid_texel) {
   plan.texel = settings.texel;
   plan.max_side = settings.max_side;
   if (settings.texel > 0.0f || settings.max_side != 0) return plan;
-  plan.max_side = kAutoMaxSide;
+  plan.max_side = settings.auto_side;
   const float depth_texels = settings.fall_depth / grid_texel;
   if (!(depth_texels > kDeepTexels)) return plan;
   plan.max_side = side_for_depth(grid_side, grid_texel, settings.fall_depth);

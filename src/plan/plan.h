@@ -74,6 +74,8 @@ struct Settings {
   float fall_depth = 0.3f;               // metres of fresh snow
   float texel = 0.0f;                    // metres; 0 = from max_side
   int max_side = 0;                      // texels; 0 = automatic (with texel 0)
+  int auto_side = kAutoMaxSide;          // texels: the automatic side before the deep-snow
+                                         // rule (kPreviewMaxSide for the live preview)
   std::string peel_device = "auto";      // "auto", "cpu", "gpu"
   std::string coverage_method = "auto";  // CoverageSettings::method
   std::string stabilizer = "auto";       // "auto", "cpu", "gpu"
@@ -83,14 +85,14 @@ struct Settings {
 struct MapPlan {
   float texel = 0.0f;           // metres, as asked for (0: from max_side)
   int max_side = kAutoMaxSide;  // texels: the peel's max_side (where texel is 0)
-  std::string note;             // why an automatic side differs from kAutoMaxSide (or empty)
+  std::string note;             // why an automatic side differs from auto_side (or empty)
 };
 
 /// The map side for `settings`: the one asked for, or where it is automatic
-/// (max_side 0 and texel 0), kAutoMaxSide, or where the snow would lie more
-/// than kDeepTexels deep on that, the side that makes it kAimTexels deep.
-/// `grid_side` (texels) and `grid_texel` (metres) describe the grid at
-/// the side asked for (kAutoMaxSide where automatic), as make_grid makes it.
+/// (max_side 0 and texel 0), settings.auto_side, or where the snow would lie
+/// more than kDeepTexels deep on that, the side that makes it kAimTexels
+/// deep. `grid_side` (texels) and `grid_texel` (metres) describe the grid at
+/// the side asked for (auto_side where automatic), as make_grid makes it.
 MapPlan plan_maps(const Settings& settings, int grid_side, float grid_texel);
 
 /// Facts about the scene, as make_grid and the loader find them.

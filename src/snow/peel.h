@@ -49,7 +49,7 @@ bool peels_on_cpu(const Scene& scene, const MapGrid& grid, const PeelSettings& s
 MapGrid make_grid(const Bounds& scene_bounds, const PeelSettings& settings);
 
 /// The planner's facts about `scene` (plan::SceneStats): its triangles, the
-/// grid at the side `settings` asks for (plan::kAutoMaxSide where texel and
+/// grid at the side `settings` asks for (wanted.auto_side where texel and
 /// max_side are 0) and the texel columns of the grid at the side
 /// plan::plan_maps picks for `wanted`. Throws what make_grid throws.
 plan::SceneStats scene_stats(const Scene& scene, const PeelSettings& settings,

@@ -126,7 +126,7 @@ plan::SceneStats scene_stats(const Scene& scene, const PeelSettings& settings,
   stats.input_bytes = input_bytes;
   stats.triangles = scene.triangle_count();
   PeelSettings asked = settings;
-  if (asked.texel <= 0.0f && asked.max_side == 0) asked.max_side = plan::kAutoMaxSide;
+  if (asked.texel <= 0.0f && asked.max_side == 0) asked.max_side = wanted.auto_side;
   MapGrid grid = make_grid(scene.bounds, asked);
   stats.asked_grid_side = std::max(grid.width, grid.height);
   stats.asked_grid_texel = grid.texel;
