@@ -32,6 +32,7 @@
 #include "support/command.h"
 #include "support/exr.h"
 #include "support/gl_context.h"
+#include "support/gltf_scene.h"
 #include "support/stabilize_maps.h"
 
 namespace snow {
@@ -450,6 +451,23 @@ TEST(Preview, CourtyardScreenshotHasSnowOnRoofAndGroundNoneUnderTheTable) {
 
 TEST(Preview, HeadlessCourtyardScreenshotHasSnowOnRoofAndGroundNoneUnderTheTable) {
   check_courtyard_screenshot(true);
+}
+
+// The preview's maps follow the planner like the batch job's: a 1 m
+// triangle under 0.3 m of snow would lie 150 texels deep at the preview's
+// 512 texels, so the maps are coarser, and the run says why.
+TEST(Preview, SmallObjectsUnderDeepSnowGetThePlannersSide) {
+  const fs::path dir = test::temp_dir("snow_test_preview_plan");
+  int mesh = 0;
+  test::Gltf gltf = test::triangle_gltf(&mesh);
+  gltf.scene({gltf.node({{"mesh", mesh}})});
+  const fs::path scene = gltf.write_gltf(dir, "triangle");
+  const snow::test::CommandResult run =
+      run_snowmodel("preview " + scene.string() + " --headless --frames 1 --size 64x40");
+  EXPECT_EQ(run.code, 0) << run.output;
+  EXPECT_NE(run.output.find("maps: automatic side"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("preview: 1 frames"), std::string::npos) << run.output;
+  if (!HasFailure()) fs::remove_all(dir);
 }
 
 /// The m^3 after `key` ("lying of ", "fell ") in a summary line, or -1.
