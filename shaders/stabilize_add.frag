@@ -1,7 +1,8 @@
 #version 450 core
-// Adds snow: depth += add on texels with a surface where add > 0
-// (CpuStabilizer::add_snow; the product amount * scale is made on the
-// CPU so both sides add the same float).
+// Adds snow: depth += amount * u_scale on texels with a surface where that
+// is > 0 (CpuStabilizer::add_snow; the batch job's amounts come
+// multiplied, with u_scale 1; the live preview's kept amount is scaled here).
+uniform float u_scale;
 #include "bindings.h"
 #include "column.glsl"
 
@@ -11,7 +12,7 @@ layout(location = 0) out vec2 o_depth;
 void main() {
   ivec3 t = ivec3(ivec2(gl_FragCoord.xy), u_layer);
   vec2 d = texelFetch(u_depth, t, 0).rg;
-  float add = texelFetch(u_add, t, 0).r;
+  float add = texelFetch(u_add, t, 0).r * u_scale;
   if ((int(texelFetch(u_cells, t, 0).w) & kCellSurface) != 0 && add > 0.0) d.r = d.r + add;
   o_depth = d;
 }

@@ -222,6 +222,43 @@ TEST(StabilizeGpu, VolumeSumsOffChangeOnlyTheSums) {
   expect_volume_sums_change_only_the_sums(maps, summed, quiet);
 }
 
+// A kept snow amount (set_snow_amount, then add_snow(scale): the live
+// preview's frames, which then upload nothing) adds what add_snow(amount,
+// scale) adds, bit for bit on the same backend, and the passes after it
+// move the same snow (NaN and negative amounts included: they add nothing
+// either way).
+template <class AnyStabilizer>
+void expect_kept_amount_adds_the_same(const SnowMaps& maps, AnyStabilizer& given,
+                                      AnyStabilizer& kept) {
+  std::vector<float> amount = random_snow(maps, 1.0f, 11);
+  amount[maps.index(0, 3, 3)] = std::nanf("");
+  amount[maps.index(0, 4, 3)] = -1.0f;
+  kept.set_snow_amount(amount);
+  for (int step = 0; step < 3; ++step) {
+    given.add_snow(amount, 0.05f);
+    kept.add_snow(0.05f);
+    EXPECT_EQ(kept.depth(), given.depth());
+    const StabilizeResult a = given.iterate(20), b = kept.iterate(20);
+    EXPECT_EQ(b.iterations, a.iterations);
+    EXPECT_EQ(kept.depth(), given.depth());
+  }
+}
+
+TEST(StabilizeCpu, KeptSnowAmountAddsWhatAddSnowAdds) {
+  const SnowMaps maps = bumpy_maps(32, 4);
+  const StabilizeSettings settings = loose_settings();
+  CpuStabilizer given(maps, settings), kept(maps, settings);
+  expect_kept_amount_adds_the_same(maps, given, kept);
+}
+
+TEST(StabilizeGpu, KeptSnowAmountAddsWhatAddSnowAdds) {
+  REQUIRE_GL();
+  const SnowMaps maps = bumpy_maps(32, 4);
+  const StabilizeSettings settings = loose_settings();
+  Stabilizer given(maps, settings), kept(maps, settings);
+  expect_kept_amount_adds_the_same(maps, given, kept);
+}
+
 TEST(StabilizeReference, ConvergedSnowIsAtRest) {
   const SnowMaps maps = bumpy_maps(64, 4);
   std::vector<float> depth = random_snow(maps, 0.5f, 11);

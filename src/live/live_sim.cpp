@@ -139,6 +139,8 @@ void LiveSim::compute_coverage(const std::vector<float>* lying) {
     if (!std::isnan(maps_.ground[k])) sum += double(coverage_[k]);
   }
   coverage_area_ = sum * double(maps_.grid.texel) * double(maps_.grid.texel);
+  // The stabilizer keeps it (on the GPU), so each addition uploads nothing.
+  on_either(cpu_.get(), gpu_.get(), [&](auto& s) { s.set_snow_amount(coverage_); });
   timings_.last_coverage = seconds_since(start);
   timings_.coverage = timings_.last_coverage;
   ++coverage_version_;
@@ -163,7 +165,7 @@ void LiveSim::step() {
                                       settings_.total_depth - fallen_depth_)
                            : 0.0f;
   if (amount > 0.0f) {
-    on_either(cpu_.get(), gpu_.get(), [&](auto& s) { s.add_snow(coverage_, amount); });
+    on_either(cpu_.get(), gpu_.get(), [&](auto& s) { s.add_snow(amount); });
     fallen_depth_ += amount;
     fallen_volume_ += double(amount) * coverage_area_;
     const DriftSettings drift =
@@ -219,6 +221,7 @@ void LiveSim::apply(const LiveSettings& settings) {
       const double lost =
           on_either(cpu_.get(), gpu_.get(), [](auto& s) { return s.lost_volume(); });
       make_stabilizer(maps_, &lying);
+      on_either(cpu_.get(), gpu_.get(), [&](auto& s) { s.set_snow_amount(coverage_); });
       lost_before_ += lost;  // the new stabilizer counts from 0
       last_.converged = false;
     }

@@ -327,6 +327,15 @@ class Stabilizer {
   /// nothing. Routing runs before the next pass. Throws InputError for a
   /// wrong size.
   void add_snow(const std::vector<float>& amount, float scale);
+  /// Keeps `amount` (maps' layout, e.g. the coverage; negative, NaN or on
+  /// texels without a surface: 0) on the GPU for add_snow(scale), so that
+  /// repeated snowfalls upload nothing (the live preview). Throws
+  /// InputError for a wrong size, GLError when it cannot be allocated.
+  void set_snow_amount(const std::vector<float>& amount);
+  /// depth += scale * the kept amount (set_snow_amount; none kept: adds
+  /// nothing), as add_snow(amount, scale) adds it. Routing runs before the
+  /// next pass.
+  void add_snow(float scale);
 
   /// Runs the pending routing, then up to `passes` relaxation passes,
   /// stopping early once converged (checked every check_every passes and

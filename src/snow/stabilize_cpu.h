@@ -49,6 +49,9 @@ class CpuStabilizer {
 
   void set_depth(const std::vector<float>& depth);
   void add_snow(const std::vector<float>& amount, float scale);
+  /// As Stabilizer::set_snow_amount and add_snow(scale).
+  void set_snow_amount(const std::vector<float>& amount);
+  void add_snow(float scale);
   /// Pending routing, then up to `passes` relaxation passes (early stop as
   /// on the GPU). volume and lost_volume are exact (double) sums;
   /// route_seconds is the routing's wall time; tile_share, with
@@ -195,7 +198,8 @@ class CpuStabilizer {
   float residual_void_ = 0.0f;  // and the largest into the void
   bool route_pending_ = false;
   bool volume_sums_ = true;
-  bool populated_ = false;  // add_snow faulted in the pages of its snow (once)
+  bool populated_ = false;          // add_snow faulted in the pages of its snow (once)
+  std::vector<float> kept_amount_;  // set_snow_amount's (empty: none)
   // The layer texels with a surface under a ceiling, by tile: those of tile
   // t are under_ceilings_[under_start_[t], under_start_[t + 1]), listed at
   // the first check for pressed snow (pour_pressed).

@@ -261,6 +261,18 @@ void CpuStabilizer::add_snow(const std::vector<float>& amount, float scale) {
   schedule_.restart();
 }
 
+void CpuStabilizer::set_snow_amount(const std::vector<float>& amount) {
+  if (amount.size() != cells_.size()) {
+    throw InputError("stabilize: snow amount has " + std::to_string(amount.size()) +
+                     " entries, the maps have " + std::to_string(cells_.size()) + " layer texels");
+  }
+  kept_amount_ = amount;
+}
+
+void CpuStabilizer::add_snow(float scale) {
+  if (!kept_amount_.empty()) add_snow(kept_amount_, scale);
+}
+
 double CpuStabilizer::lost_volume() const {
   const double sum = parallel_sum(lost_.size(), kSumChunk, [&](size_t begin, size_t end) {
     double part = 0.0;

@@ -110,6 +110,9 @@ struct Stabilizer::Impl {
   void upload_depth(const std::vector<float>& depth);
   void write_depth(const std::vector<glm::vec2>& data);  // depth and lost snow, every texel
   void add_snow(const std::vector<float>& add);
+  // depth += scale * amount (an R32F or RGBA32F array, amount in r).
+  void add_pass(const gl::Texture& amount, float scale);
+  gl::Texture kept_amount;  // set_snow_amount's R32F array (none until then)
   // The routing; with `drain`, only the excess on its way into the void
   // leaves (drain_due). Returns the erosion plus jump passes run.
   int route(bool drain = false);
@@ -513,10 +516,16 @@ void Stabilizer::Impl::add_snow(const std::vector<float>& amount) {
   // The amount goes through out_a (scratch between passes) in r.
   glTextureSubImage3D(out_a.id(), 0, 0, 0, 0, width, height, layers, GL_RED, GL_FLOAT,
                       amount.data());
+  add_pass(out_a, 1.0f);
+}
+
+void Stabilizer::Impl::add_pass(const gl::Texture& amount, float scale) {
   bind(SNOW_STABILIZE_CELLS, cells);
   bind(SNOW_STABILIZE_HOLD, holds);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
-  bind(SNOW_STABILIZE_ADD, out_a);
+  bind(SNOW_STABILIZE_ADD, amount);
+  add.use();
+  add.set("u_scale", scale);
   per_layer(add, fbo_depth[1 - cur]);
   cur = 1 - cur;
   release_bindings();
@@ -922,6 +931,31 @@ void Stabilizer::add_snow(const std::vector<float>& amount, float scale) {
     add[k] = impl_->surface[k] && a > 0.0f ? a : 0.0f;  // NaN and negative add nothing
   }
   impl_->add_snow(add);
+  impl_->route_pending = true;
+  impl_->reset_tiles();
+  impl_->schedule.restart();
+}
+
+void Stabilizer::set_snow_amount(const std::vector<float>& amount) {
+  Impl& m = *impl_;
+  if (amount.size() != m.count()) {
+    throw InputError("stabilize: snow amount has " + std::to_string(amount.size()) +
+                     " entries, the maps have " + std::to_string(m.count()) + " layer texels");
+  }
+  std::vector<float> kept(amount.size());
+  for (size_t k = 0; k < amount.size(); ++k)
+    kept[k] = m.surface[k] && amount[k] > 0.0f ? amount[k] : 0.0f;  // NaN and negative: 0
+  if (!m.kept_amount)
+    m.kept_amount =
+        gl::create_texture_2d_array(GL_R32F, m.width, m.height, m.layers, "stabilize snow amount");
+  glTextureSubImage3D(m.kept_amount.id(), 0, 0, 0, 0, m.width, m.height, m.layers, GL_RED, GL_FLOAT,
+                      kept.data());
+  gl::check_error("stabilize: keeping the snow amount");
+}
+
+void Stabilizer::add_snow(float scale) {
+  if (!impl_->kept_amount) return;
+  impl_->add_pass(impl_->kept_amount, scale);
   impl_->route_pending = true;
   impl_->reset_tiles();
   impl_->schedule.restart();
