@@ -72,6 +72,33 @@ class Progress(unittest.TestCase):
         self.assertEqual(runner.last_error(["something odd"]), "something odd")
 
 
+class Running(unittest.TestCase):
+    def test_output_is_collected_and_cancel_stops_the_whole_group(self):
+        import time
+        run = runner.Run(["sh", "-c", "echo 'coverage: 50%'; sleep 30 & wait"])
+        lines = []
+        for _ in range(100):
+            new, status = run.poll()
+            lines += new
+            if lines:
+                break
+            time.sleep(0.05)
+        self.assertEqual(lines, ["coverage: 50%"])
+        self.assertIsNone(status)
+        run.cancel()
+        _, status = run.poll()
+        self.assertIsNotNone(status)
+
+    def test_exit_status_and_error_line(self):
+        run = runner.Run(["sh", "-c", "echo 'error: bad.glb: not a glTF file' >&2; exit 2"])
+        self.assertEqual(run.wait(), 2)
+        self.assertEqual(runner.last_error(run.lines), "bad.glb: not a glTF file")
+
+    def test_a_binary_that_cannot_run_is_a_clear_error(self):
+        with self.assertRaisesRegex(runner.SnowmodelError, "cannot run /nonexistent"):
+            runner.Run(["/nonexistent/snowmodel"])
+
+
 class FindBinary(unittest.TestCase):
     def setUp(self):
         self.saved = dict(os.environ)

@@ -3,6 +3,7 @@
 import os
 import re
 import shutil
+import signal
 import subprocess
 import threading
 import queue
@@ -99,8 +100,10 @@ class Run:
         self.lines = []
         self._queue = queue.Queue()
         try:
+            # Its own process group, so cancelling stops what it started too.
             self._process = subprocess.Popen(args, stdout=subprocess.PIPE,
-                                             stderr=subprocess.STDOUT, text=True, bufsize=1)
+                                             stderr=subprocess.STDOUT, text=True, bufsize=1,
+                                             start_new_session=True)
         except OSError as e:
             raise SnowmodelError(f"cannot run {args[0]}: {e.strerror}") from e
         self._thread = threading.Thread(target=self._read, daemon=True)
@@ -135,11 +138,12 @@ class Run:
 
     def cancel(self):
         if self._process.poll() is None:
-            self._process.terminate()
+            group = os.getpgid(self._process.pid)
+            os.killpg(group, signal.SIGTERM)
             try:
                 self._process.wait(timeout=5)
             except subprocess.TimeoutExpired:
-                self._process.kill()
+                os.killpg(group, signal.SIGKILL)
         self._thread.join(timeout=5)
 
     def wait(self):
