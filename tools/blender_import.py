@@ -14,20 +14,13 @@ import os
 import sys
 
 # Blender 3.4's glTF importer still uses numpy's `numpy.bool` alias, which
-# numpy 1.24 removed; restore it before the importer loads. (Debian's
-# blender package does not pull numpy in: apt-get install -y python3-numpy;
-# OBJ and PLY import without it.)
-try:
-    import warnings
+# numpy 1.24 removed; the add-on's runner restores it before the importer
+# loads (OBJ and PLY import without numpy).
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "blender",
+                                "snowmodel_addon"))
+import runner  # noqa: E402  (the add-on's runner: plain Python, no bpy)
 
-    import numpy
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # numpy 1.24 warns when asked for .bool
-        if not hasattr(numpy, "bool"):
-            numpy.bool = numpy.bool_
-except ImportError:
-    numpy = None
+runner.restore_numpy_bool()
 
 import bpy  # noqa: E402  (after the numpy fix on purpose)
 

@@ -19,8 +19,7 @@ bpy.context.preferences.addons["snowmodel_addon"].preferences.binary = snowmodel
 
 for o in list(bpy.data.objects):
     bpy.data.objects.remove(o, do_unlink=True)
-operators = sys.modules["snowmodel_addon.operators"]
-operators._numpy_bool_alias()  # Blender 3.4's glTF importer on numpy 1.24
+sys.modules["snowmodel_addon.runner"].restore_numpy_bool()  # Blender 3.4's glTF importer
 bpy.ops.import_scene.gltf(filepath=os.path.join(root, "assets", "scenes", "courtyard.glb"))
 bpy.ops.object.select_all(action="DESELECT")
 settings = bpy.context.scene.snowmodel

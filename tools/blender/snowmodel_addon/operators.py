@@ -93,25 +93,10 @@ def _snow_collection(context):
     return snow, names
 
 
-def _numpy_bool_alias():
-    """Blender 3.4's glTF importer uses numpy's `numpy.bool` alias, which
-    numpy 1.24 removed (Debian's Blender with Debian's numpy): restore it."""
-    try:
-        import warnings
-
-        import numpy
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # numpy 1.24 warns when asked for .bool
-            if not hasattr(numpy, "bool"):
-                numpy.bool = numpy.bool_
-    except ImportError:
-        pass
-
-
 def _import(context, path):
     """Imports the snow GLB into the emptied "Snow" collection with the snow
     material; returns the snow mesh objects."""
-    _numpy_bool_alias()
+    runner.restore_numpy_bool()  # Blender 3.4's glTF importer on numpy 1.24
     before = set(bpy.data.objects)
     result = bpy.ops.import_scene.gltf(filepath=path)
     if "FINISHED" not in result:

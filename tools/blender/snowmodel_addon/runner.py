@@ -17,6 +17,24 @@ _PROGRESS = re.compile(r"^(\w+):\s+(\d+)%")
 _DONE = re.compile(r"^(\w+):\s+done in")
 
 
+def restore_numpy_bool():
+    """Blender 3.4's glTF importer uses numpy's `numpy.bool` alias, which
+    numpy 1.24 removed (Debian's Blender with Debian's numpy): restores it.
+    Returns False where numpy is missing (Debian's blender package does not
+    pull it in: python3-numpy)."""
+    try:
+        import warnings
+
+        import numpy
+    except ImportError:
+        return False
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # numpy 1.24 warns when asked for .bool
+        if not hasattr(numpy, "bool"):
+            numpy.bool = numpy.bool_
+    return True
+
+
 class SnowmodelError(Exception):
     """A problem the user can fix, with a one-line message."""
 
