@@ -470,6 +470,33 @@ TEST(Preview, SmallObjectsUnderDeepSnowGetThePlannersSide) {
   if (!HasFailure()) fs::remove_all(dir);
 }
 
+// Debian's Dear ImGui cannot load GL functions on an OSMesa context: a
+// headless --screenshot-panel there is a one-line GL error (exit 3) and no
+// screenshot, not a crash; without the panel the preview runs.
+TEST(Preview, HeadlessPanelWhereImGuiCannotDrawIsAClearError) {
+  const fs::path shot =
+      fs::temp_directory_path() / ("snow_test_panel_" + std::to_string(getpid()) + ".png");
+  const std::string run = "--gl-backend osmesa preview " + kCourtyard.string() +
+                          " --headless --frames 2 --max-side 64 --size 160x100 --screenshot " +
+                          shot.string();
+  const snow::test::CommandResult plain = run_snowmodel(run);
+  if (plain.code == 3) GTEST_SKIP() << "no OSMesa context here: " << plain.output;
+  EXPECT_EQ(plain.code, 0) << plain.output;
+  EXPECT_TRUE(fs::exists(shot));
+  fs::remove(shot);
+  const snow::test::CommandResult panel = run_snowmodel(run + " --screenshot-panel");
+  if (panel.code == 0) {  // an ImGui that loads GL on OSMesa: the panel is drawn
+    EXPECT_TRUE(fs::exists(shot));
+    fs::remove(shot);
+    return;
+  }
+  EXPECT_EQ(panel.code, 3) << panel.output;
+  EXPECT_NE(panel.output.find("error: the settings panel (Dear ImGui) cannot load OpenGL"),
+            std::string::npos)
+      << panel.output;
+  EXPECT_FALSE(fs::exists(shot));
+}
+
 /// The m^3 after `key` ("lying of ", "fell ") in a summary line, or -1.
 double summary_volume(const std::string& output, const std::string& key) {
   const size_t at = output.find(key);

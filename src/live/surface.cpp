@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <string>
 
+#include "core/error.h"
 #include "core/log.h"
 #include "gl/context.h"
 #include "gl/gl.h"
@@ -72,18 +73,33 @@ Surface::Surface(const ViewerOptions& options, Input* input) {
     offscreen_ = std::make_unique<Offscreen>(options.width, options.height);
     size_ = {options.width, options.height};
   }
+  // Headless, the panel is drawn only into a --screenshot-panel.
+  if (!window_ && !(options.panel && options.screenshot_panel)) return;
   IMGUI_CHECKVERSION();
   ImGui::CreateContext();
+  ui_ = true;
   ImGui::GetIO().IniFilename = nullptr;
   ImGui::StyleColorsDark();
   if (window_) ImGui_ImplGlfw_InitForOpenGL(window_, true);  // chains the callbacks above
-  ImGui_ImplOpenGL3_Init("#version 430 core");
+  // Dear ImGui loads GL functions its own way, which fails on some
+  // contexts (OSMesa's).
+  if (!ImGui_ImplOpenGL3_Init("#version 430 core")) {
+    close_ui();
+    throw GLError("the settings panel (Dear ImGui) cannot load OpenGL functions on this " +
+                  std::string(window_ ? "window" : "context (drop --screenshot-panel)"));
+  }
+  renderer_ = true;
+}
+
+void Surface::close_ui() {
+  if (renderer_) ImGui_ImplOpenGL3_Shutdown();
+  if (ui_ && window_) ImGui_ImplGlfw_Shutdown();
+  if (ui_) ImGui::DestroyContext();
+  ui_ = renderer_ = false;
 }
 
 Surface::~Surface() {
-  ImGui_ImplOpenGL3_Shutdown();
-  if (window_) ImGui_ImplGlfw_Shutdown();
-  ImGui::DestroyContext();
+  close_ui();
   offscreen_.reset();
 }
 
@@ -100,6 +116,7 @@ glm::ivec2 Surface::poll() {
 }
 
 void Surface::new_frame(double seconds) {
+  if (!ui_) return;
   ImGui_ImplOpenGL3_NewFrame();
   if (window_) {
     ImGui_ImplGlfw_NewFrame();

@@ -26,9 +26,10 @@ struct Input {
 /// The window's context (GLFW, its callbacks filling `input`) or, with
 /// options.headless, a context of options.gl_backend drawing into an
 /// off-screen framebuffer of options.width x height; Dear ImGui set up on
-/// either (its GLFW backend only with the window). Made current on
-/// construction; everything drawn with it must be destroyed first. Throws
-/// GLError when the window, the context or the framebuffer cannot be made.
+/// the window, or headless for a --screenshot-panel (its GLFW backend only
+/// with the window). Made current on construction; everything drawn with it
+/// must be destroyed first. Throws GLError when the window, the context,
+/// the framebuffer or the panel's renderer cannot be made.
 class Surface {
  public:
   Surface(const ViewerOptions& options, Input* input);
@@ -37,22 +38,28 @@ class Surface {
   Surface& operator=(const Surface&) = delete;
 
   GLFWwindow* window() const { return window_; }
+  /// Dear ImGui is set up: new_frame() starts its frames (the caller ends
+  /// each with ImGui::Render()).
+  bool has_ui() const { return ui_; }
   /// The framebuffer frames are drawn into (0: the window's).
   unsigned target() const;
   bool closed() const;
   /// Polls the window's events; the framebuffer's size (pixels).
   glm::ivec2 poll();
-  /// Starts an ImGui frame, `seconds` after the last one.
+  /// Starts an ImGui frame, `seconds` after the last one (nothing without
+  /// the UI).
   void new_frame(double seconds);
   /// Shows the frame (headless: waits until it is drawn).
   void present();
 
  private:
   struct Offscreen;
+  void close_ui();
   std::unique_ptr<gl::Context> context_;
   GLFWwindow* window_ = nullptr;
   std::unique_ptr<Offscreen> offscreen_;
   glm::ivec2 size_{0, 0};
+  bool ui_ = false, renderer_ = false;  // ImGui's context; its OpenGL renderer
 };
 
 }  // namespace snow::live

@@ -153,6 +153,7 @@ class Viewer {
   plan::GlFacts gl_;        // the window's renderer, for the planner's automatic stride
   uint64_t maps_version_ = 0, coverage_version_ = 0;
   bool paused_ = false, step_once_ = false, panel_ = true;
+  bool ui_ = false;  // Dear ImGui runs (the window, or a headless --screenshot-panel)
   bool want_screenshot_ = false, want_frame_ = false;
   double last_x_ = 0, last_y_ = 0;
   double scene_ms_ = 0, snow_ms_ = 0;
@@ -398,10 +399,12 @@ void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
     }
   }
 
-  if (panel_) draw_panel(frame_ms);
-  ImGui::Render();
-  glBindFramebuffer(GL_FRAMEBUFFER, target_);
-  if (panel_) ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+  if (ui_) {
+    if (panel_) draw_panel(frame_ms);
+    ImGui::Render();
+    glBindFramebuffer(GL_FRAMEBUFFER, target_);
+    if (panel_) ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+  }
   if (shot_at_exit && options_.screenshot_panel) {
     check_screenshot_path();
     render::write_png(read_frame(target_, fb_w, fb_h), screenshot_path_);
@@ -416,6 +419,7 @@ ViewerReport Viewer::run() {
   GLFWwindow* window = surface.window();
   // Headless, the panel is drawn for --screenshot-panel only.
   if (!window) panel_ = options_.panel && options_.screenshot_panel;
+  ui_ = surface.has_ui();
 
   // GL objects go before the context, also when a frame throws.
   struct GlGuard {
