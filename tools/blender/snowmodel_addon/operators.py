@@ -28,7 +28,8 @@ def snow_properties():
         "wind_heading": P.FloatProperty(name="Towards (deg)", default=0.0, min=-180.0, max=180.0,
                                         description="Where the wind blows to: degrees from +X "
                                                     "towards +Y"),
-        "texel": P.FloatProperty(name="Texel (0 auto)", default=0.0, min=0.0, max=1000.0, unit="LENGTH",
+        "texel": P.FloatProperty(name="Texel (0 auto)", default=0.0, min=0.0, max=1000.0,
+                                 unit="LENGTH",
                                  description="Map texel size (0: automatic from Max Side)"),
         "max_side": P.IntProperty(name="Max Side (0 auto)", default=0, min=0, max=16384,
                                   description="Longest map side in texels (0: automatic)"),
@@ -129,10 +130,11 @@ class SNOWMODEL_OT_add_snow(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
     __annotations__ = snow_properties()
 
-    _run = None
-    _timer = None
-    _dir = None
-    _objects = 0
+    _run = None       # the snowmodel run (modal)
+    _timer = None     # the modal run's timer
+    _progress = None  # runner.progress_of's state
+    _dir = None       # the temporary folder of the GLBs
+    _objects = 0      # objects snowed
 
     def _settings(self, context):
         """The operator's arguments; those not given come from the scene's
@@ -190,9 +192,10 @@ class SNOWMODEL_OT_add_snow(bpy.types.Operator):
             status = run.wait()
             self._finish(context, status, run.lines)
         except runner.SnowmodelError as e:
-            self._cleanup(context)
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
+        finally:
+            self._cleanup(context)
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -201,9 +204,11 @@ class SNOWMODEL_OT_add_snow(bpy.types.Operator):
         try:
             self._run = runner.Run(self._start(context))
         except runner.SnowmodelError as e:
-            self._cleanup(context)
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
+        finally:
+            if self._run is None:
+                self._cleanup(context)
         wm = context.window_manager
         self._timer = wm.event_timer_add(0.1, window=context.window)
         wm.progress_begin(0, 100)

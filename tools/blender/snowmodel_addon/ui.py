@@ -63,7 +63,8 @@ class SNOWMODEL_PT_snow(bpy.types.Panel):
                          icon="RESTRICT_SELECT_OFF").field = field
         col.separator()
         selected = [o for o in context.selected_objects if o.type == "MESH"]
-        col.label(text=f"Snows {len(selected)} selected" if selected else "Snows all visible meshes")
+        col.label(text=f"Snows {len(selected)} selected" if selected
+                  else "Snows all visible meshes")
         col.operator(operators.SNOWMODEL_OT_add_snow.bl_idname, icon="FREEZE")
 
 
