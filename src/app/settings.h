@@ -78,8 +78,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("maps.texel", "--texel", "Map texel size in metres (0 = automatic from --max-side)",
     s.peel.texel, Range{0, 1000});
   v("maps.max_side", "--max-side",
-    "Longest map side in texels when --texel is 0 (snow: 0 = automatic, 1024, or where the snow "
-    "would lie over 64 texels deep on those, the side that makes it 32)",
+    "Longest map side in texels when --texel is 0 (0 = automatic: 1024 for snow, 512 for "
+    "preview, or where the snow would lie over 64 texels deep on those, the side that makes "
+    "it 32)",
     s.peel.max_side, Range{0, 65536});
   v("maps.layers", "--layers", "Surfaces kept per map column, top down (L)", s.peel.layers,
     Range{1, 64});
