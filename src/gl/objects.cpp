@@ -247,6 +247,31 @@ Texture create_texture_view(const Texture& original, GLenum internal_format, int
   return view;
 }
 
+RenderTarget create_render_target(int width, int height, int samples, bool with_depth,
+                                  const char* what) {
+  RenderTarget t;
+  t.color = create_renderbuffer();
+  t.fbo = create_framebuffer();
+  const auto storage = [&](const Renderbuffer& r, GLenum format) {
+    if (samples > 1) {
+      glNamedRenderbufferStorageMultisample(r.id(), samples, format, width, height);
+    } else {
+      glNamedRenderbufferStorage(r.id(), format, width, height);
+    }
+  };
+  storage(t.color, GL_RGBA8);
+  if (with_depth) {
+    t.depth = create_renderbuffer();
+    storage(t.depth, GL_DEPTH_COMPONENT32F);
+  }
+  check_error(what);
+  glNamedFramebufferRenderbuffer(t.fbo.id(), GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, t.color.id());
+  if (with_depth)
+    glNamedFramebufferRenderbuffer(t.fbo.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, t.depth.id());
+  check_framebuffer(t.fbo, what);
+  return t;
+}
+
 void check_framebuffer(const Framebuffer& fbo, const char* what) {
   const GLenum status = glCheckNamedFramebufferStatus(fbo.id(), GL_FRAMEBUFFER);
   if (status != GL_FRAMEBUFFER_COMPLETE) {

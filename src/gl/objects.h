@@ -79,4 +79,15 @@ Texture create_texture_view(const Texture& original, GLenum internal_format, int
 /// Throws GLError naming `what` unless the framebuffer is complete.
 void check_framebuffer(const Framebuffer& fbo, const char* what);
 
+/// A framebuffer drawn into off-screen: an RGBA8 colour renderbuffer and,
+/// if asked for, a DEPTH_COMPONENT32F one.
+struct RenderTarget {
+  Renderbuffer color, depth;
+  Framebuffer fbo;
+};
+/// A complete RenderTarget of width x height pixels, multisampled when
+/// `samples` > 1. Throws GLError naming `what` (GL_OUT_OF_MEMORY included).
+RenderTarget create_render_target(int width, int height, int samples, bool with_depth,
+                                  const char* what);
+
 }  // namespace snow::gl

@@ -32,24 +32,6 @@ void on_key(GLFWwindow* window, int key, int /*scancode*/, int action, int /*mod
 
 }  // namespace
 
-/// The headless preview's frame: colour and depth renderbuffers.
-struct Surface::Offscreen {
-  gl::Renderbuffer color, depth;
-  gl::Framebuffer fbo;
-
-  Offscreen(int width, int height) {
-    color = gl::create_renderbuffer();
-    depth = gl::create_renderbuffer();
-    fbo = gl::create_framebuffer();
-    glNamedRenderbufferStorage(color.id(), GL_RGBA8, width, height);
-    glNamedRenderbufferStorage(depth.id(), GL_DEPTH_COMPONENT32F, width, height);
-    gl::check_error("headless preview: allocating the framebuffer");
-    glNamedFramebufferRenderbuffer(fbo.id(), GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color.id());
-    glNamedFramebufferRenderbuffer(fbo.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id());
-    gl::check_framebuffer(fbo, "headless preview framebuffer");
-  }
-};
-
 Surface::Surface(const ViewerOptions& options, Input* input) {
   gl::ContextOptions context_options;
   if (options.headless) {
@@ -70,7 +52,8 @@ Surface::Surface(const ViewerOptions& options, Input* input) {
     glfwSetKeyCallback(window_, on_key);
     glfwSwapInterval(options.frames > 0 ? 0 : 1);
   } else {
-    offscreen_ = std::make_unique<Offscreen>(options.width, options.height);
+    offscreen_ = std::make_unique<gl::RenderTarget>(gl::create_render_target(
+        options.width, options.height, 1, true, "headless preview framebuffer"));
     size_ = {options.width, options.height};
   }
   // Headless, the panel is drawn only into a --screenshot-panel.

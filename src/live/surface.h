@@ -13,7 +13,8 @@ struct GLFWwindow;
 
 namespace snow::gl {
 class Context;
-}
+struct RenderTarget;
+}  // namespace snow::gl
 
 namespace snow::live {
 
@@ -53,11 +54,10 @@ class Surface {
   void present();
 
  private:
-  struct Offscreen;
   void close_ui();
   std::unique_ptr<gl::Context> context_;
   GLFWwindow* window_ = nullptr;
-  std::unique_ptr<Offscreen> offscreen_;
+  std::unique_ptr<gl::RenderTarget> offscreen_;  // headless: the frame drawn into
   glm::ivec2 size_{0, 0};
   bool ui_ = false, renderer_ = false;  // ImGui's context; its OpenGL renderer
 };

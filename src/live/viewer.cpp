@@ -38,24 +38,10 @@ double ms_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-/// The frame drawn into `fbo` (0: the window's back buffer) as an image
-/// (rows top to bottom).
+/// The frame drawn into `fbo` (0: the window's back buffer) as an opaque
+/// image (a window's alpha is undefined).
 render::ImageRGBA8 read_frame(unsigned fbo, int width, int height) {
-  render::ImageRGBA8 image;
-  image.width = width;
-  image.height = height;
-  image.pixels.resize(size_t(width) * size_t(height) * 4);
-  std::vector<uint8_t> rows(image.pixels.size());
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo);
-  glReadBuffer(fbo ? GL_COLOR_ATTACHMENT0 : GL_BACK);
-  glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, rows.data());
-  gl::check_error("preview: reading the screenshot");
-  const size_t stride = size_t(width) * 4;
-  for (int y = 0; y < height; ++y) {
-    std::copy_n(rows.data() + size_t(height - 1 - y) * stride, stride,
-                image.pixels.data() + size_t(y) * stride);
-  }
+  render::ImageRGBA8 image = render::read_framebuffer(fbo, width, height);
   for (size_t k = 3; k < image.pixels.size(); k += 4) image.pixels[k] = 255;
   return image;
 }

@@ -366,6 +366,26 @@ void PreviewRenderer::draw(const PreviewCamera& camera, const PreviewSettings& s
   gl::check_error("preview: drawing");
 }
 
+ImageRGBA8 read_framebuffer(unsigned fbo, int width, int height) {
+  ImageRGBA8 image;
+  image.width = width;
+  image.height = height;
+  image.pixels.resize(size_t(width) * size_t(height) * 4);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo);
+  glReadBuffer(fbo ? GL_COLOR_ATTACHMENT0 : GL_BACK);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, image.pixels.data());
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+  gl::check_error("reading the image back");
+  // GL rows run bottom to top; images top to bottom.
+  const size_t row = size_t(width) * 4;
+  for (int y = 0; y < height / 2; ++y) {
+    std::swap_ranges(image.pixels.begin() + y * row, image.pixels.begin() + (y + 1) * row,
+                     image.pixels.begin() + (height - 1 - y) * row);
+  }
+  return image;
+}
+
 ImageRGBA8 render_preview(const Scene& scene, const std::vector<TriMesh>& extra,
                           const glm::vec4& extra_color, PreviewSettings settings) {
   return render_preview(scene, extra, std::vector<glm::vec4>{extra_color}, settings);
@@ -405,32 +425,12 @@ ImageRGBA8 render_preview(const Scene& scene, const std::vector<TriMesh>& extra,
             std::to_string(samples) + " sample(s)");
 
   // Draw target (multisampled when samples > 1) and a plain resolve target.
-  gl::Renderbuffer color = gl::create_renderbuffer();
-  gl::Renderbuffer depth = gl::create_renderbuffer();
-  gl::Framebuffer fbo = gl::create_framebuffer();
-  if (samples > 1) {
-    glNamedRenderbufferStorageMultisample(color.id(), samples, GL_RGBA8, w, h);
-    glNamedRenderbufferStorageMultisample(depth.id(), samples, GL_DEPTH_COMPONENT32F, w, h);
-  } else {
-    glNamedRenderbufferStorage(color.id(), GL_RGBA8, w, h);
-    glNamedRenderbufferStorage(depth.id(), GL_DEPTH_COMPONENT32F, w, h);
-  }
-  gl::check_error("preview: allocating the framebuffer");
-  glNamedFramebufferRenderbuffer(fbo.id(), GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color.id());
-  glNamedFramebufferRenderbuffer(fbo.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id());
-  gl::check_framebuffer(fbo, "preview framebuffer");
-
-  gl::Renderbuffer resolved_color;
-  gl::Framebuffer resolved;
-  if (samples > 1) {
-    resolved_color = gl::create_renderbuffer();
-    glNamedRenderbufferStorage(resolved_color.id(), GL_RGBA8, w, h);
-    gl::check_error("preview: allocating the resolve buffer");
-    resolved = gl::create_framebuffer();
-    glNamedFramebufferRenderbuffer(resolved.id(), GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER,
-                                   resolved_color.id());
-    gl::check_framebuffer(resolved, "preview resolve framebuffer");
-  }
+  const gl::RenderTarget target =
+      gl::create_render_target(w, h, samples, true, "preview framebuffer");
+  const gl::Framebuffer& fbo = target.fbo;
+  gl::RenderTarget resolved;
+  if (samples > 1)
+    resolved = gl::create_render_target(w, h, 1, false, "preview resolve framebuffer");
 
   // The target stores sRGB-encoded values, so the background goes in as is.
   const GLfloat background[4] = {settings.background.r, settings.background.g,
@@ -448,27 +448,12 @@ ImageRGBA8 render_preview(const Scene& scene, const std::vector<TriMesh>& extra,
 
   GLuint read_fbo = fbo.id();
   if (samples > 1) {
-    glBlitNamedFramebuffer(fbo.id(), resolved.id(), 0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT,
+    glBlitNamedFramebuffer(fbo.id(), resolved.fbo.id(), 0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT,
                            GL_NEAREST);
-    read_fbo = resolved.id();
+    read_fbo = resolved.fbo.id();
   }
-  ImageRGBA8 image;
-  image.width = w;
-  image.height = h;
-  image.pixels.resize(static_cast<size_t>(w) * h * 4);
-  glBindFramebuffer(GL_FRAMEBUFFER, read_fbo);
-  glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, image.pixels.data());
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  gl::check_error("preview: reading the image back");
-
-  // GL rows run bottom to top; images top to bottom.
-  const size_t row = static_cast<size_t>(w) * 4;
-  for (int y = 0; y < h / 2; ++y) {
-    std::swap_ranges(image.pixels.begin() + y * row, image.pixels.begin() + (y + 1) * row,
-                     image.pixels.begin() + (h - 1 - y) * row);
-  }
-  return image;
+  return read_framebuffer(read_fbo, w, h);
 }
 
 }  // namespace snow::render

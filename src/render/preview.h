@@ -95,6 +95,11 @@ class PreviewRenderer {
   std::unique_ptr<Gpu> gpu_;
 };
 
+/// The colour buffer of framebuffer `fbo` (0: the window's back buffer),
+/// width x height pixels from the origin, as an image (rows top to bottom).
+/// Needs a current context; throws GLError on GL trouble.
+ImageRGBA8 read_framebuffer(unsigned fbo, int width, int height);
+
 /// Renders `scene` plus `extra` meshes (each in `extra_color`, linear RGBA;
 /// e.g. white for snow) into a settings.width x settings.height image with
 /// the camera of settings.view framing the bounds of both. Needs a current
