@@ -86,6 +86,9 @@ struct SnowView::Gpu {
   int stride = 1;
   float lift = 0.002f;  // metres
   mutable size_t drawn = 0;
+  // The last draw's chunk index ranges (kept to spare an allocation a frame).
+  mutable std::vector<GLsizei> counts;
+  mutable std::vector<const void*> offsets;
 };
 
 SnowView::SnowView() : gpu_(std::make_unique<Gpu>()) {}
@@ -251,8 +254,10 @@ void SnowView::draw(const render::PreviewCamera& camera, int viewport_height,
 
   // Chunks in view, each at its level of detail.
   const glm::mat4 view_projection = camera.view_projection();
-  std::vector<GLsizei> counts;
-  std::vector<const void*> offsets;
+  std::vector<GLsizei>& counts = g.counts;
+  std::vector<const void*>& offsets = g.offsets;
+  counts.clear();
+  offsets.clear();
   g.drawn = 0;
   for (const Gpu::Chunk& c : g.chunks) {
     const glm::vec3 hi = c.hi + glm::vec3(0.0f, std::max(max_snow, 0.0f), 0.0f);

@@ -403,9 +403,9 @@ ViewerReport Viewer::run() {
   view_settings_.quad_pixels = plan::preview_quad_pixels(gl_);
   target_ = surface.target();
   GLFWwindow* window = surface.window();
-  // Headless, the panel is drawn for --screenshot-panel only.
-  if (!window) panel_ = options_.panel && options_.screenshot_panel;
+  // Headless, the surface sets up the UI for a --screenshot-panel only.
   ui_ = surface.has_ui();
+  if (!window) panel_ = ui_;
 
   // GL objects go before the context, also when a frame throws.
   struct GlGuard {
