@@ -22,6 +22,7 @@
 #include "app/run_gl.h"
 #include "app/settings.h"
 #include "app/snow_warnings.h"
+#include "app/snow_weather.h"
 #include "core/error.h"
 #include "core/fs.h"
 #include "core/heap.h"
@@ -51,6 +52,11 @@ struct SnowOptions {
   std::string preview;
   std::string config;
   bool snow_only = false;
+  std::string resume;          // maps folder of an earlier --weather run to continue from
+  std::string sequence;        // folder for snow_0001.glb, ... every `every` hours
+  double every = 0.0;          // hours between sequence frames
+  bool sequence_maps = false;  // the sequence's maps too (maps_0001, ...)
+  bool depth_given = false, steps_given = false, wind_given = false;
   PipelineSettings settings;
 };
 
@@ -202,6 +208,24 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
   check_output_paths(o.input, snow_outputs(o, format));
   check_stabilize_settings(s.stabilize);
   fall_directions(s.coverage);  // checks the coverage settings
+  if (s.weather.empty()) {
+    for (const auto& [given, flag] :
+         {std::pair{!o.resume.empty(), "--resume"}, {!o.sequence.empty(), "--sequence"}}) {
+      if (given) throw InputError(std::string(flag) + " needs --weather");
+    }
+  } else {
+    for (const auto& [given, flag] : {std::pair{o.depth_given, "--depth"},
+                                      {o.steps_given, "--steps"},
+                                      {o.wind_given, "--wind"}}) {
+      if (given) throw InputError(std::string(flag) + " and --weather both give the snowfall");
+    }
+  }
+  if (!o.sequence.empty() && !(o.every > 0.0)) {
+    throw InputError("--sequence needs --every HOURS (> 0)");
+  }
+  if (!o.sequence.empty() && fs::exists(o.sequence) && !fs::is_directory(o.sequence)) {
+    throw IOError("cannot write the sequence to " + o.sequence + ": a file is there");
+  }
   return s;
 }
 
@@ -210,7 +234,7 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
 /// file's frame (`frame`); the maps stay in metres, +Y up.
 void write_outputs(const SnowOptions& o, MeshFormat format, CombinedInputPtr combined_input,
                    const std::vector<SnowPatch>& metre_patches, const FileFrame& frame,
-                   const SnowMaps& maps, const SnowResult& snow) {
+                   const SnowMaps& maps, const SnowResult& snow, const MapsSnowpack* snowpack) {
   std::vector<SnowPatch> file_patches;
   if (!frame.is_identity()) {
     file_patches = metre_patches;
@@ -231,7 +255,7 @@ void write_outputs(const SnowOptions& o, MeshFormat format, CombinedInputPtr com
     log_info("wrote " + o.snow_output);
   }
   if (!o.maps_dir.empty()) {
-    write_maps(o.maps_dir, maps, &snow.coverage, &snow.depth);
+    write_maps(o.maps_dir, maps, &snow.coverage, &snow.depth, snowpack);
     log_info("wrote maps to " + o.maps_dir);
   }
   nlohmann::json record;
@@ -243,7 +267,8 @@ void write_outputs(const SnowOptions& o, MeshFormat format, CombinedInputPtr com
 
 /// The closing summary line.
 void log_summary(const StageClock& clock, size_t triangles_in,
-                 const std::vector<SnowPatch>& patches, const SnowResult& snow, bool gl_used) {
+                 const std::vector<SnowPatch>& patches, const SnowResult& snow, bool gl_used,
+                 bool weather) {
   size_t triangles_out = 0;
   for (const SnowPatch& p : patches) triangles_out += p.mesh.indices.size() / 3;
   const auto [timing, total] = clock.report();
@@ -254,13 +279,22 @@ void log_summary(const StageClock& clock, size_t triangles_in,
                   snow.drifted, snow.drifted_in, snow.drifted_out);
     drift = part;
   }
-  char summary[640];
+  char balance[320];
+  if (weather) {
+    std::snprintf(balance, sizeof balance,
+                  "%.3f m^3 (%.3f fell fresh; settling and melt shrink it: the water balance is "
+                  "on the weather line)",
+                  snow.volume, snow.fallen_volume);
+  } else {
+    std::snprintf(balance, sizeof balance, "%.3f m^3 (fell %.3f, lost off the domain %.3f%s)",
+                  snow.volume, snow.fallen_volume, snow.lost_volume, drift.c_str());
+  }
+  char summary[800];
   std::snprintf(summary, sizeof summary,
                 "summary: %.2f s (%s); peak memory %.0f MiB; triangles in %zu, snow out %zu in %zu "
-                "patches; snow %.3f m^3 (fell %.3f, lost off the domain %.3f%s); coverage by %s; "
-                "stabilizer %d passes on the %s%s",
+                "patches; snow %s; coverage by %s; stabilizer %d passes on the %s%s",
                 total, timing.c_str(), peak_memory_mib(), triangles_in, triangles_out,
-                patches.size(), snow.volume, snow.fallen_volume, snow.lost_volume, drift.c_str(),
+                patches.size(), balance,
                 snow.coverage_method == CoverageMethod::CpuRays         ? "rays on the CPU"
                 : snow.coverage_method == CoverageMethod::GpuRays       ? "rays on the GPU"
                 : snow.coverage_method == CoverageMethod::CpuShadowMaps ? "shadow maps on the CPU"
@@ -330,6 +364,43 @@ void log_wind(const PipelineSettings& s) {
   log_info(line);
 }
 
+/// The depth (m) of the snow on open ground, for the even cover beyond
+/// the detail maps of a weather run: the median over layer 0's texels of
+/// the ground object `object`.
+float open_ground_depth(const SnowMaps& maps, const std::vector<float>& depth, int object) {
+  std::vector<float> values;
+  for (size_t t = 0; t < maps.grid.texels(); ++t) {
+    if (maps.object[t] == object) values.push_back(depth[t]);
+  }
+  if (values.empty()) return 0.0f;
+  auto middle = values.begin() + ptrdiff_t(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+/// Writes a weather run's sequence frame `number` into o.sequence: the snow
+/// (snow_0001.glb, ...) in the file's frame, and with --sequence-maps its
+/// maps (maps_0001, ...).
+void write_sequence_frame(const SnowOptions& o, int number, double hour, const SnowPack& pack,
+                          const SnowMaps& maps, const Scene& scene, const PolygonizeSettings& poly,
+                          const FileFrame& frame) {
+  char stem[32];
+  std::snprintf(stem, sizeof stem, "%04d", number);
+  std::vector<SnowPatch> patches = polygonize(maps, pack.depth, scene, poly);
+  for (SnowPatch& p : patches) to_file_frame(p.mesh, frame);
+  const fs::path dir(o.sequence);
+  write_snow_meshes(patches, dir / (std::string("snow_") + stem + ".glb"), MeshFormat::Glb);
+  if (o.sequence_maps) {
+    std::vector<std::vector<float>> storage;
+    const MapsSnowpack snowpack = maps_snowpack(pack, hour, storage);
+    write_maps(dir / (std::string("maps_") + stem), maps, nullptr, &pack.depth, &snowpack);
+  }
+  char line[160];
+  std::snprintf(line, sizeof line, "sequence: frame %d at hour %.6g, %zu snow patches", number,
+                hour, patches.size());
+  log_info(line);
+}
+
 void log_plan(const plan::RunPlan& run) {
   for (const std::string& line : plan::describe(run)) log_debug(line);
 }
@@ -337,8 +408,13 @@ void log_plan(const plan::RunPlan& run) {
 void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   MeshFormat format = MeshFormat::Glb;
   PipelineSettings s = checked_settings(o, format);
+  std::optional<WeatherRun> weather = weather_run_of(s);
+  if (weather) {
+    s.accumulate.fall_depth = weather_fall_depth(*weather);
+    if (!o.sequence.empty()) fs::create_directories(o.sequence);
+  }
   const FileFrame frame = file_frame(s);
-  log_wind(s);
+  if (!weather) log_wind(s);
   StageClock clock;
 
   // The machine's facts; the renderer is probed beside the load.
@@ -434,6 +510,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_if_deep_in_texels(maps, s.accumulate.fall_depth);
 
   SnowResult snow;
+  std::optional<SnowPack> pack;  // a weather run's
+  double pack_hour = 0.0;        // hours of weather behind it
   clock.run("snowfall", [&] {
     const auto context = gl.stage_context(run.gl.software);
     std::optional<CoverageBvh> bvh;
@@ -445,17 +523,35 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
                          std::to_string(snow_scene.triangle_count()) + " triangles");
       }
     }
-    snow = accumulate(map_scene, maps, s.coverage, s.stabilize, s.accumulate, gl_after_peel,
-                      receives, bvh ? &*bvh : nullptr);
+    if (!weather) {
+      snow = accumulate(map_scene, maps, s.coverage, s.stabilize, s.accumulate, gl_after_peel,
+                        receives, bvh ? &*bvh : nullptr);
+      return;
+    }
+    pack = starting_pack(o.resume, maps, pack_hour);
+    const double first_hour = pack_hour;
+    if (!o.sequence.empty()) {
+      weather->every_hours = o.every;
+      weather->on_frame = [&](int number, double hour, const SnowPack& now) {
+        write_sequence_frame(o, number, first_hour + hour, now, maps, map_scene, s.polygonize,
+                             frame);
+      };
+    }
+    snow = accumulate_weather(map_scene, maps, s.coverage, s.stabilize, *weather, *pack,
+                              gl_after_peel, receives, bvh ? &*bvh : nullptr);
+    pack_hour += weather->steps.back().hour + weather->steps.back().hours;
   });
   warn_if_unsettled(snow, s.stabilize);
   warn_if_sheltered(map_scene, maps, snow.coverage);
 
   std::vector<SnowPatch> patches;
   clock.run("polygonize", [&] { patches = polygonize(maps, snow.depth, map_scene, s.polygonize); });
-  if (detail && s.accumulate.fall_depth > 0.0f) {
+  const float far_depth =
+      pack ? open_ground_depth(maps, pack->depth, detail ? detail->ground.object : -1)
+           : s.accumulate.fall_depth;
+  if (detail && far_depth > 0.0f) {
     const SceneObject& g = snow_scene.objects[size_t(detail->ground.object)];
-    patches.push_back(far_ground_snow(detail->ground, detail->region, s.accumulate.fall_depth,
+    patches.push_back(far_ground_snow(detail->ground, detail->region, far_depth,
                                       2.0f * maps.grid.texel, kFarGroundSeam,
                                       s.polygonize.bottom_offset, "snow/" + g.name + "/beyond"));
     snow.fallen_volume += patches.back().depth_volume;
@@ -463,7 +559,11 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   }
   if (patches.empty()) warn_no_patches(snow, s.polygonize);
   clock.run("export", [&] {
-    write_outputs(o, format, std::move(combined_input), patches, frame, maps, snow);
+    std::vector<std::vector<float>> storage;
+    std::optional<MapsSnowpack> snowpack;
+    if (pack) snowpack = maps_snowpack(*pack, pack_hour, storage);
+    write_outputs(o, format, std::move(combined_input), patches, frame, maps, snow,
+                  snowpack ? &*snowpack : nullptr);
   });
   if (!o.preview.empty()) {
     clock.run("preview", [&] {
@@ -472,7 +572,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
     });
     log_info("wrote " + o.preview);
   }
-  log_summary(clock, triangles_in, patches, snow, gl.used());
+  log_summary(clock, triangles_in, patches, snow, gl.used(), pack.has_value());
 }
 
 }  // namespace
@@ -502,8 +602,27 @@ void register_snow(CLI::App& app, const GlobalOptions& global) {
                   "Write height, coverage and depth maps (EXR, PNG, manifest.json) here");
   cmd->add_option("--preview", o->preview, "Write a before/after preview PNG (3/4 and top views)");
   add_settings_options(*cmd, o->settings, global.help_all);
+  cmd->add_option("--resume", o->resume,
+                  "Continue a --weather run from the --maps folder an earlier one wrote (same "
+                  "scene and maps settings)")
+      ->group("Weather over time");
+  cmd->add_option("--sequence", o->sequence,
+                  "Write the snow every --every hours of a --weather run into this folder "
+                  "(snow_0001.glb, ...)")
+      ->group("Weather over time");
+  cmd->add_option("--every", o->every, "Hours between --sequence frames")
+      ->check(CLI::Range(1e-6, 1e6))
+      ->group("Weather over time");
+  cmd->add_flag("--sequence-maps", o->sequence_maps,
+                "Write each --sequence frame's maps too (maps_0001, ...)")
+      ->group("Weather over time");
   cmd->add_flag("--help-all", "Print this help with the developer options (backends, speed-ups)");
-  cmd->callback([o, &global] { run_snow(*o, global); });
+  cmd->callback([o, &global, cmd] {
+    o->depth_given = cmd->count("--depth") > 0;
+    o->steps_given = cmd->count("--steps") > 0;
+    o->wind_given = cmd->count("--wind") > 0;
+    run_snow(*o, global);
+  });
 }
 
 }  // namespace snow::app

@@ -38,6 +38,12 @@ struct PipelineSettings {
   std::vector<std::string> rough;       // name globs: surfaces that hold more snow
   bool keep_enclosures = false;         // keep sky domes and boxes (scene/enclosure.h)
   bool wind_transport = true;           // the wind moves fallen snow (snow/drift.h)
+  // Weather over time (snow/accumulate.h, WeatherRun).
+  std::string weather;           // weather CSV (snow/weather.h); "": one snowfall of --depth
+  float latitude = 0.0f;         // degrees, north positive (the sun's path)
+  float longitude = 0.0f;        // degrees, east positive
+  std::string start;             // UTC of the file's hour 0; "": the file's sun columns
+  glm::vec2 north{0.0f, -1.0f};  // the scene's north, world (x, z)
 };
 
 /// The values a numeric setting accepts: lo..hi, both included, every value
@@ -178,6 +184,21 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     "Let a wind above the drift threshold move the fallen snow (true/false; false: the wind "
     "only tilts the fall)",
     s.wind_transport, kNoRange);
+  // Weather over time.
+  v("weather.file", "--weather",
+    "Weather CSV, one row per time step: hour, precip_mm (water), temp_c, wind_ms, wind_from_deg, "
+    "cloud (0-1), optionally sun_elev_deg, sun_azim_deg; replaces --depth, --steps and --wind",
+    s.weather, kNoRange);
+  v("weather.latitude", "--latitude", "Latitude of the scene for the sun, degrees north",
+    s.latitude, Range{-90, 90});
+  v("weather.longitude", "--longitude", "Longitude of the scene for the sun, degrees east",
+    s.longitude, Range{-180, 180});
+  v("weather.start", "--start",
+    "UTC time of the weather file's hour 0, YYYY-MM-DDTHH:MM (the sun's position from it, "
+    "--latitude and --longitude; without it, from the file's sun columns, else no sun)",
+    s.start, kNoRange);
+  v("weather.north", "--north", "The scene's north as X,Z in world coordinates", s.north,
+    Range{-1e6, 1e6});
   v("snow.drain_edges", "--drain-edges",
     "Once snow creeps off an edge into the void, drain what will leave in one go (true/false)",
     s.stabilize.drain_edges, kNoRange);

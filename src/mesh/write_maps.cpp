@@ -167,22 +167,28 @@ std::vector<uint8_t> encode_exr(const std::vector<float>& values, int width, int
 namespace {
 /// The files of write_maps, written into the existing folder `dir`.
 void write_maps_into(const std::filesystem::path& dir, const SnowMaps& maps,
-                     const std::vector<float>* coverage, const std::vector<float>* depth);
+                     const std::vector<float>* coverage, const std::vector<float>* depth,
+                     const MapsSnowpack* snowpack);
 }  // namespace
 
 void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
-                const std::vector<float>* coverage, const std::vector<float>* depth) {
+                const std::vector<float>* coverage, const std::vector<float>* depth,
+                const MapsSnowpack* snowpack) {
   const MapGrid& g = maps.grid;
   const size_t texels = g.texels();
   const size_t total = size_t(std::max(maps.layers, 0)) * texels;
   if (maps.ground.size() != total || g.width < 1 || g.height < 1) {
     throw InputError("maps writer: the snow maps are inconsistent (arrays do not match the grid)");
   }
-  for (const auto* v : {coverage, depth}) {
+  std::vector<std::pair<std::string, const std::vector<float>*>> given = {{"coverage", coverage},
+                                                                          {"snow depth", depth}};
+  if (snowpack) {
+    for (const MapValues& v : snowpack->values) given.emplace_back(v.name, v.values);
+  }
+  for (const auto& [name, v] : given) {
     if (v && v->size() != total) {
-      throw InputError("maps writer: " + std::string(v == coverage ? "coverage" : "snow depth") +
-                       " has " + std::to_string(v->size()) + " values, the maps have " +
-                       std::to_string(total));
+      throw InputError("maps writer: " + name + " has " + std::to_string(v->size()) +
+                       " values, the maps have " + std::to_string(total));
     }
   }
   std::error_code ec;
@@ -192,8 +198,9 @@ void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
   if (!replaceable_maps_folder(dir)) {
     throw InputError(dir.string() + ": " + kNotMapsFolder);
   }
-  write_folder_atomically(
-      dir, [&](const std::filesystem::path& tmp) { write_maps_into(tmp, maps, coverage, depth); });
+  write_folder_atomically(dir, [&](const std::filesystem::path& tmp) {
+    write_maps_into(tmp, maps, coverage, depth, snowpack);
+  });
 }
 
 bool replaceable_maps_folder(const std::filesystem::path& dir) {
@@ -211,7 +218,8 @@ bool replaceable_maps_folder(const std::filesystem::path& dir) {
 namespace {
 
 void write_maps_into(const std::filesystem::path& dir, const SnowMaps& maps,
-                     const std::vector<float>* coverage, const std::vector<float>* depth) {
+                     const std::vector<float>* coverage, const std::vector<float>* depth,
+                     const MapsSnowpack* snowpack) {
   const MapGrid& g = maps.grid;
   const size_t texels = g.texels();
 
@@ -224,6 +232,11 @@ void write_maps_into(const std::filesystem::path& dir, const SnowMaps& maps,
   std::vector<Kind> kinds = {{"height", nullptr, "m", "surface height, world Y"}};
   if (coverage) kinds.push_back({"coverage", coverage, "1", "share of fall directions that reach"});
   if (depth) kinds.push_back({"depth", depth, "m", "snow depth, vertical"});
+  if (snowpack) {
+    for (const MapValues& v : snowpack->values) {
+      kinds.push_back({v.name.c_str(), v.values, v.unit.c_str(), ""});
+    }
+  }
 
   nlohmann::ordered_json files = nlohmann::ordered_json::array();
   nlohmann::ordered_json ranges = nlohmann::ordered_json::object();
@@ -283,9 +296,94 @@ void write_maps_into(const std::filesystem::path& dir, const SnowMaps& maps,
   manifest["png"] = "16-bit grey, value = png_black + sample / 65535 * (png_white - png_black)";
   manifest["ranges"] = ranges;
   manifest["files"] = files;
+  if (snowpack) {
+    manifest["snowpack"] = {{"unit", "m^3 of water"},
+                            {"fallen", snowpack->fallen},
+                            {"melted", snowpack->melted},
+                            {"lost", snowpack->lost},
+                            {"hour", snowpack->hour}};
+  }
   write_text_atomically(dir / "manifest.json", manifest.dump(2) + "\n");
 }
 
 }  // namespace
+
+MapsSnowpack read_maps_snowpack(const std::filesystem::path& dir, const SnowMaps& maps,
+                                const std::vector<std::string>& names,
+                                std::vector<std::vector<float>>& values) {
+  const std::string where = "resume: " + dir.string();
+  std::ifstream in(dir / "manifest.json", std::ios::binary);
+  if (!in) throw InputError(where + ": no manifest.json (give a folder written by --maps)");
+  const nlohmann::json m = nlohmann::json::parse(in, nullptr, false);
+  if (!m.is_object() || m.value("format", nlohmann::json()) != "snowmodel-maps") {
+    throw InputError(where + ": manifest.json is not a snowmodel maps manifest");
+  }
+  if (!m.contains("snowpack") || !m["snowpack"].is_object()) {
+    throw InputError(where + ": the maps hold no snowpack (write them from a --weather run)");
+  }
+  const MapGrid& g = maps.grid;
+  try {
+    const float texel = m.at("texel_size").get<float>();
+    const float ox = m.at("origin").at(0).get<float>(), oz = m.at("origin").at(1).get<float>();
+    const int width = m.at("width").get<int>(), height = m.at("height").get<int>();
+    const int layers = m.at("map_layers").get<int>();
+    const float tolerance = 1e-3f * g.texel;
+    if (width != g.width || height != g.height || layers != maps.layers ||
+        std::abs(texel - g.texel) > 1e-6f * g.texel || std::abs(ox - g.origin.x) > tolerance ||
+        std::abs(oz - g.origin.y) > tolerance) {
+      char line[400];
+      std::snprintf(line, sizeof line,
+                    "%s: written for %d x %d texels of %.6g m at (%.6g, %.6g) with %d layers; this "
+                    "run's maps are %d x %d of %.6g m at (%.6g, %.6g) with %d layers (same scene, "
+                    "--texel or --max-side, --layers and --margin as the first run)",
+                    where.c_str(), width, height, double(texel), double(ox), double(oz), layers,
+                    g.width, g.height, double(g.texel), double(g.origin.x), double(g.origin.y),
+                    maps.layers);
+      throw InputError(line);
+    }
+    MapsSnowpack out;
+    const nlohmann::json& p = m["snowpack"];
+    out.fallen = p.at("fallen").get<double>();
+    out.melted = p.at("melted").get<double>();
+    out.lost = p.at("lost").get<double>();
+    out.hour = p.at("hour").get<double>();
+    const size_t texels = g.texels();
+    values.assign(names.size(), std::vector<float>(size_t(maps.layers) * texels, 0.0f));
+    for (const nlohmann::json& f : m.at("files")) {
+      const auto name = std::find(names.begin(), names.end(), f.at("kind").get<std::string>());
+      const int l = f.at("layer").get<int>();
+      if (name == names.end() || l < 0 || l >= maps.layers) continue;
+      const std::filesystem::path path = dir / f.at("exr").get<std::string>();
+      if (path.filename() != path.lexically_relative(dir)) {
+        throw InputError(where + ": a file name leaves the folder: " + path.string());
+      }
+      float* image = nullptr;
+      int w = 0, h = 0;
+      const char* err = nullptr;
+      if (LoadEXR(&image, &w, &h, path.c_str(), &err) != TINYEXR_SUCCESS) {
+        const std::string message = err ? err : "unknown error";
+        if (err) FreeEXRErrorMessage(err);
+        throw IOError(where + ": cannot read " + path.filename().string() + ": " + message);
+      }
+      std::vector<float>& out_values = values[size_t(name - names.begin())];
+      if (w == g.width && h == g.height) {
+        // LoadEXR gives RGBA; a single-channel image fills each with Y.
+        for (size_t t = 0; t < texels; ++t) {
+          const float v = image[4 * t];
+          out_values[size_t(l) * texels + t] = std::isfinite(v) && v > 0.0f ? v : 0.0f;
+        }
+      }
+      std::free(image);
+      if (w != g.width || h != g.height) {
+        throw InputError(where + ": " + path.filename().string() + " is " + std::to_string(w) +
+                         " x " + std::to_string(h) + ", the manifest says " +
+                         std::to_string(width) + " x " + std::to_string(height));
+      }
+    }
+    return out;
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(where + ": manifest.json lacks a field: " + e.what());
+  }
+}
 
 }  // namespace snow

@@ -12,6 +12,20 @@
 
 namespace snow {
 
+/// More per layer texel values for write_maps: layer<l>_<name>.exr and .png.
+struct MapValues {
+  std::string name;                            // file name part: letters, digits, '_'
+  const std::vector<float>* values = nullptr;  // maps' layout; 0 written where no surface
+  std::string unit;                            // as the manifest states it
+};
+/// The snowpack's part of a maps folder (--weather runs; what --resume reads
+/// back): its values per layer texel and its mass balance (m^3 of water).
+struct MapsSnowpack {
+  std::vector<MapValues> values;
+  double fallen = 0.0, melted = 0.0, lost = 0.0;
+  double hour = 0.0;  // hours of weather behind the state
+};
+
 /// Writes the folder `dir` (its parents created if missing) holding, for
 /// every layer l that holds a surface somewhere: layer<l>_height.exr (world
 /// Y in metres, NaN where no surface), layer<l>_coverage.exr (in [0,1], 0
@@ -32,9 +46,20 @@ namespace snow {
 /// written by write_maps (replaceable_maps_folder); anything else is an
 /// InputError. Throws InputError for arrays of the wrong size, IOError when
 /// the folder or a file cannot be written.
+/// With `snowpack`, its values too (each layer of each) and a "snowpack"
+/// record in the manifest.
 void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
                 const std::vector<float>* coverage = nullptr,
-                const std::vector<float>* depth = nullptr);
+                const std::vector<float>* depth = nullptr, const MapsSnowpack* snowpack = nullptr);
+
+/// Reads back what write_maps wrote with a snowpack, for `maps`: the values
+/// named `names` (each in the maps' layout, 0 on layers the folder has no
+/// file of) and the mass balance. Throws InputError naming the folder and
+/// the mismatch where it was written for another grid (size, texel, origin,
+/// layers) or holds no snowpack, IOError where a file cannot be read.
+MapsSnowpack read_maps_snowpack(const std::filesystem::path& dir, const SnowMaps& maps,
+                                const std::vector<std::string>& names,
+                                std::vector<std::vector<float>>& values);
 
 /// True when write_maps may replace what is at `dir`: nothing, an empty
 /// folder, or a folder with a manifest.json whose "format" is

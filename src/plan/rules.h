@@ -287,6 +287,15 @@ inline double cornice_length(double transport) {
   return std::min(kMaxCornice, kCorniceShareOfTransport * std::max(transport, 0.0));
 }
 
+// --- Weather over time (snow/accumulate.h, accumulate_weather) ---
+
+/// A weather step's snowfall reuses the last coverage while its wind
+/// differs from that coverage's by at most this (m/s, vector difference):
+/// a coverage is most of a step's time, and hourly winds wander.
+constexpr double kWeatherWindChange = 0.5;  // m/s
+/// The sun's shadow is reused while the sun moved by at most this.
+constexpr double kWeatherSunChange = 1.0;  // degrees
+
 // --- Live preview ---
 
 /// The live preview's automatic --snow-stride draws its snow grid with at

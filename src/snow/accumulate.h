@@ -4,13 +4,16 @@
 // With snow on snow, the lying snow is drawn into the shadow maps every few
 // steps, so drifts shade what lies behind them (Fearing 2000, section 4).
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "scene/scene.h"
 #include "snow/coverage.h"
 #include "snow/drift.h"
 #include "snow/maps.h"
+#include "snow/snowpack.h"
 #include "snow/stabilize.h"
+#include "snow/weather.h"
 
 namespace snow {
 
@@ -78,5 +81,40 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
                       const StabilizeSettings& stabilize, const AccumulateSettings& settings,
                       const plan::GlFacts& gl, const std::vector<uint8_t>& receives = {},
                       CoverageBvh* bvh = nullptr);
+
+/// A snowfall driven by a weather series (snow/weather.h): per step, the
+/// snow part of the precipitation falls with the step's wind (its coverage,
+/// and above the drift threshold its transport), the stabilizer settles it,
+/// then the pack melts in the sun (one shadow map towards the sun: the
+/// coverage with one direction) and settles (snow/snowpack.h).
+struct WeatherRun {
+  std::vector<WeatherStep> steps;   // read_weather's
+  double start_unix = NAN;          // UTC seconds of hour 0; NaN: the sun from the steps' own
+                                    // sun columns (none there: no sunshine)
+  double latitude_deg = 0.0;        // -90..90, north positive
+  double longitude_deg = 0.0;       // -180..180, east positive
+  Compass compass;                  // the scene's north
+  SnowKind kind = SnowKind::Fresh;  // its drift threshold (drift_for_wind)
+  bool wind_transport = true;       // false: the wind only tilts the fall
+  /// Called at the end of each step whose end reaches the next multiple of
+  /// `every_hours` (> 0; 0: never) after the series' first hour, with the
+  /// frame's number (1, 2, ...), the hour and the pack (its depth is what
+  /// lies); and at the last step.
+  double every_hours = 0.0;
+  std::function<void(int frame, double hour, const SnowPack& pack)> on_frame;
+};
+
+/// Runs `run` from `pack` (an empty pack, SnowPack::empty, or a resumed
+/// one; on return the pack at the end). `coverage` gives the fall's other
+/// settings (directions, flutter, fall speed, seed); its wind is each
+/// step's. SnowResult's depth is the pack's, its coverage the last
+/// snowfall's, fallen_volume the fresh snow's volume (m^3) and volume what
+/// lies; melt and settling change volumes, so the balance is the pack's, in
+/// water (lost_volume stays 0). Throws as accumulate.
+SnowResult accumulate_weather(const Scene& scene, const SnowMaps& maps,
+                              const CoverageSettings& coverage, const StabilizeSettings& stabilize,
+                              const WeatherRun& run, SnowPack& pack, const plan::GlFacts& gl,
+                              const std::vector<uint8_t>& receives = {},
+                              CoverageBvh* bvh = nullptr);
 
 }  // namespace snow
