@@ -529,17 +529,23 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
       return;
     }
     pack = starting_pack(o.resume, maps, pack_hour);
-    const double first_hour = pack_hour;
+    if (pack_hour > weather->steps.front().hour + 1e-9) {
+      char line[200];
+      std::snprintf(line, sizeof line,
+                    "--resume: the maps hold %.6g hours of weather; the file starts at hour %.6g "
+                    "(its hours go on from the first run's)",
+                    pack_hour, weather->steps.front().hour);
+      throw InputError(line);
+    }
     if (!o.sequence.empty()) {
       weather->every_hours = o.every;
       weather->on_frame = [&](int number, double hour, const SnowPack& now) {
-        write_sequence_frame(o, number, first_hour + hour, now, maps, map_scene, s.polygonize,
-                             frame);
+        write_sequence_frame(o, number, hour, now, maps, map_scene, s.polygonize, frame);
       };
     }
     snow = accumulate_weather(map_scene, maps, s.coverage, s.stabilize, *weather, *pack,
                               gl_after_peel, receives, bvh ? &*bvh : nullptr);
-    pack_hour += weather->steps.back().hour + weather->steps.back().hours;
+    pack_hour = weather->steps.back().hour + weather->steps.back().hours;
   });
   warn_if_unsettled(snow, s.stabilize);
   warn_if_sheltered(map_scene, maps, snow.coverage);

@@ -96,10 +96,11 @@ struct WeatherRun {
   Compass compass;                  // the scene's north
   SnowKind kind = SnowKind::Fresh;  // its drift threshold (drift_for_wind)
   bool wind_transport = true;       // false: the wind only tilts the fall
-  /// Called at the end of each step whose end reaches the next multiple of
-  /// `every_hours` (> 0; 0: never) after the series' first hour, with the
-  /// frame's number (1, 2, ...), the hour and the pack (its depth is what
-  /// lies); and at the last step.
+  /// With every_hours > 0, called at the end of each step whose end (the
+  /// steps' hours count from 0) reaches a multiple n * every_hours not
+  /// reached before, with that n, and after the last step (n + 1 where it
+  /// ends past n * every_hours), with the hour and the pack (its depth is
+  /// what lies).
   double every_hours = 0.0;
   std::function<void(int frame, double hour, const SnowPack& pack)> on_frame;
 };

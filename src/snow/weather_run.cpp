@@ -65,8 +65,7 @@ void run_weather(AnyStabilizer& stabilizer, CoverageRenderer& shadows, const Sno
   std::optional<glm::vec2> fall_wind;   // the wind of result.coverage
   std::optional<glm::vec3> shadow_sun;  // the sun of `sunlit`
   std::vector<float> sunlit;
-  const double first_hour = run.steps.front().hour;
-  int frame = 0;
+  int frame = int(std::floor(run.steps.front().hour / std::max(run.every_hours, 1e-9) + 1e-9));
   Progress progress("weather", double(run.steps.size()));
   for (size_t n = 0; n < run.steps.size(); ++n) {
     const WeatherStep& step = run.steps[n];
@@ -117,12 +116,16 @@ void run_weather(AnyStabilizer& stabilizer, CoverageRenderer& shadows, const Sno
       lit.sunlit = &sunlit;
     }
     melt_and_settle(pack, maps, step, rain, lit);
-    const double end = step.hour + step.hours - first_hour;
+    // Frames at the multiples of every_hours since hour 0 (so a resumed
+    // run's frames go on counting), and at the end.
+    const double end = step.hour + step.hours;
     const bool last = n + 1 == run.steps.size();
-    if (run.on_frame &&
-        (last || (run.every_hours > 0.0 && end >= double(frame + 1) * run.every_hours - 1e-9))) {
-      ++frame;
-      run.on_frame(frame, step.hour + step.hours, pack);
+    if (run.on_frame && run.every_hours > 0.0) {
+      const int due = int(std::floor(end / run.every_hours + 1e-9));
+      if (due > frame || last) {
+        frame = last && end > double(due) * run.every_hours + 1e-9 ? due + 1 : due;
+        run.on_frame(frame, end, pack);
+      }
     }
     progress.update(double(n + 1));
   }
