@@ -528,15 +528,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
                         receives, bvh ? &*bvh : nullptr);
       return;
     }
-    pack = starting_pack(o.resume, maps, pack_hour);
-    if (pack_hour > weather->steps.front().hour + 1e-9) {
-      char line[200];
-      std::snprintf(line, sizeof line,
-                    "--resume: the maps hold %.6g hours of weather; the file starts at hour %.6g "
-                    "(its hours go on from the first run's)",
-                    pack_hour, weather->steps.front().hour);
-      throw InputError(line);
-    }
+    pack = starting_pack(o.resume, maps, weather->steps.front().hour, pack_hour);
     if (!o.sequence.empty()) {
       weather->every_hours = o.every;
       weather->on_frame = [&](int number, double hour, const SnowPack& now) {

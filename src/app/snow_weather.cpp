@@ -2,6 +2,7 @@
 #include "app/snow_weather.h"
 
 #include <cmath>
+#include <cstdio>
 
 #include "core/error.h"
 #include "snow/cohesion.h"
@@ -37,12 +38,21 @@ float weather_fall_depth(const WeatherRun& run) {
   return float(std::min(depth, 1000.0));
 }
 
-SnowPack starting_pack(const std::string& resume_dir, const SnowMaps& maps, double& hour) {
+SnowPack starting_pack(const std::string& resume_dir, const SnowMaps& maps, double first_hour,
+                       double& hour) {
   SnowPack pack = SnowPack::empty(maps);
   hour = 0.0;
   if (resume_dir.empty()) return pack;
   std::vector<std::vector<float>> values;
   const MapsSnowpack read = read_maps_snowpack(resume_dir, maps, kPackNames, values);
+  if (read.hour > first_hour + 1e-9) {
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "--resume: the maps hold %.6g hours of weather; the file starts at hour %.6g "
+                  "(its hours go on from the first run's)",
+                  read.hour, first_hour);
+    throw InputError(line);
+  }
   pack.depth = std::move(values[0]);
   pack.swe = std::move(values[1]);
   pack.albedo = std::move(values[2]);

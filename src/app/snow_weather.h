@@ -24,9 +24,11 @@ std::optional<WeatherRun> weather_run_of(const PipelineSettings& settings);
 float weather_fall_depth(const WeatherRun& run);
 
 /// The pack to start from: empty, or read back from a maps folder written by
-/// an earlier --weather run of the same scene and grid (InputError naming the
+/// an earlier --weather run of the same scene and grid, whose hours of weather
+/// end no later than `first_hour`, the file's first (InputError naming the
 /// mismatch otherwise). `hour` receives the hours behind it.
-SnowPack starting_pack(const std::string& resume_dir, const SnowMaps& maps, double& hour);
+SnowPack starting_pack(const std::string& resume_dir, const SnowMaps& maps, double first_hour,
+                       double& hour);
 
 /// The snowpack's part of a maps folder (values point into `storage`).
 MapsSnowpack maps_snowpack(const SnowPack& pack, double hour,
