@@ -609,7 +609,7 @@ void register_snow(CLI::App& app, const GlobalOptions& global) {
                   "(snow_0001.glb, ...)")
       ->group("Weather over time");
   cmd->add_option("--every", o->every, "Hours between --sequence frames")
-      ->check(CLI::Range(1e-6, 1e6))
+      ->check(CLI::Range(0.01, 1e6))
       ->group("Weather over time");
   cmd->add_flag("--sequence-maps", o->sequence_maps,
                 "Write each --sequence frame's maps too (maps_0001, ...)")

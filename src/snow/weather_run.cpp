@@ -65,7 +65,9 @@ void run_weather(AnyStabilizer& stabilizer, CoverageRenderer& shadows, const Sno
   std::optional<glm::vec2> fall_wind;   // the wind of result.coverage
   std::optional<glm::vec3> shadow_sun;  // the sun of `sunlit`
   std::vector<float> sunlit;
-  int frame = int(std::floor(run.steps.front().hour / std::max(run.every_hours, 1e-9) + 1e-9));
+  // The last frame written before the first step (a resumed run's).
+  int frame =
+      run.every_hours > 0.0 ? int(std::floor(run.steps.front().hour / run.every_hours + 1e-9)) : 0;
   Progress progress("weather", double(run.steps.size()));
   for (size_t n = 0; n < run.steps.size(); ++n) {
     const WeatherStep& step = run.steps[n];
