@@ -181,6 +181,11 @@ TEST(WeatherCli, MalformedWeatherFilesAreOneLineErrors) {
                                        " --depth 0.2 --weather " + q(dir / "bad.csv"));
   EXPECT_EQ(both.code, 2);
   EXPECT_NE(both.output.find("--depth and --weather"), std::string::npos) << both.output;
+  // The live preview does not play weather yet: it says so, not ignores it.
+  const test::CommandResult preview =
+      run("preview " + q(scene) + " --headless --frames 1 --weather " + q(dir / "bad.csv"));
+  EXPECT_EQ(preview.code, 2);
+  EXPECT_NE(preview.output.find("does not play weather"), std::string::npos) << preview.output;
   fs::remove_all(dir);
 }
 

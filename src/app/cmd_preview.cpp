@@ -81,6 +81,9 @@ void run_preview(PreviewOptions o) {
                    : o.overlay == "depth"  ? live::Overlay::Depth
                                            : live::Overlay::None;
   check_settings(s);  // flags and --config alike
+  if (!s.weather.empty()) {
+    throw InputError("the preview does not play weather files yet: use snowmodel snow --weather");
+  }
   resolve_snow_settings(s);
   check_viewer_options(v);
   v.frame = file_frame(s);
