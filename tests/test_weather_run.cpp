@@ -9,19 +9,13 @@
 
 #include "scene/builder.h"
 #include "snow/accumulate.h"
-#include "snow/peel.h"
-#include "snow/reference/peel_ref.h"
 #include "support/gl_context.h"
+#include "support/maps.h"
 
 namespace snow {
 namespace {
 
-SnowMaps maps_of(const Scene& scene, float texel) {
-  PeelSettings peel;
-  peel.texel = texel;
-  peel.margin = 0.0f;
-  return reference::peel_layers(scene, make_grid(scene.bounds, peel), peel.layers);
-}
+using test::maps_of;
 
 CoverageSettings few_directions() {
   CoverageSettings c;

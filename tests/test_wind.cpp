@@ -16,20 +16,14 @@
 #include "snow/coverage.h"
 #include "snow/drift.h"
 #include "snow/exposure.h"
-#include "snow/peel.h"
 #include "snow/reference/coverage_ref.h"
-#include "snow/reference/peel_ref.h"
 #include "snow/stabilize_cpu.h"
+#include "support/maps.h"
 
 namespace snow {
 namespace {
 
-SnowMaps maps_of(const Scene& scene, float texel) {
-  PeelSettings peel;
-  peel.texel = texel;
-  peel.margin = 0.0f;
-  return reference::peel_layers(scene, make_grid(scene.bounds, peel), peel.layers);
-}
+using test::maps_of;
 
 // The column (j * width + i) under world (x, z).
 size_t column_at(const MapGrid& g, float x, float z) {

@@ -70,12 +70,12 @@ SnowPack starting_pack(const std::string& resume_dir, const SnowMaps& maps, doub
 
 MapsSnowpack maps_snowpack(const SnowPack& pack, double hour,
                            std::vector<std::vector<float>>& storage) {
-  storage = {pack.swe, pack.albedo, pack.density(), pack.load()};
+  storage = {pack.density(), pack.load()};
   MapsSnowpack out;
-  out.values = {{"swe", &storage[0], "m of water"},
-                {"albedo", &storage[1], "1"},
-                {"density", &storage[2], "kg/m^3"},
-                {"load", &storage[3], "kN/m^2"}};
+  out.values = {{"swe", &pack.swe, "m of water"},
+                {"albedo", &pack.albedo, "1"},
+                {"density", &storage[0], "kg/m^3"},
+                {"load", &storage[1], "kN/m^2"}};
   out.fallen = pack.fallen;
   out.melted = pack.melted;
   out.lost = pack.lost;

@@ -7,7 +7,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <optional>
 #include <string>
 
 #include "core/error.h"
@@ -39,12 +38,7 @@ SnowResult accumulate(const Scene& scene, const SnowMaps& maps, const CoverageSe
   }
 
   SnowResult result;
-  std::optional<CoverageRenderer> shadows;
-  if (bvh) {
-    shadows.emplace(scene, std::move(*bvh), gl);
-  } else {
-    shadows.emplace(scene, gl, &maps);
-  }
+  std::unique_ptr<CoverageRenderer> shadows = CoverageRenderer::make(scene, maps, gl, bvh);
   result.coverage = shadows->compute(maps, coverage);
   result.coverage_method = shadows->timings().method;
   mask_coverage(maps, receives, result.coverage);

@@ -151,6 +151,10 @@ class CoverageRenderer {
   CoverageRenderer(const Scene& scene, const plan::GlFacts& gl, const SnowMaps* maps = nullptr);
   /// The same with the BVH built ahead (build_coverage_bvh over `scene`).
   CoverageRenderer(const Scene& scene, CoverageBvh bvh, const plan::GlFacts& gl);
+  /// The one or the other: with `bvh` where it is given (taken from), else
+  /// building its own for `maps`.
+  static std::unique_ptr<CoverageRenderer> make(const Scene& scene, const SnowMaps& maps,
+                                                const plan::GlFacts& gl, CoverageBvh* bvh);
   ~CoverageRenderer();
   CoverageRenderer(const CoverageRenderer&) = delete;
   CoverageRenderer& operator=(const CoverageRenderer&) = delete;

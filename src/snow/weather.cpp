@@ -24,9 +24,6 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
 
-constexpr size_t kMaxFileBytes = size_t(64) << 20;
-constexpr size_t kMaxRows = 1000000;
-
 // Rain melt: the heat rain at T C brings, c_w * T per kg, melts c_w * T / L_f
 // kg of ice (specific heat of water J/(kg K), latent heat of fusion J/kg).
 constexpr double kWaterHeatCapacity = 4186.0;
@@ -245,8 +242,8 @@ std::vector<WeatherStep> parse_weather(const std::string& text, const std::strin
       fail(line_no, std::to_string(fields.size()) + " field" + (fields.size() == 1 ? "" : "s") +
                         ", the header names " + std::to_string(field_count));
     }
-    if (steps.size() == kMaxRows)
-      fail(line_no, "more than " + std::to_string(kMaxRows) + " weather rows");
+    if (steps.size() == kMaxWeatherRows)
+      fail(line_no, "more than " + std::to_string(kMaxWeatherRows) + " weather rows");
     std::fill(values, values + kColumnCount, double(NAN));
     for (size_t f = 0; f < field_count; ++f) {
       const ColumnSpec& spec = kColumns[column_of[f]];
@@ -304,7 +301,7 @@ std::vector<WeatherStep> read_weather(const std::filesystem::path& path) {
   char buf[1 << 16];
   while (in.read(buf, sizeof buf) || in.gcount() > 0) {
     text.append(buf, size_t(in.gcount()));
-    if (text.size() > kMaxFileBytes)
+    if (text.size() > kMaxWeatherFileBytes)
       throw InputError(name + ": over 64 MiB, too large for a weather file");
   }
   if (in.bad()) throw IOError("cannot read " + name + ": read error");

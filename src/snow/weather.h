@@ -47,6 +47,10 @@ constexpr float kDiffuseShare = 0.15f;            // diffuse radiation on a leve
                                                   // of the top-of-atmosphere radiation x
                                                   // sin(elevation), clear sky
 
+/// The largest weather file read: bytes, and rows (an hourly century).
+constexpr size_t kMaxWeatherFileBytes = size_t(64) << 20;
+constexpr size_t kMaxWeatherRows = 1000000;
+
 /// One row of the weather file: the weather of the step from `hour` to the
 /// next row's hour (the last row lasts as long as the row before it, 1 h
 /// when it is the only one).
@@ -72,8 +76,8 @@ struct WeatherStep {
 /// Throws InputError with one line naming the file, the line number and the
 /// column for a missing column, a field that is not a number, a value out of
 /// range (the ranges above), hours not strictly increasing, or no rows;
-/// IOError when the file cannot be read. Files over 64 MiB or 1,000,000 rows
-/// are refused.
+/// IOError when the file cannot be read. Files over kMaxWeatherFileBytes or
+/// kMaxWeatherRows rows are refused.
 std::vector<WeatherStep> read_weather(const std::filesystem::path& path);
 /// The same from the file's text; `name` stands for the file in errors.
 std::vector<WeatherStep> parse_weather(const std::string& text, const std::string& name);

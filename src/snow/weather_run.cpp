@@ -146,12 +146,7 @@ SnowResult accumulate_weather(const Scene& scene, const SnowMaps& maps,
     throw InputError("weather: the snowpack does not match the maps");
   }
   SnowResult result;
-  std::optional<CoverageRenderer> shadows;
-  if (bvh) {
-    shadows.emplace(scene, std::move(*bvh), gl);
-  } else {
-    shadows.emplace(scene, gl, &maps);
-  }
+  std::unique_ptr<CoverageRenderer> shadows = CoverageRenderer::make(scene, maps, gl, bvh);
   result.coverage.assign(maps.ground.size(), 0.0f);
   const bool on_cpu = result.stabilized_on_cpu =
       stabilizes_on_cpu(stabilize, StabilizerUse::Batch, gl);

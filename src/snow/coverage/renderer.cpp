@@ -367,6 +367,13 @@ CoverageRenderer::CoverageRenderer(const Scene& scene, CoverageBvh bvh, const pl
     : impl_(std::make_unique<Impl>(scene, std::move(bvh))) {
   impl_->gl = gl;
 }
+
+std::unique_ptr<CoverageRenderer> CoverageRenderer::make(const Scene& scene, const SnowMaps& maps,
+                                                         const plan::GlFacts& gl,
+                                                         CoverageBvh* bvh) {
+  if (bvh) return std::make_unique<CoverageRenderer>(scene, std::move(*bvh), gl);
+  return std::make_unique<CoverageRenderer>(scene, gl, &maps);
+}
 CoverageRenderer::~CoverageRenderer() = default;
 
 const CoverageRenderer::Timings& CoverageRenderer::timings() const { return impl_->timings; }
