@@ -181,11 +181,48 @@ TEST(WeatherCli, MalformedWeatherFilesAreOneLineErrors) {
                                        " --depth 0.2 --weather " + q(dir / "bad.csv"));
   EXPECT_EQ(both.code, 2);
   EXPECT_NE(both.output.find("--depth and --weather"), std::string::npos) << both.output;
-  // The live preview does not play weather yet: it says so, not ignores it.
+  // The live preview reads the file the same way.
   const test::CommandResult preview =
       run("preview " + q(scene) + " --headless --frames 1 --weather " + q(dir / "bad.csv"));
   EXPECT_EQ(preview.code, 2);
-  EXPECT_NE(preview.output.find("does not play weather"), std::string::npos) << preview.output;
+  EXPECT_NE(preview.output.find(cases[4].expected), std::string::npos) << preview.output;
+  EXPECT_EQ(std::count(preview.output.begin(), preview.output.end(), '\n'), 1) << preview.output;
+  const test::CommandResult rate =
+      run("preview " + q(scene) + " --headless --frames 1 --fall-rate 0.1 --weather " +
+          q(save_weather(dir / "good.csv", 0, 4)));
+  EXPECT_EQ(rate.code, 2);
+  EXPECT_NE(rate.output.find("--fall-rate and --weather"), std::string::npos) << rate.output;
+  fs::remove_all(dir);
+}
+
+// The live preview plays the first 16 hours headless (an hour a frame) and
+// writes its maps: the same water fell as in the batch job's run of those
+// hours, the manifest holds the hours played, and the batch job resumes
+// from the preview's maps.
+TEST(WeatherCli, ThePreviewPlaysAWeatherFileAndTheBatchJobResumesFromIt) {
+  const fs::path dir = temp_dir("preview");
+  const fs::path scene = save_yard(dir);
+  const std::string sun = " --start 2026-03-10T00:00 --latitude 47 --longitude 8" + kFast;
+  const fs::path first = save_weather(dir / "first.csv", 0, 16);
+  const test::CommandResult preview =
+      run("preview " + q(scene) + " --headless --frames 20 --frame-time 0.5 --weather-speed 2 " +
+          "--size 64x48 --maps " + q(dir / "live") + " --weather " + q(first) + sun);
+  ASSERT_EQ(preview.code, 0) << preview.output;
+  EXPECT_NE(preview.output.find("preview: weather hour 16;"), std::string::npos) << preview.output;
+  ASSERT_EQ(
+      run("snow " + q(scene) + " --maps " + q(dir / "batch") + " --weather " + q(first) + sun).code,
+      0);
+  const nlohmann::json live = manifest(dir / "live")["snowpack"],
+                       batch = manifest(dir / "batch")["snowpack"];
+  EXPECT_DOUBLE_EQ(live["hour"].get<double>(), 16.0);
+  EXPECT_NEAR(live["fallen"].get<double>(), batch["fallen"].get<double>(),
+              1e-6 * batch["fallen"].get<double>());
+  EXPECT_NEAR(map_sum(dir / "live", "swe"), map_sum(dir / "batch", "swe"),
+              0.03 * map_sum(dir / "batch", "swe"));
+  const test::CommandResult resumed =
+      run("snow " + q(scene) + " -o " + q(dir / "out.glb") + " --resume " + q(dir / "live") +
+          " --weather " + q(save_weather(dir / "second.csv", 16, 24)) + sun);
+  EXPECT_EQ(resumed.code, 0) << resumed.output;
   fs::remove_all(dir);
 }
 

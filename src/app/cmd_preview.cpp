@@ -9,6 +9,7 @@
 #include "app/filters.h"
 #include "app/settings.h"
 #include "app/snow_warnings.h"
+#include "app/snow_weather.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "live/viewer.h"
@@ -27,6 +28,7 @@ struct PreviewOptions {
   std::string overlay = "snow";
   PipelineSettings settings;
   live::ViewerOptions viewer;
+  std::vector<std::string> snowfall_given;  // the flags given that --weather replaces
 };
 
 // The ranges of the preview's own numeric options (app/settings.h, Range):
@@ -44,6 +46,7 @@ constexpr Range kAddEvery{0, 100000};
 constexpr Range kPassesPerFrame{0, 100000};
 constexpr Range kSnowStride{0, 4096};
 constexpr Range kFlakes{0, 1e6};
+constexpr Range kWeatherSpeed{0, 1e4};
 
 /// `help` with the range appended, as visit_settings' options print it.
 std::string ranged(const char* help, const Range& range) {
@@ -64,6 +67,7 @@ void check_viewer_options(const live::ViewerOptions& v) {
   check_range("--passes-per-frame", "", v.sim.passes_per_frame, kPassesPerFrame);
   check_range("--snow-stride", "", v.snow_stride, kSnowStride);
   check_range("--flakes", "", v.view.flakes, kFlakes);
+  check_range("--weather-speed", "", v.sim.weather_speed, kWeatherSpeed);
 }
 
 void run_preview(PreviewOptions o) {
@@ -81,8 +85,11 @@ void run_preview(PreviewOptions o) {
                    : o.overlay == "depth"  ? live::Overlay::Depth
                                            : live::Overlay::None;
   check_settings(s);  // flags and --config alike
-  if (!s.weather.empty()) {
-    throw InputError("the preview does not play weather files yet: use snowmodel snow --weather");
+  std::optional<WeatherRun> weather = weather_run_of(s);
+  if (weather) {
+    if (!o.snowfall_given.empty())
+      throw InputError(o.snowfall_given.front() + " and --weather both give the snowfall");
+    s.accumulate.fall_depth = weather_fall_depth(*weather);
   }
   resolve_snow_settings(s);
   check_viewer_options(v);
@@ -98,6 +105,7 @@ void run_preview(PreviewOptions o) {
   v.sim.snow_on_snow_every = s.accumulate.snow_on_snow_every;
   v.sim.snow_kind = snow_kind_from_name(s.snow_kind);
   v.sim.wind_transport = s.wind_transport;
+  if (weather) v.sim.weather = std::make_shared<const WeatherRun>(std::move(*weather));
   v.mesh = s.polygonize;
   // Fail before the window opens.
   std::vector<OutputPath> outputs;
@@ -143,6 +151,13 @@ void run_preview(PreviewOptions o) {
       static_cast<long long>(r.frames), r.seconds, r.fps, r.stabilize_ms, r.scene_ms, r.snow_ms,
       r.snow_triangles, r.volume, r.fallen);
   log_info(summary);
+  if (v.sim.weather) {
+    std::snprintf(summary, sizeof summary,
+                  "preview: weather hour %.6g; water %.4g m^3 fell as snow, %.4g melted, %.4g left "
+                  "the maps, %.4g lies",
+                  r.hour, r.water_fallen, r.water_melted, r.water_lost, r.water_lying);
+    log_info(summary);
+  }
 }
 
 }  // namespace
@@ -214,6 +229,12 @@ void register_preview(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--overlay", o->overlay, "Snow drawn as: snow, coverage or depth")
       ->check(CLI::IsMember({"snow", "coverage", "depth"}))
       ->capture_default_str();
+  cmd->add_option("--weather-speed", v.sim.weather_speed,
+                  ranged("Hours of a --weather file played per simulated second (--frame-time "
+                         "per frame)",
+                         kWeatherSpeed))
+      ->capture_default_str()
+      ->group("Weather over time");
   cmd->add_flag("--headless", v.headless,
                 "No window: draw off-screen on a headless GL context (needs --frames; for "
                 "benchmarks, screenshots and exports on machines without a display)");
@@ -221,8 +242,11 @@ void register_preview(CLI::App& app, const GlobalOptions& global) {
   cmd->add_flag("!--no-panel", v.panel, "Hide the settings panel (H shows it)");
   add_settings_options(*cmd, o->settings, global.help_all);
   cmd->add_flag("--help-all", "Print this help with the developer options (backends, speed-ups)");
-  cmd->callback([o, &global] {
+  cmd->callback([o, &global, cmd] {
     o->viewer.gl_backend = global.gl_backend;
+    for (const char* flag : {"--depth", "--wind", "--fall-rate"}) {
+      if (cmd->count(flag) > 0) o->snowfall_given.push_back(flag);
+    }
     run_preview(*o);
   });
 }

@@ -30,9 +30,4 @@ float weather_fall_depth(const WeatherRun& run);
 SnowPack starting_pack(const std::string& resume_dir, const SnowMaps& maps, double first_hour,
                        double& hour);
 
-/// The snowpack's part of a maps folder (its values point into `pack` and
-/// `storage`, which must outlive it).
-MapsSnowpack maps_snowpack(const SnowPack& pack, double hour,
-                           std::vector<std::vector<float>>& storage);
-
 }  // namespace snow::app

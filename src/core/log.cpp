@@ -54,7 +54,7 @@ double Progress::seconds() const {
 }
 
 void Progress::update(double done) {
-  if (finished_ || g_level < LogLevel::Info) return;
+  if (finished_ || g_level < LogLevel::Info || t_quiet) return;
   const double fraction = done / total_ < 0 ? 0 : (done / total_ > 1 ? 1 : done / total_);
   const int percent = static_cast<int>(fraction * 100);
   const auto now = std::chrono::steady_clock::now();
@@ -82,7 +82,7 @@ void Progress::update(double done) {
 void Progress::finish() {
   if (finished_) return;
   finished_ = true;
-  if (g_level < LogLevel::Info) return;
+  if (g_level < LogLevel::Info || t_quiet) return;
   if (tty_) std::fprintf(stderr, "\r\033[K");
   std::fprintf(stderr, "%-12s done in %.2f s\n", (stage_ + ":").c_str(), seconds());
 }

@@ -40,6 +40,7 @@ class QuietThread {
 
 /// Progress of one stage. update() may be called often; output is throttled.
 /// Destruction (or finish()) closes the line and logs the stage time.
+/// Prints nothing on a thread a QuietThread quiets.
 class Progress {
  public:
   Progress(std::string stage, double total);

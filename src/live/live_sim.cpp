@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "gl/gl.h"
+#include "live/live_weather.h"
 #include "snow/accumulate.h"
 #include "snow/drift.h"
 #include "snow/stabilize_cpu.h"
@@ -61,6 +62,9 @@ void check(const LiveSettings& s) {
     throw InputError("stabilizer passes per frame must be between 0 and 100000");
   if (s.add_every < 0 || s.add_every > 100000)
     throw InputError("snow addition interval must be between 0 (automatic) and 100000 frames");
+  if (!(s.weather_speed >= 0.0f) || s.weather_speed > 1e4f)
+    throw InputError("weather speed must be between 0 and 10000 hours per simulated second");
+  if (s.weather && s.weather->steps.empty()) throw InputError("weather: no steps");
   if (s.snow_on_snow_every < 0)
     throw InputError("snow-on-snow interval must be 0 (off) or a positive number of frames");
   fall_directions(s.coverage);             // throws InputError for bad coverage settings
@@ -92,6 +96,7 @@ void LiveSim::peel() {
   lost_before_ = 0;
   frame_ = 0;
   last_ = StabilizeResult();
+  restart_weather();
 }
 
 void LiveSim::make_stabilizer(const SnowMaps& maps, const std::vector<float>* depth) {
@@ -152,6 +157,10 @@ int LiveSim::add_every() const {
 
 void LiveSim::step() {
   timings_.coverage = 0;
+  if (weather_) {
+    step_weather();
+    return;
+  }
   const int every = settings_.snow_on_snow_every;
   if (every > 0 && frame_ > 0 && frame_ % every == 0 && fallen_depth_ < settings_.total_depth) {
     const std::vector<float> lying = depth();
@@ -181,8 +190,13 @@ void LiveSim::step() {
     }
   }
   timings_.add = seconds_since(start);
-  start = Clock::now();
-  if (amount > 0.0f || !last_.converged) {
+  relax(amount > 0.0f);
+  ++frame_;
+}
+
+void LiveSim::relax(bool fell) {
+  const auto start = Clock::now();
+  if (fell || !last_.converged) {
     last_ = on_either(cpu_.get(), gpu_.get(),
                       [&](auto& s) { return s.iterate(settings_.passes_per_frame); });
     upload_depth(maps_);
@@ -192,19 +206,23 @@ void LiveSim::step() {
             " s, stabilize " + std::to_string(timings_.stabilize) + " s (" +
             std::to_string(last_.route_passes) + " routing, " + std::to_string(last_.iterations) +
             " relaxation passes)");
-  ++frame_;
+}
+
+void LiveSim::replace_depth(const std::vector<float>& depth) {
+  lost_before_ += on_either(cpu_.get(), gpu_.get(), [](auto& s) { return s.lost_volume(); });
+  on_either(cpu_.get(), gpu_.get(), [&](auto& s) { s.set_depth(depth); });
+  upload_depth(maps_);
 }
 
 void LiveSim::reset() {
-  const std::vector<float> none(maps_.ground.size(), 0.0f);
-  on_either(cpu_.get(), gpu_.get(), [&](auto& s) { s.set_depth(none); });
-  upload_depth(maps_);
+  replace_depth(std::vector<float>(maps_.ground.size(), 0.0f));
   fallen_depth_ = 0;
   fallen_volume_ = 0;
   lost_before_ = 0;
   frame_ = 0;
   last_ = StabilizeResult();
-  if (settings_.snow_on_snow_every > 0) compute_coverage(nullptr);
+  restart_weather();
+  if (!weather_ && settings_.snow_on_snow_every > 0) compute_coverage(nullptr);
 }
 
 void LiveSim::apply(const LiveSettings& settings) {
@@ -225,7 +243,9 @@ void LiveSim::apply(const LiveSettings& settings) {
       lost_before_ += lost;  // the new stabilizer counts from 0
       last_.converged = false;
     }
+    if (old.weather != settings.weather) reset();  // the series starts over (or stops)
     if (!same(old.coverage, settings.coverage)) {
+      if (weather_) weather_->stepper->forget();
       if (settings_.snow_on_snow_every > 0) {
         const std::vector<float> lying = depth();
         compute_coverage(&lying);

@@ -16,11 +16,13 @@
 #include "snow/coverage.h"
 #include "snow/maps.h"
 #include "snow/peel.h"
+#include "snow/snowpack.h"
 #include "snow/stabilize.h"
 
 namespace snow {
 class CpuStabilizer;
-}
+struct WeatherRun;
+}  // namespace snow
 
 namespace snow::live {
 
@@ -42,6 +44,15 @@ struct LiveSettings {
   SnowKind snow_kind = SnowKind::Fresh;  // its drift threshold (snow::drift_for_wind)
   bool wind_transport = true;            // a wind above the threshold moves each addition's snow
                                          // (snow/drift.h) before the passes
+  // A weather series to play (snow/weather.h; its kind and wind_transport
+  // apply): each frame moves its clock weather_speed * frame_time hours on
+  // and applies the steps that end by then, as the batch job's --weather
+  // does (snow/weather_step.h), the stabilizer's passes spread over frames.
+  // Replaces fall_rate, total_depth (which then only sizes the view),
+  // add_every, snow_on_snow_every and the coverage's wind. Null: a steady
+  // snowfall.
+  std::shared_ptr<const WeatherRun> weather;
+  float weather_speed = 1.0f;  // weather hours per simulated second (0..1e4)
 };
 
 /// Wall seconds of the work of the last frame, by stage (with glFinish at
@@ -77,8 +88,13 @@ class LiveSim {
   /// with the lying snow when snow_on_snow_every says so, and runs passes_per_frame stabilizer
   /// passes (none once nothing falls and the last passes converged: the snow is at rest).
   void step();
-  /// Removes all snow; the fallen depth and frame count restart at 0.
+  /// Removes all snow; the fallen depth and frame count restart at 0 (a
+  /// weather series from its first hour).
   void reset();
+  /// Weather series only: plays forward to `hour` (clamped to the series'
+  /// span), applying the steps that end by then at once; an earlier hour
+  /// restarts from the first step and plays forward to it.
+  void seek(double hour);
   /// Applies new settings: re-peels (and resets the snow) when the maps'
   /// settings changed, recomputes the coverage when the coverage settings
   /// changed, rebuilds the stabilizer with the current snow when its
@@ -107,6 +123,24 @@ class LiveSim {
   const StabilizeResult& last_result() const { return last_; }
   const LiveTimings& timings() const { return timings_; }
 
+  /// Whether snow falls now (a steady snowfall short of its total, or the
+  /// weather step under way holding snow).
+  bool snowing() const;
+  /// The wind the flakes fall in now (m/s, x and z).
+  glm::vec2 fall_wind() const;
+  /// Weather series only (null otherwise): the snowpack as of the last step
+  /// applied, the clock (hours of the series) and the step under way (null
+  /// past the end).
+  const SnowPack* snowpack() const;
+  double weather_hour() const;
+  const WeatherStep* weather_now() const;
+  /// Hours of weather behind snowpack(): the end of the last step applied.
+  double snowpack_hour() const;
+  /// Weather series: turns what the passes moved since the last step into
+  /// the snowpack's water (account_moves; a full readback), so snowpack()
+  /// holds the snow drawn.
+  void sync_snowpack();
+
   float fallen_depth() const { return fallen_depth_; }  // metres fallen on open flat ground
   /// m^3 of fresh snow added, and drifted in over the maps' border.
   double fallen_volume() const { return fallen_volume_; }
@@ -124,6 +158,17 @@ class LiveSim {
   /// The CPU stabilizer's depth (on `maps`) into cpu_depth_ (nothing for
   /// the GPU's).
   void upload_depth(const SnowMaps& maps);
+  /// The stabilizer's depth replaced by `depth` (what it lost so far kept in
+  /// lost_before_) and uploaded for drawing.
+  void replace_depth(const std::vector<float>& depth);
+  /// The relaxation passes of a frame (none when nothing fell and the last
+  /// passes converged); `fell`: snow was added this frame.
+  void relax(bool fell);
+  // The weather series' part (live_weather.cpp).
+  struct Weather;
+  void restart_weather();
+  void step_weather();
+  void play_weather_to(double hour);
 
   const Scene& scene_;
   plan::GlFacts gl_;
@@ -144,6 +189,7 @@ class LiveSim {
   int64_t frame_ = 0;
   uint64_t maps_version_ = 0;
   uint64_t coverage_version_ = 0;
+  std::unique_ptr<Weather> weather_;  // set while settings_.weather is
 };
 
 }  // namespace snow::live

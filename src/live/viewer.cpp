@@ -14,7 +14,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
+#include <optional>
 
 #include "core/error.h"
 #include "core/log.h"
@@ -28,6 +30,7 @@
 #include "plan/rules.h"
 #include "render/image.h"
 #include "render/preview.h"
+#include "snow/accumulate.h"
 
 namespace snow::live {
 namespace {
@@ -73,10 +76,16 @@ float snow_rise(float total_depth) {
 
 /// Writes the maps with the coverage and the current snow like the batch
 /// job's --maps.
-std::string export_maps(const LiveSim& sim, const ViewerOptions& options, const std::string& path) {
+/// With a weather series, the snowpack too (what `snow --resume` continues
+/// from).
+std::string export_maps(LiveSim& sim, const ViewerOptions& options, const std::string& path) {
   check_output_paths(options.input, {{"maps", path, OutputKind::Maps, {}, {}}});
+  sim.sync_snowpack();
   const std::vector<float> depth = sim.depth();
-  write_maps(path, sim.maps(), &sim.coverage(), &depth);
+  std::vector<std::vector<float>> storage;
+  std::optional<MapsSnowpack> pack;
+  if (sim.snowpack()) pack = maps_snowpack(*sim.snowpack(), sim.snowpack_hour(), storage);
+  write_maps(path, sim.maps(), &sim.coverage(), &depth, pack ? &*pack : nullptr);
   return "wrote maps to " + path;
 }
 
@@ -113,6 +122,11 @@ class Viewer {
   }
   void handle_input(GLFWwindow* window, int fb_height);
   void draw_panel(double frame_ms);
+  /// The weather series' lines and its time slider (drag to an hour: later
+  /// plays forward to it, earlier replays from the start).
+  void draw_weather_panel();
+  /// The panel's export, maps and screenshot buttons and the status line.
+  void draw_outputs();
   // Draws the scene, the snow and the panel into the window's back buffer,
   // and writes the screenshots due (`last`: the run's last frame).
   void draw_frame(int fb_w, int fb_h, bool last, double frame_ms);
@@ -148,6 +162,8 @@ class Viewer {
   char screenshot_path_[512] = {};
   char maps_path_[512] = {};
   bool export_snow_only_ = false;
+  float scrub_hour_ = 0.0f;                // the time slider's hour while it is dragged
+  double lying_ = 0.0, lying_hour_ = NAN;  // m^3 of water lying, as of the snowpack's hour
   std::string status_;
 };
 
@@ -238,8 +254,9 @@ void Viewer::draw_panel(double frame_ms) {
   ImGui::SetNextWindowSize(ImVec2(440, 0), ImGuiCond_FirstUseEver);
   ImGui::Begin("snowmodel preview");
   ImGui::PushItemWidth(-170.0f);
-  const LiveSim& sim = *sim_;
+  LiveSim& sim = *sim_;
   const SnowMaps& maps = sim.maps();
+  const bool weather = sim.snowpack() != nullptr;
   ImGui::Text("%.1f fps (%.1f ms per frame)", frame_ms > 0 ? 1000.0 / frame_ms : 0.0, frame_ms);
   ImGui::Text("stabilize %.1f ms  add %.1f ms", sim.timings().stabilize * 1e3,
               sim.timings().add * 1e3);
@@ -248,11 +265,16 @@ void Viewer::draw_panel(double frame_ms) {
               sim.timings().last_coverage);
   ImGui::Text("maps %d x %d x %d, texel %.3f m, grid stride %d", maps.grid.width, maps.grid.height,
               maps.layers, maps.grid.texel, stride_);
-  ImGui::Text("snow %.3f m^3 lying, %.3f fallen, %.3f lost", sim.last_result().volume,
-              sim.fallen_volume(), sim.last_result().lost_volume);
-  ImGui::Text("fallen %.3f of %.3f m, frame %lld, residual %.2g m", sim.fallen_depth(),
-              sim.settings().total_depth, static_cast<long long>(sim.frame()),
-              sim.last_result().residual);
+  if (weather) {
+    ImGui::Text("frame %lld, residual %.2g m", static_cast<long long>(sim.frame()),
+                sim.last_result().residual);
+  } else {
+    ImGui::Text("snow %.3f m^3 lying, %.3f fallen, %.3f lost", sim.last_result().volume,
+                sim.fallen_volume(), sim.last_result().lost_volume);
+    ImGui::Text("fallen %.3f of %.3f m, frame %lld, residual %.2g m", sim.fallen_depth(),
+                sim.settings().total_depth, static_cast<long long>(sim.frame()),
+                sim.last_result().residual);
+  }
 
   ImGui::Separator();
   if (ImGui::Button(paused_ ? "Resume" : "Pause")) paused_ = !paused_;
@@ -265,11 +287,19 @@ void Viewer::draw_panel(double frame_ms) {
 
   // Cheap settings apply at once; the others when the widget is released.
   bool cheap = false;
-  cheap |= ImGui::SliderFloat("fall rate m/s", &pending_.fall_rate, 0.0f, 0.5f, "%.3f");
-  cheap |= ImGui::SliderFloat("total depth m", &pending_.total_depth, 0.0f, 2.0f, "%.2f");
+  if (weather) {
+    draw_weather_panel();
+    cheap |= ImGui::SliderFloat("speed h/s", &pending_.weather_speed, 0.0f, 100.0f, "%.2f",
+                                ImGuiSliderFlags_Logarithmic);
+  } else {
+    cheap |= ImGui::SliderFloat("fall rate m/s", &pending_.fall_rate, 0.0f, 0.5f, "%.3f");
+    cheap |= ImGui::SliderFloat("total depth m", &pending_.total_depth, 0.0f, 2.0f, "%.2f");
+  }
   cheap |= ImGui::SliderInt("passes/frame", &pending_.passes_per_frame, 0, 256);
-  cheap |= ImGui::SliderInt("add snow every (0 auto)", &pending_.add_every, 0, 60);
-  cheap |= ImGui::SliderInt("snow on snow every", &pending_.snow_on_snow_every, 0, 300);
+  if (!weather) {
+    cheap |= ImGui::SliderInt("add snow every (0 auto)", &pending_.add_every, 0, 60);
+    cheap |= ImGui::SliderInt("snow on snow every", &pending_.snow_on_snow_every, 0, 300);
+  }
   if (cheap) apply_pending();
 
   ImGui::Separator();
@@ -281,11 +311,14 @@ void Viewer::draw_panel(double frame_ms) {
   glm::vec2& wind = pending_.coverage.wind;
   float speed = glm::length(wind);
   if (speed > 0.0f) wind_heading_deg_ = glm::degrees(std::atan2(wind.y, wind.x));
-  bool wind_changed = ImGui::SliderFloat("wind m/s", &speed, 0.0f, kMaxWind, "%.1f");
-  release |= ImGui::IsItemDeactivatedAfterEdit();
-  wind_changed |=
-      ImGui::SliderFloat("wind towards deg", &wind_heading_deg_, -180.0f, 180.0f, "%.0f");
-  release |= ImGui::IsItemDeactivatedAfterEdit();
+  bool wind_changed = false;
+  if (!weather) {  // the weather's wind is each step's
+    wind_changed |= ImGui::SliderFloat("wind m/s", &speed, 0.0f, kMaxWind, "%.1f");
+    release |= ImGui::IsItemDeactivatedAfterEdit();
+    wind_changed |=
+        ImGui::SliderFloat("wind towards deg", &wind_heading_deg_, -180.0f, 180.0f, "%.0f");
+    release |= ImGui::IsItemDeactivatedAfterEdit();
+  }
   if (wind_changed) {
     const float a = glm::radians(wind_heading_deg_);
     wind = std::min(speed, kMaxWind) * glm::vec2(std::cos(a), std::sin(a));
@@ -320,12 +353,21 @@ void Viewer::draw_panel(double frame_ms) {
     sync_view();
   }
 
+  draw_outputs();
+  ImGui::TextDisabled(
+      "drag: orbit, right/shift-drag: pan, wheel: zoom, F frame, T top,"
+      " space pause, S step, R reset, H panel");
+  ImGui::PopItemWidth();
+  ImGui::End();
+}
+
+void Viewer::draw_outputs() {
   ImGui::Separator();
   ImGui::InputText("##export", export_path_, sizeof export_path_);
   ImGui::SameLine();
   if (ImGui::Button("Export")) {
     try {
-      set_status(export_snow(scene_, sim, options_, export_path_, export_snow_only_));
+      set_status(export_snow(scene_, *sim_, options_, export_path_, export_snow_only_));
     } catch (const Error& e) {
       set_status(std::string("export failed: ") + e.what());
     }
@@ -335,7 +377,7 @@ void Viewer::draw_panel(double frame_ms) {
   ImGui::SameLine();
   if (ImGui::Button("Export maps")) {
     try {
-      set_status(export_maps(sim, options_, maps_path_));
+      set_status(export_maps(*sim_, options_, maps_path_));
     } catch (const Error& e) {
       set_status(std::string("maps export failed: ") + e.what());
     }
@@ -344,11 +386,43 @@ void Viewer::draw_panel(double frame_ms) {
   ImGui::SameLine();
   if (ImGui::Button("Screenshot (P)")) want_screenshot_ = true;
   if (!status_.empty()) ImGui::TextWrapped("%s", status_.c_str());
-  ImGui::TextDisabled(
-      "drag: orbit, right/shift-drag: pan, wheel: zoom, F frame, T top,"
-      " space pause, S step, R reset, H panel");
-  ImGui::PopItemWidth();
-  ImGui::End();
+}
+
+void Viewer::draw_weather_panel() {
+  LiveSim& sim = *sim_;
+  const WeatherRun& run = *sim.settings().weather;
+  const double first = run.steps.front().hour;
+  const double end = run.steps.back().hour + run.steps.back().hours;
+  char when[64] = "";
+  if (std::isfinite(run.start_unix)) {
+    const std::time_t t = std::time_t(run.start_unix + sim.weather_hour() * 3600.0);
+    std::tm utc{};
+    gmtime_r(&t, &utc);
+    std::strftime(when, sizeof when, ", %Y-%m-%d %H:%M UTC", &utc);
+  }
+  ImGui::Text("hour %.2f of %.6g..%.6g%s", sim.weather_hour(), first, end, when);
+  if (const WeatherStep* now = sim.weather_now()) {
+    const float share = snow_share(now->temp_c);
+    const char* what = now->precip_mm <= 0.0f ? "dry" : share >= 0.5f ? "snow" : "rain";
+    ImGui::Text("%+.1f C, %.1f mm/h %s, wind %.1f m/s from %.0f, cloud %.0f%%", double(now->temp_c),
+                double(now->precip_mm) / now->hours, what, double(now->wind_ms),
+                double(now->wind_from_deg), 100.0 * double(now->cloud));
+  } else {
+    ImGui::Text("the weather file has ended");
+  }
+  const SnowPack& pack = *sim.snowpack();
+  if (sim.snowpack_hour() != lying_hour_) {
+    lying_ = pack.lying(sim.maps());
+    lying_hour_ = sim.snowpack_hour();
+  }
+  ImGui::Text("water m^3: fell %.3f, melted %.3f, left %.3f, lies %.3f", pack.fallen, pack.melted,
+              pack.lost, lying_);
+  if (!ImGui::IsAnyItemActive()) scrub_hour_ = float(sim.weather_hour());
+  ImGui::SliderFloat("hour", &scrub_hour_, float(first), float(end), "%.2f");
+  if (ImGui::IsItemDeactivatedAfterEdit()) {
+    sim.seek(scrub_hour_);
+    sync_view();
+  }
 }
 
 void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
@@ -366,9 +440,11 @@ void Viewer::draw_frame(int fb_w, int fb_h, bool last, double frame_ms) {
   t = Clock::now();
   snow_->draw(camera, fb_h, shading_, sim_->depth_texture(),
               snow_rise(sim_->settings().total_depth), view_settings_);
-  const float time = float(sim_->frame()) * sim_->settings().frame_time;
-  snow_->draw_flakes(camera, view_bounds, time, sim_->settings().coverage.fall_speed,
-                     sim_->settings().coverage.wind, view_settings_);
+  if (sim_->snowing()) {
+    const float time = float(sim_->frame()) * sim_->settings().frame_time;
+    snow_->draw_flakes(camera, view_bounds, time, sim_->settings().coverage.fall_speed,
+                       sim_->fall_wind(), view_settings_);
+  }
   glFinish();
   snow_ms_ = ms_since(t);
 
@@ -492,6 +568,15 @@ ViewerReport Viewer::run() {
     report.snow_triangles = snow_->drawn_triangles();
     report.volume = snow_volume(sim_->maps(), sim_->depth());
     report.fallen = sim_->fallen_volume();
+    if (sim_->snowpack()) {
+      sim_->sync_snowpack();
+      const SnowPack& pack = *sim_->snowpack();
+      report.hour = sim_->weather_hour();
+      report.water_fallen = pack.fallen;
+      report.water_melted = pack.melted;
+      report.water_lost = pack.lost;
+      report.water_lying = pack.lying(sim_->maps());
+    }
 
     if (!options_.export_path.empty()) {
       log_info(export_snow(scene_, *sim_, options_, options_.export_path, options_.snow_only));

@@ -54,6 +54,10 @@ struct ViewerReport {
   double volume = 0;          // m^3 of snow lying at the end
   double fallen = 0;          // m^3 of snow fallen
   size_t snow_triangles = 0;  // triangles of the snow grid drawn in the last frame
+  // A weather series' (LiveSettings::weather) at the end: its clock
+  // (hours) and water balance (m^3 of water, snow/snowpack.h).
+  double hour = 0;
+  double water_fallen = 0, water_melted = 0, water_lost = 0, water_lying = 0;
 };
 
 /// Opens the window (GLFW backend; needs a display), or with

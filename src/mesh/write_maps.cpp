@@ -386,4 +386,19 @@ MapsSnowpack read_maps_snowpack(const std::filesystem::path& dir, const SnowMaps
   }
 }
 
+MapsSnowpack maps_snowpack(const SnowPack& pack, double hour,
+                           std::vector<std::vector<float>>& storage) {
+  storage = {pack.density(), pack.load()};
+  MapsSnowpack out;
+  out.values = {{"swe", &pack.swe, "m of water"},
+                {"albedo", &pack.albedo, "1"},
+                {"density", &storage[0], "kg/m^3"},
+                {"load", &storage[1], "kN/m^2"}};
+  out.fallen = pack.fallen;
+  out.melted = pack.melted;
+  out.lost = pack.lost;
+  out.hour = hour;
+  return out;
+}
+
 }  // namespace snow

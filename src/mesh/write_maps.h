@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "snow/maps.h"
+#include "snow/snowpack.h"
 
 namespace snow {
 
@@ -25,6 +26,12 @@ struct MapsSnowpack {
   double fallen = 0.0, melted = 0.0, lost = 0.0;
   double hour = 0.0;  // hours of weather behind the state
 };
+
+/// The snowpack's part of a maps folder for `pack` after `hour` hours of
+/// weather: swe, albedo, density and load (its values point into `pack` and
+/// `storage`, which must outlive it).
+MapsSnowpack maps_snowpack(const SnowPack& pack, double hour,
+                           std::vector<std::vector<float>>& storage);
 
 /// Writes the folder `dir` (its parents created if missing) holding, for
 /// every layer l that holds a surface somewhere: layer<l>_height.exr (world

@@ -1,0 +1,21 @@
+#pragma once
+// LiveSim's weather series state (internal to src/live; live_weather.cpp).
+#include <cstddef>
+#include <memory>
+
+#include "live/live_sim.h"
+#include "snow/accumulate.h"
+#include "snow/weather_step.h"
+
+namespace snow::live {
+
+struct LiveSim::Weather {
+  std::shared_ptr<const WeatherRun> run;    // settings().weather
+  SnowPack pack;                            // as of the last step applied
+  std::unique_ptr<WeatherStepper> stepper;  // on the LiveSim's maps and coverage settings
+  double hour = 0.0;                        // the clock, hours of the series
+  size_t next = 0;                          // the first step not applied
+  SnowResult stats;                         // the steps' fallen volume and coverage updates
+};
+
+}  // namespace snow::live
