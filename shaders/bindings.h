@@ -62,7 +62,10 @@
 #define SNOW_STABILIZE_TILE_LAYERS 9
 // usampler2D R8UI per column: its layers with a surface (they are packed from layer 0).
 #define SNOW_STABILIZE_COLUMN 10
-// sampler2DArray R32F: per layer texel, the holding depth of its support (m; snow/cohesion.h).
+// sampler2DArray RG32F: per layer texel, the holding depth of its support (m; snow/cohesion.h)
+// in r, the held cap (m; what cohesion may hold of the snow that fell there) in g.
 #define SNOW_STABILIZE_HOLD 11
+// image2DArray RG32F: the same, read and written by the snowfall (stabilize_add.frag).
+#define SNOW_STABILIZE_HOLD_IMAGE 5
 
 #endif  // SNOW_SHADERS_BINDINGS_H

@@ -7,7 +7,9 @@ layout(binding = SNOW_STABILIZE_CELLS) uniform sampler2DArray u_cells;  // groun
 layout(binding = SNOW_STABILIZE_DEPTH) uniform sampler2DArray u_depth;  // r = depth (m), g = lost
 // Routing: the highest snow surface each texel keeps (m), in r.
 layout(binding = SNOW_STABILIZE_STABLE) uniform sampler2DArray u_stable;
-layout(binding = SNOW_STABILIZE_HOLD) uniform sampler2DArray u_hold;  // holding depth (m)
+// r = holding depth (m), g = what cohesion may hold of the snow (m): the
+// held cap (CpuStabilizer::held_cap_).
+layout(binding = SNOW_STABILIZE_HOLD) uniform sampler2DArray u_hold;
 
 uniform ivec2 u_size;    // map width, height (texels)
 uniform int u_layers;    // L
@@ -52,10 +54,11 @@ bool in_map(ivec2 c) { return all(greaterThanEqual(c, ivec2(0))) && all(lessThan
 float free_top(vec4 cell, float s) { return max(cell.x, min(cell.x + s, cell.y - kCeilingClearance)); }
 
 // The snow of layer texel t (with cell `cell` and depth s) that cohesion
-// holds in place: up to u_stand and its holding depth, never above its free
-// top. Mirrors held_snow of src/snow/stabilize/cpu.cpp.
+// holds in place: up to its held cap (what of the snow that fell there
+// cohesion may hold), never above its free top. Mirrors held_snow of
+// src/snow/stabilize/cpu.cpp.
 float held(ivec3 t, vec4 cell, float s) {
-  return min(min(s, free_top(cell, s) - cell.x), min(u_stand, texelFetch(u_hold, t, 0).r));
+  return min(min(s, free_top(cell, s) - cell.x), texelFetch(u_hold, t, 0).g);
 }
 
 // Routing: the kept height layer texel t starts from: its free top, no

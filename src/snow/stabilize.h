@@ -5,9 +5,10 @@
 // angle of repose relaxation of Fearing 2000, section 5, on Tokoi's snow
 // amount maps). Fresh snow is cohesive (snow/cohesion.h): per layer texel,
 // snow deeper than the holding depth of its support's slope is routed off
-// (the erosion starts no higher than ground + holding depth), and the snow
-// up to min(holding depth, standing height) is held: neither the erosion
-// nor the relaxation moves it.
+// (the erosion starts no higher than ground + holding depth), and of the
+// snow that fell there (set_depth, add_snow), up to min(holding depth,
+// standing height) is held: neither the erosion nor the relaxation moves
+// it. Snow that arrives by sliding, routing or pouring is loose.
 //
 // This header is the stage's interface; the code is in snow/stabilize/:
 //   stabilize.cpp  where the passes run (stabilizes_on_cpu), stabilize()
@@ -175,9 +176,9 @@ constexpr float kCeilingClearance = 1e-4f;
 
 /// The holding depth (m, snow/cohesion.h) of every layer texel with a
 /// surface, from its slope (maps.normal) and its object's grip; 0 elsewhere.
-/// Snow deeper than its texel's holding depth is routed off; snow up to
-/// min(holding depth, cohesion.stand_height) is held: neither erosion nor
-/// relaxation moves it (both stabilizers).
+/// Snow deeper than its texel's holding depth is routed off; of the snow
+/// that fell on the texel, up to min(holding depth, cohesion.stand_height)
+/// is held: neither erosion nor relaxation moves it (both stabilizers).
 ZeroedArray<float> stabilize_holds(const SnowMaps& maps, const StabilizeSettings& settings);
 
 /// Throws InputError naming the first setting out of range.
@@ -311,7 +312,7 @@ StabilizeResult stabilize(const SnowMaps& maps, std::vector<float>& depth,
 /// current in every call, including destruction.
 class Stabilizer {
  public:
-  /// Uploads the maps (cells) and allocates the pass textures (76 B per
+  /// Uploads the maps (cells) and allocates the pass textures (80 B per
   /// layer texel); the snow starts empty. Throws like stabilize().
   Stabilizer(const SnowMaps& maps, const StabilizeSettings& settings);
   ~Stabilizer();
@@ -319,8 +320,9 @@ class Stabilizer {
   Stabilizer& operator=(Stabilizer&&) noexcept;
 
   /// Replaces the snow (metres per layer texel, maps' layout; cleaned as in
-  /// stabilize()) and resets the lost volume. Routing runs before the next
-  /// pass. Throws InputError for a wrong size.
+  /// stabilize()), all of it as fallen where it lies (cohesion holds it up
+  /// to the held cap), and resets the lost volume. Routing runs before the
+  /// next pass. Throws InputError for a wrong size.
   void set_depth(const std::vector<float>& depth);
   /// depth += scale * amount on every texel with a surface (e.g. amount =
   /// coverage, scale = metres of fresh snow); negative or NaN products add

@@ -172,6 +172,10 @@ class CpuStabilizer {
   float rise_ = 0.0f;                   // metres, kSurfaceContinuityTexels * texel
   ZeroedArray<glm::vec4> cells_;        // stabilize_surface_cells
   ZeroedArray<float> hold_;             // metres, stabilize_holds
+  ZeroedArray<float> held_cap_;         // metres: what cohesion may hold of each texel's snow,
+                                        // min(hold_, standing height, the snow that fell there
+                                        // by set_depth and add_snow); snow that arrives by
+                                        // sliding or routing is loose
   float stand_ = 0.0f;                  // metres, settings_.cohesion.stand_height
   std::vector<uint8_t> column_layers_;  // surfaces per column (layers are packed from the top)
   std::vector<uint8_t> column_sent_;    // per column: its last outflow moved snow

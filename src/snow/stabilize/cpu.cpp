@@ -47,11 +47,11 @@ float free_top(const glm::vec4& cell, float s) {
 }
 
 // The snow of a texel that cohesion holds in place (snow/cohesion.h): its
-// depth s up to the standing height and the texel's holding depth, and never
-// above its free top (snow pressed out from under a ceiling moves).
-// Mirrors column.glsl held.
-float held_snow(const glm::vec4& cell, float s, float hold, float stand) {
-  return std::min(std::min(s, free_top(cell, s) - cell.x), std::min(stand, hold));
+// depth s up to `cap`, what of the snow that fell there cohesion can hold
+// (held_cap_), and never above its free top (snow pressed out from under a
+// ceiling moves). Mirrors column.glsl held.
+float held_snow(const glm::vec4& cell, float s, float cap) {
+  return std::min(std::min(s, free_top(cell, s) - cell.x), cap);
 }
 
 int log2_of(int stride) {
@@ -81,6 +81,7 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
     hold_ = stabilize_holds(maps, settings);
     const size_t n = cells_.size();
     depth_ = ZeroedArray<float>(n);
+    held_cap_ = ZeroedArray<float>(n);
     lost_ = ZeroedArray<float>(n);
     amount_ = ZeroedArray<float>(8 * n);
     code_ = ZeroedArray<uint8_t>(8 * n);
@@ -88,7 +89,7 @@ CpuStabilizer::CpuStabilizer(const SnowMaps& maps, const StabilizeSettings& sett
   } catch (const std::bad_alloc&) {
     throw InputError("stabilize: out of memory for maps of " + std::to_string(width_) + " x " +
                      std::to_string(height_) + " texels x " + std::to_string(layers_) +
-                     " layers (68 B per layer texel); use a coarser texel size");
+                     " layers (72 B per layer texel); use a coarser texel size");
   }
 
   const size_t columns = size_t(width_) * size_t(height_);
@@ -214,6 +215,8 @@ void CpuStabilizer::set_depth(const std::vector<float>& depth) {
     const float d = depth[k];
     const float v = (cell_flags(cells_[k]) & kCellSurface) && d > 0.0f ? d : 0.0f;
     if (v != 0.0f || depth_[k] != 0.0f) depth_[k] = v;
+    const float cap = std::min(v, std::min(stand_, hold_[k]));
+    if (cap != 0.0f || held_cap_[k] != 0.0f) held_cap_[k] = cap;
     if (lost_[k] != 0.0f) lost_[k] = 0.0f;
   }
   touch_all();
@@ -240,6 +243,7 @@ void CpuStabilizer::add_snow(const std::vector<float>& amount, float scale) {
     size_t run = end;  // start of the open run of pages to fault in
     const auto fault_in = [&](size_t to) {
       depth_.populate(run, to);
+      held_cap_.populate(run, to);
       gate_.populate(run, to);
       run = end;
     };
@@ -253,7 +257,10 @@ void CpuStabilizer::add_snow(const std::vector<float>& amount, float scale) {
     if (run != end) fault_in(end);
     for (size_t k = begin; k < end; ++k) {
       const float add = amount[k] * scale;
-      if ((cell_flags(cells_[k]) & kCellSurface) && add > 0.0f) depth_[k] = depth_[k] + add;
+      if ((cell_flags(cells_[k]) & kCellSurface) && add > 0.0f) {
+        depth_[k] = depth_[k] + add;
+        held_cap_[k] = std::min(held_cap_[k] + add, std::min(stand_, hold_[k]));
+      }
     }
   });
   touch_all();
@@ -370,7 +377,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   const float he = free_top(cell, s);  // snow above the ceiling is pressed out
   const float over = h - he;
   // What cohesion holds stays (snow/cohesion.h); only the rest moves.
-  const float movable = s - held_snow(cell, s, hold_[k], stand_);
+  const float movable = s - held_snow(cell, s, held_cap_[k]);
   if (!(movable > 0.0f)) {
     gate_[k] = pass_id_ << 1;  // a single step moves nothing either
     return 0.0f;
@@ -654,7 +661,7 @@ float CpuStabilizer::erode_texel(int l, int i, int j) const {
   const glm::vec4 cell = cells_[k];
   float hs = stable_[k];
   // What cohesion holds is kept whatever the neighbours keep.
-  const float floor = cell.x + held_snow(cell, depth_[k], hold_[k], stand_);
+  const float floor = cell.x + held_snow(cell, depth_[k], held_cap_[k]);
   if (hs > floor) {
     const float he = free_top(cell, depth_[k]);
     for (int n = 0; n < 8; ++n) {

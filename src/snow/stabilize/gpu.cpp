@@ -54,7 +54,11 @@ struct Stabilizer::Impl {
   ZeroedArray<glm::vec4> pour_cells;
   std::vector<glm::ivec4> rect;  // per layer: x, y, width, height of its surfaces (0 size: none)
 
-  gl::Texture cells, holds, depth[2], out_a, out_b, code, reduce;
+  gl::Texture cells, depth[2], out_a, out_b, code, reduce;
+  // Per layer texel: r = holding depth, g = held cap (column.glsl held;
+  // set_depth uploads it, the snowfall's add pass raises it).
+  gl::Texture holds;
+  ZeroedArray<float> hold_data;  // the holding depths (stabilize_holds)
   // The routing's data live in the outflow textures, free between passes
   // (the first pass after the routing computes every tile again): views of
   // the same memory as other formats (see route()).
@@ -108,6 +112,9 @@ struct Stabilizer::Impl {
     glBindTextureUnit(unit, texture.id());
   }
   void upload_depth(const std::vector<float>& depth);
+  // The holds texture: the holding depths, and the held caps of `depth`
+  // as it fell (min(depth, standing height, holding depth); null: none).
+  void upload_holds(const std::vector<float>* depth);
   void write_depth(const std::vector<glm::vec2>& data);  // depth and lost snow, every texel
   void add_snow(const std::vector<float>& add);
   // depth += scale * amount (an R32F or RGBA32F array, amount in r).
@@ -208,12 +215,9 @@ void Stabilizer::Impl::upload_cells(const SnowMaps& maps) {
   cells = gl::create_texture_2d_array(GL_RGBA32F, width, height, layers, "stabilize cells");
   glTextureSubImage3D(cells.id(), 0, 0, 0, 0, width, height, layers, GL_RGBA, GL_FLOAT,
                       cell_data.data());
-  {
-    const ZeroedArray<float> hold_data = stabilize_holds(maps, settings);
-    holds = gl::create_texture_2d_array(GL_R32F, width, height, layers, "stabilize holds");
-    glTextureSubImage3D(holds.id(), 0, 0, 0, 0, width, height, layers, GL_RED, GL_FLOAT,
-                        hold_data.data());
-  }
+  hold_data = stabilize_holds(maps, settings);
+  holds = gl::create_texture_2d_array(GL_RG32F, width, height, layers, "stabilize holds");
+  upload_holds(nullptr);
   if (settings.route_steep && settings.deposit_piles) {
     // Rows on all cores.
     pour_cells = ZeroedArray<glm::vec4>(cell_data.size());
@@ -521,15 +525,28 @@ void Stabilizer::Impl::add_snow(const std::vector<float>& amount) {
 
 void Stabilizer::Impl::add_pass(const gl::Texture& amount, float scale) {
   bind(SNOW_STABILIZE_CELLS, cells);
-  bind(SNOW_STABILIZE_HOLD, holds);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
   bind(SNOW_STABILIZE_ADD, amount);
+  glBindImageTexture(SNOW_STABILIZE_HOLD_IMAGE, holds.id(), 0, GL_TRUE, 0, GL_READ_WRITE, GL_RG32F);
   add.use();
   add.set("u_scale", scale);
   per_layer(add, fbo_depth[1 - cur]);
   cur = 1 - cur;
+  glBindImageTexture(SNOW_STABILIZE_HOLD_IMAGE, 0, 0, GL_TRUE, 0, GL_READ_WRITE, GL_RG32F);
+  glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
   release_bindings();
   gl::check_error("stabilize: add snow");
+}
+
+void Stabilizer::Impl::upload_holds(const std::vector<float>* depth) {
+  const float stand = settings.cohesion.stand_height;
+  std::vector<glm::vec2> data(hold_data.size());
+  for (size_t k = 0; k < data.size(); ++k) {
+    const float hold = hold_data[k];
+    data[k] = glm::vec2(hold, depth ? std::min((*depth)[k], std::min(stand, hold)) : 0.0f);
+  }
+  glTextureSubImage3D(holds.id(), 0, 0, 0, 0, width, height, layers, GL_RG, GL_FLOAT, data.data());
+  gl::check_error("stabilize: holds upload");
 }
 
 // Runs `program` over every layer into the attachment-less framebuffer
@@ -914,6 +931,7 @@ void Stabilizer::set_depth(const std::vector<float>& depth) {
     clean[k] = impl_->surface[k] && depth[k] > 0.0f ? depth[k] : 0.0f;
   }
   impl_->upload_depth(clean);  // lost (g) = 0
+  impl_->upload_holds(&clean);
   impl_->route_pending = true;
   impl_->reset_tiles();
   impl_->schedule.restart();
