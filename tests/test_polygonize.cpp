@@ -14,6 +14,8 @@
 #include "core/error.h"
 #include "core/log.h"
 #include "mesh/polygonize.h"
+#include "mesh/polygonize/steps.h"
+#include "scene/builder.h"
 
 namespace snow {
 namespace {
@@ -840,6 +842,32 @@ TEST(Polygonize, BottomOverFlatGroundIsCoarseAlsoInPieces) {
   // In pieces, the seams keep their vertices: more top faces.
   EXPECT_GT(faces(b[0].mesh, true), faces(a[0].mesh, true));
   EXPECT_NEAR(b[0].volume, a[0].volume, 1e-3 * a[0].volume);
+}
+
+// A sliver (three corners on a line) in a closed solid: a glTF reader drops
+// it and the solid opens. flip_degenerate_faces flips it away: a
+// tetrahedron whose edge p0-p1 carries its midpoint m on one side (faces
+// (p0, m, p2), (m, p1, p2) and the sliver (p0, p1, m)) stays closed, keeps
+// its volume and holds no degenerate face after.
+TEST(Polygonize, SliversAreFlippedAway) {
+  poly::Solid solid;
+  solid.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0.5, 0, 0}};
+  solid.tris = {0, 4, 2, 4, 1, 2, 0, 1, 4, 1, 0, 3, 0, 2, 3, 1, 3, 2};
+  solid.top.assign(solid.tris.size() / 3, 0);
+  std::vector<glm::vec3> positions(solid.positions.begin(), solid.positions.end());
+  ASSERT_TRUE(check_topology(positions, solid.tris).closed());
+  ASSERT_TRUE(poly::degenerate_face(solid.positions[0], solid.positions[1], solid.positions[4]));
+  const double before = signed_volume(positions, solid.tris);
+  EXPECT_EQ(poly::flip_degenerate_faces(solid), 0u);
+  for (size_t f = 0; f < solid.tris.size() / 3; ++f) {
+    EXPECT_FALSE(poly::degenerate_face(solid.positions[solid.tris[3 * f]],
+                                       solid.positions[solid.tris[3 * f + 1]],
+                                       solid.positions[solid.tris[3 * f + 2]]))
+        << f;
+  }
+  EXPECT_TRUE(check_topology(positions, solid.tris).closed());
+  EXPECT_NEAR(signed_volume(positions, solid.tris), before, 1e-12);
+  EXPECT_NEAR(std::abs(before), 1.0 / 6.0, 1e-12);
 }
 
 }  // namespace

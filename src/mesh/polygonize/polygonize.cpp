@@ -173,6 +173,7 @@ std::optional<SnowPatch> mesh_patch(const SnowMaps& maps, const LayerArray<float
   if (settings.shoulder_radius > 0.0f) {
     add_lips(solid, field, texel, maps.grid.origin, settings.overhang, settings.cornice);
   }
+  flip_degenerate_faces(solid);
   const double solid_seconds = seconds();
   const TriMesh closed = to_trimesh(solid, false);
   patch.volume = signed_volume(closed);

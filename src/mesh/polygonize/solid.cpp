@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -103,6 +104,82 @@ double signed_volume(const TriMesh& m) {
     v6 += glm::dot(a, glm::cross(b, c));
   }
   return v6 / 6.0;
+}
+
+bool degenerate_face(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+  // As the reader sees the corners: rounded to float.
+  const glm::dvec3 pa{glm::vec3(a)}, pb{glm::vec3(b)}, pc{glm::vec3(c)};
+  const glm::dvec3 e0 = pb - pa, e1 = pc - pa, e2 = pc - pb;
+  const glm::dvec3 cross = glm::cross(e0, e1);
+  const double longest2 = std::max({glm::dot(e0, e0), glm::dot(e1, e1), glm::dot(e2, e2)});
+  return glm::dot(cross, cross) <= kDegenerateHeight * kDegenerateHeight * longest2 * longest2;
+}
+
+size_t flip_degenerate_faces(Solid& solid) {
+  const auto key = [](uint32_t a, uint32_t b) { return uint64_t(a) << 32 | b; };
+  const auto corner = [&](size_t f, int e) { return solid.tris[3 * f + size_t(e)]; };
+  const auto degenerate = [&](size_t f) {
+    return degenerate_face(solid.positions[corner(f, 0)], solid.positions[corner(f, 1)],
+                           solid.positions[corner(f, 2)]);
+  };
+  const size_t faces = solid.tris.size() / 3;
+  std::vector<size_t> todo;
+  for (size_t f = 0; f < faces; ++f) {
+    if (degenerate(f)) todo.push_back(f);
+  }
+  if (todo.empty()) return 0;
+  std::unordered_map<uint64_t, size_t> face_of;  // directed edge -> its face
+  for (size_t f = 0; f < faces; ++f) {
+    for (int e = 0; e < 3; ++e) face_of[key(corner(f, e), corner(f, (e + 1) % 3))] = f;
+  }
+  size_t left = 0;
+  for (size_t round = 0; round < 4 && !todo.empty(); ++round) {
+    std::vector<size_t> again;
+    for (const size_t f : todo) {
+      if (!degenerate(f)) continue;
+      // The longest edge u -> v, the third corner x; the face across it
+      // (v, u, w) becomes, with this one, (u, w, x) and (w, v, x).
+      int longest = 0;
+      double length = -1.0;
+      for (int e = 0; e < 3; ++e) {
+        const glm::dvec3 d =
+            solid.positions[corner(f, (e + 1) % 3)] - solid.positions[corner(f, e)];
+        if (glm::dot(d, d) > length) {
+          length = glm::dot(d, d);
+          longest = e;
+        }
+      }
+      const uint32_t u = corner(f, longest), v = corner(f, (longest + 1) % 3),
+                     x = corner(f, (longest + 2) % 3);
+      const auto across = face_of.find(key(v, u));
+      if (across == face_of.end()) {
+        again.push_back(f);
+        continue;
+      }
+      const size_t g = across->second;
+      int at = 0;
+      while (corner(g, at) != v) ++at;
+      const uint32_t w = corner(g, (at + 2) % 3);
+      if (w == x || face_of.count(key(w, x)) || face_of.count(key(x, w))) {
+        again.push_back(f);
+        continue;
+      }
+      for (const size_t h : {f, g}) {
+        for (int e = 0; e < 3; ++e) face_of.erase(key(corner(h, e), corner(h, (e + 1) % 3)));
+      }
+      const uint32_t first[3] = {u, w, x}, second[3] = {w, v, x};
+      std::copy_n(first, 3, solid.tris.begin() + ptrdiff_t(3 * f));
+      std::copy_n(second, 3, solid.tris.begin() + ptrdiff_t(3 * g));
+      solid.top[f] = solid.top[g] = uint8_t(solid.top[f] && solid.top[g]);
+      for (const size_t h : {f, g}) {
+        for (int e = 0; e < 3; ++e) face_of[key(corner(h, e), corner(h, (e + 1) % 3))] = h;
+        if (degenerate(h)) again.push_back(h);
+      }
+    }
+    todo = std::move(again);
+  }
+  for (const size_t f : todo) left += degenerate(f);
+  return left;
 }
 
 TriMesh to_trimesh(const Solid& solid, bool top_only) {

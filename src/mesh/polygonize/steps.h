@@ -271,6 +271,18 @@ bool build_decimated_in_pieces(const TopMesh& top, const Pieces& pieces, size_t 
 /// mesh with outward faces).
 double signed_volume(const TriMesh& m);
 
+/// Whether the face (a, b, c) is degenerate as glTF readers (snowmodel's
+/// loader, Blender's importer) take it once its corners are rounded to
+/// float: its height is under kDegenerateHeight of its longest edge.
+constexpr double kDegenerateHeight = 1e-7;
+bool degenerate_face(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c);
+
+/// Flips the longest edge of each degenerate face (a sliver whose corners
+/// lie on a line) with the face across it, so no reader drops a face and
+/// opens the closed solid; faces whose flip would make an edge twice stay.
+/// Returns the degenerate faces left.
+size_t flip_degenerate_faces(Solid& solid);
+
 /// Copies the faces of `solid` (all, or only top ones) into a TriMesh with
 /// area-weighted vertex normals and planar world UVs (u = x, v = z).
 TriMesh to_trimesh(const Solid& solid, bool top_only);
