@@ -19,10 +19,12 @@
 
 #include "app/commands.h"
 #include "app/filters.h"
+#include "app/outputs.h"
 #include "app/run_gl.h"
 #include "app/settings.h"
 #include "app/snow_warnings.h"
 #include "app/snow_weather.h"
+#include "app/tiles.h"
 #include "core/error.h"
 #include "core/fs.h"
 #include "core/heap.h"
@@ -44,14 +46,10 @@ namespace {
 namespace fs = std::filesystem;
 
 struct SnowOptions {
-  std::string input;
-  std::string output;       // input scene + snow (glb/gltf), or snow only for obj/ply
-  std::string snow_output;  // snow only
-  std::string format;       // overrides the extension of --output
-  std::string maps_dir;
-  std::string preview;
-  std::string config;
-  bool snow_only = false;
+  MeshOutputs out;             // the input and what the run writes
+  std::string tiles;           // "CxR": snow one tile of this split (app/tiles.h)
+  int tile = -1;               // which one
+  std::string tile_dir;        // where the tiles go
   std::string resume;          // maps folder of an earlier --weather run to continue from
   std::string sequence;        // folder for snow_0001.glb, ... every `every` hours
   double every = 0.0;          // hours between sequence frames
@@ -144,32 +142,21 @@ class StageClock {
   std::vector<std::pair<std::string, double>> times_;
 };
 
-/// Where the settings of the run are written: beside the first output.
-fs::path settings_path(const SnowOptions& o) {
-  const fs::path first = !o.output.empty()        ? fs::path(o.output)
-                         : !o.snow_output.empty() ? fs::path(o.snow_output)
-                         : !o.maps_dir.empty()    ? fs::path(o.maps_dir) / "snow"
-                                                  : fs::path(o.preview);
-  return first.string() + ".settings.json";
-}
-
-/// The outputs of a run for the output policy (mesh/output_policy.h);
-/// `format` is that of --output.
-std::vector<OutputPath> snow_outputs(const SnowOptions& o, MeshFormat format) {
-  std::vector<OutputPath> outputs;
-  if (!o.output.empty()) outputs.push_back({"-o", o.output, OutputKind::Mesh, format, {}});
-  if (!o.snow_output.empty()) {
-    outputs.push_back(
-        {"--snow-output", o.snow_output, OutputKind::Mesh, format_from_path(o.snow_output), {}});
+/// A tile run's options: all three given, no other output, no weather.
+/// Throws InputError naming the option.
+void check_tile_options(const SnowOptions& o, const PipelineSettings& s) {
+  if (o.tiles.empty() || o.tile < 0 || o.tile_dir.empty())
+    throw InputError("a tile needs --tiles CxR, --tile I and --tile-dir DIR");
+  parse_tiles(o.tiles, o.tile);
+  const MeshOutputs& out = o.out;
+  if (!out.output.empty() || !out.snow_output.empty() || !out.maps_dir.empty() ||
+      !out.preview.empty()) {
+    throw InputError("a tile writes into --tile-dir only: snowmodel merge writes the outputs");
   }
-  if (!o.maps_dir.empty()) outputs.push_back({"--maps", o.maps_dir, OutputKind::Maps, {}, {}});
-  if (!o.preview.empty()) outputs.push_back({"--preview", o.preview, OutputKind::File, {}, {}});
-  // The settings file goes beside the first file output; in the maps
-  // folder, it is written after the folder is in place.
-  if (!outputs.empty() && outputs.front().kind != OutputKind::Maps) {
-    outputs.front().beside.push_back(settings_path(o));
-  }
-  return outputs;
+  if (!s.weather.empty()) throw InputError("--tiles and --weather: tiles snow one snowfall");
+  std::error_code ec;
+  if (fs::exists(o.tile_dir, ec) && !fs::is_directory(o.tile_dir, ec))
+    throw IOError("cannot write the tiles to " + o.tile_dir + ": a file is there");
 }
 
 /// The pipeline settings of a run, checked before the long work starts
@@ -177,7 +164,9 @@ std::vector<OutputPath> snow_outputs(const SnowOptions& o, MeshFormat format) {
 /// of peeling and shadows). Returns the settings with the derived fields
 /// set, and the format of --output in `format`.
 PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
-  if (o.output.empty() && o.snow_output.empty() && o.maps_dir.empty() && o.preview.empty()) {
+  const bool tiled = !o.tiles.empty() || o.tile >= 0 || !o.tile_dir.empty();
+  if (!tiled && o.out.output.empty() && o.out.snow_output.empty() && o.out.maps_dir.empty() &&
+      o.out.preview.empty()) {
     throw InputError("nothing to write: give -o OUT, --snow-output, --maps or --preview");
   }
   PipelineSettings s = o.settings;
@@ -186,26 +175,8 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
   s.peel.memory_budget = memory_budget_bytes(s.memory_budget_gib);
   s.load.limits.memory_budget = s.peel.memory_budget;  // the scene's data, images included
   s.stabilize.seed = uint32_t(s.coverage.seed);
-  format = MeshFormat::Glb;
-  if (!o.output.empty()) {
-    format = o.format.empty() ? format_from_path(o.output) : format_from_path("x." + o.format);
-    // glTF is written as binary or JSON by the file's extension (a .gltf
-    // with its .bin beside it), so --format glb or gltf must agree with it.
-    const std::string wanted = std::string(".") + format_name(format);
-    if ((format == MeshFormat::Glb || format == MeshFormat::Gltf) &&
-        lower_extension(o.output) != wanted) {
-      throw InputError(o.output + ": a " + format_name(format) + " file needs the extension " +
-                       wanted);
-    }
-  }
-  for (const std::string& path : {o.output, o.snow_output, o.preview}) {
-    if (path.empty()) continue;
-    const fs::path folder =
-        fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
-    if (!fs::is_directory(folder))
-      throw IOError("cannot write " + path + ": folder " + folder.string() + " does not exist");
-  }
-  check_output_paths(o.input, snow_outputs(o, format));
+  if (tiled) check_tile_options(o, s);
+  format = check_outputs(o.out);
   check_stabilize_settings(s.stabilize);
   fall_directions(s.coverage);  // checks the coverage settings
   if (s.weather.empty()) {
@@ -227,42 +198,6 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
     throw IOError("cannot write the sequence to " + o.sequence + ": a file is there");
   }
   return s;
-}
-
-/// Writes -o, --snow-output, --maps and the effective settings beside the
-/// first output (so the run can be repeated). The meshes go back to the
-/// file's frame (`frame`); the maps stay in metres, +Y up.
-void write_outputs(const SnowOptions& o, MeshFormat format, CombinedInputPtr combined_input,
-                   const std::vector<SnowPatch>& metre_patches, const FileFrame& frame,
-                   const SnowMaps& maps, const SnowResult& snow, const MapsSnowpack* snowpack) {
-  std::vector<SnowPatch> file_patches;
-  if (!frame.is_identity()) {
-    file_patches = metre_patches;
-    for (SnowPatch& p : file_patches) to_file_frame(p.mesh, frame);
-  }
-  const std::vector<SnowPatch>& patches = frame.is_identity() ? metre_patches : file_patches;
-  if (!o.output.empty()) {
-    if (combined_input) {
-      write_combined_gltf(std::move(combined_input), patches, o.output);
-    } else {
-      if (!o.snow_only) log_info(std::string(format_name(format)) + " holds the snow only");
-      write_snow_meshes(patches, o.output, format);
-    }
-    log_info("wrote " + o.output);
-  }
-  if (!o.snow_output.empty()) {
-    write_snow_meshes(patches, o.snow_output, format_from_path(o.snow_output));
-    log_info("wrote " + o.snow_output);
-  }
-  if (!o.maps_dir.empty()) {
-    write_maps(o.maps_dir, maps, &snow.coverage, &snow.depth, snowpack);
-    log_info("wrote maps to " + o.maps_dir);
-  }
-  nlohmann::json record;
-  record["snowmodel"] = "0.1.0";
-  record["input"] = o.input;
-  record["settings"] = settings_to_json(o.settings);
-  write_text_atomically(settings_path(o), record.dump(2) + "\n");
 }
 
 /// The closing summary line.
@@ -420,22 +355,22 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   // The machine's facts; the renderer is probed beside the load.
   gl::ContextOptions context_options;
   context_options.backend = gl::parse_backend(global.gl_backend);
-  const uint64_t input_bytes = gltf_input_bytes(o.input);
+  const uint64_t input_bytes = gltf_input_bytes(o.out.input);
   const plan::MachineInfo machine = plan::probe_machine(context_options);
   RunGl gl(global, machine, input_bytes);
   // Textures, normals and UVs only show in the preview.
-  s.load.load_images = s.load.shading = !o.preview.empty();
+  s.load.load_images = s.load.shading = !o.out.preview.empty();
   fit_heap(plan::huge_pages_off(machine, input_bytes, 0));
   // The scene plus snow is written from the input's JSON as the loader
   // parsed it, planned right after the load (a refused buffer fails now,
   // not after the snow); the loader's copy is then freed.
-  const bool combined = !o.output.empty() && !o.snow_only &&
+  const bool combined = !o.out.output.empty() && !o.out.snow_only &&
                         (format == MeshFormat::Glb || format == MeshFormat::Gltf);
   s.load.keep_source = combined;
   Scene scene;
   CombinedInputPtr combined_input;
   clock.run("load", [&] {
-    scene = load_scene(o.input, s.load);
+    scene = load_scene(o.out.input, s.load);
     if (combined) combined_input = plan_combined_gltf(*scene.source);
     scene.source.reset();
     to_metres_y_up(scene, frame);
@@ -453,8 +388,12 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_if_out_of_scale(snow_scene, s.accumulate.fall_depth);
   warn_if_imprecise(snow_scene, s.accumulate.fall_depth);
 
-  // Small objects on a big flat ground: maps over the detail alone.
-  const std::optional<DetailMaps> detail = detail_maps(snow_scene, s.coverage);
+  // Small objects on a big flat ground: maps over the detail alone (a
+  // tile's maps are a part of the untiled run's).
+  const std::optional<TileSpec> tile =
+      o.tiles.empty() ? std::nullopt : std::optional<TileSpec>(parse_tiles(o.tiles, o.tile));
+  const std::optional<DetailMaps> detail =
+      tile ? std::nullopt : detail_maps(snow_scene, s.coverage);
   Scene clipped;
   if (detail) {
     clipped = with_ground_clipped(snow_scene, detail->ground, detail->region);
@@ -482,6 +421,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   if (run.bvh_ahead) build_bvh_ahead();
 
   SnowMaps maps;
+  TilePlan tile_plan;
   plan::GlFacts gl_after_peel;
   clock.run("peel", [&] {
     const auto context = gl.stage_context(run.gl.software);
@@ -490,7 +430,15 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
       log_plan(run);
       if (run.bvh_ahead) build_bvh_ahead();
     }
-    maps = peel_layers(map_scene, s.peel, run.gl);
+    if (tile) {
+      const Bounds& b = map_scene.bounds;
+      tile_plan = plan_tile(make_grid(b, s.peel), *tile,
+                            plan::tile_halo(double(b.max.y) - double(b.min.y),
+                                            s.wind_transport && glm::length(s.coverage.wind) > 0));
+      maps = peel_layers(map_scene, tile_plan.grid, s.peel, run.gl);
+    } else {
+      maps = peel_layers(map_scene, s.peel, run.gl);
+    }
     if (detail) {
       const glm::vec3 r = detail->region.size(), g = detail->ground.bounds.size();
       char line[400];
@@ -541,6 +489,19 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   });
   warn_if_unsettled(snow, s.stabilize);
   warn_if_sheltered(map_scene, maps, snow.coverage);
+  if (tile) {
+    clock.run("export", [&] {
+      write_tile(o.tile_dir, tile_plan, maps, snow.coverage, snow.depth,
+                 fs::absolute(o.out.input).string(), settings_to_json(o.settings).dump());
+    });
+    char line[300];
+    std::snprintf(
+        line, sizeof line, "wrote tile %d of %d x %d (texels %d..%d x %d..%d, halo %.3g m) to %s",
+        tile->index, tile->columns, tile->rows, tile_plan.i0, tile_plan.i1 - 1, tile_plan.j0,
+        tile_plan.j1 - 1, double(tile_plan.halo), tile_folder(o.tile_dir, tile->index).c_str());
+    log_info(line);
+    return;
+  }
 
   std::vector<SnowPatch> patches;
   clock.run("polygonize", [&] { patches = polygonize(maps, snow.depth, map_scene, s.polygonize); });
@@ -560,15 +521,15 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
     std::vector<std::vector<float>> storage;
     std::optional<MapsSnowpack> snowpack;
     if (pack) snowpack = maps_snowpack(*pack, pack_hour, storage);
-    write_outputs(o, format, std::move(combined_input), patches, frame, maps, snow,
-                  snowpack ? &*snowpack : nullptr);
+    write_outputs(o.out, format, std::move(combined_input), patches, frame, maps, &snow.coverage,
+                  &snow.depth, snowpack ? &*snowpack : nullptr, settings_to_json(o.settings));
   });
-  if (!o.preview.empty()) {
+  if (!o.out.preview.empty()) {
     clock.run("preview", [&] {
       const auto context = gl.context();
-      write_preview(snow_scene, patches, o.preview);
+      write_preview(snow_scene, patches, o.out.preview);
     });
-    log_info("wrote " + o.preview);
+    log_info("wrote " + o.out.preview);
   }
   log_summary(clock, triangles_in, patches, snow, gl.used(), pack.has_value());
 }
@@ -586,19 +547,8 @@ void register_snow(CLI::App& app, const GlobalOptions& global) {
          "--config", [o](const std::string& path) { load_settings_file(path, o->settings); },
          "JSON settings file (as written beside outputs: OUT.settings.json); flags override it")
       ->check(CLI::ExistingFile);
-  cmd->add_option("input", o->input, "glTF 2.0 scene (.gltf or .glb)")->required();
-  cmd->add_option("-o,--output", o->output,
-                  "Output: the input scene plus snow (.glb, .gltf), or snow only (.obj, .ply)");
-  cmd->add_option("--snow-output", o->snow_output,
-                  "Also write the snow only (.glb, .gltf, .obj, .ply)");
-  cmd->add_option(
-         "--format", o->format,
-         "Format of --output: obj or ply override its extension; glb and gltf must match it")
-      ->check(CLI::IsMember({"glb", "gltf", "obj", "ply"}));
-  cmd->add_flag("--snow-only", o->snow_only, "Write only the snow to --output");
-  cmd->add_option("--maps", o->maps_dir,
-                  "Write height, coverage and depth maps (EXR, PNG, manifest.json) here");
-  cmd->add_option("--preview", o->preview, "Write a before/after preview PNG (3/4 and top views)");
+  cmd->add_option("input", o->out.input, "glTF 2.0 scene (.gltf or .glb)")->required();
+  add_output_options(*cmd, o->out, true);
   add_settings_options(*cmd, o->settings, global.help_all);
   cmd->add_option("--resume", o->resume,
                   "Continue a --weather run from the --maps folder an earlier one wrote (same "
@@ -614,6 +564,14 @@ void register_snow(CLI::App& app, const GlobalOptions& global) {
   cmd->add_flag("--sequence-maps", o->sequence_maps,
                 "Write each --sequence frame's maps too (maps_0001, ...)")
       ->group("Weather over time");
+  cmd->add_option("--tiles", o->tiles,
+                  "Snow one tile of this COLUMNSxROWS split of the maps (with --tile and "
+                  "--tile-dir); snowmodel merge joins the tiles")
+      ->group("City scale");
+  cmd->add_option("--tile", o->tile, "The tile to snow: 0 .. COLUMNS*ROWS-1, row by row")
+      ->group("City scale");
+  cmd->add_option("--tile-dir", o->tile_dir, "Folder of the tiles (tile_0000, ...)")
+      ->group("City scale");
   cmd->add_flag("--help-all", "Print this help with the developer options (backends, speed-ups)");
   cmd->callback([o, &global, cmd] {
     o->depth_given = cmd->count("--depth") > 0;

@@ -26,5 +26,6 @@ void register_info(CLI::App& app, const GlobalOptions& global);
 void register_render(CLI::App& app, const GlobalOptions& global);
 void register_snow(CLI::App& app, const GlobalOptions& global);
 void register_preview(CLI::App& app, const GlobalOptions& global);
+void register_merge(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace snow::app

@@ -51,6 +51,7 @@ int main(int argc, char** argv) {
   app::register_render(cli, global);
   app::register_snow(cli, global);
   app::register_preview(cli, global);
+  app::register_merge(cli, global);
 
   try {
     cli.parse(argc, argv);

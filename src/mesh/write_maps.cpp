@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <system_error>
 
@@ -168,12 +169,12 @@ namespace {
 /// The files of write_maps, written into the existing folder `dir`.
 void write_maps_into(const std::filesystem::path& dir, const SnowMaps& maps,
                      const std::vector<float>* coverage, const std::vector<float>* depth,
-                     const MapsSnowpack* snowpack);
+                     const MapsSnowpack* snowpack, const MapsExtra* extra);
 }  // namespace
 
 void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
                 const std::vector<float>* coverage, const std::vector<float>* depth,
-                const MapsSnowpack* snowpack) {
+                const MapsSnowpack* snowpack, const MapsExtra* extra) {
   const MapGrid& g = maps.grid;
   const size_t texels = g.texels();
   const size_t total = size_t(std::max(maps.layers, 0)) * texels;
@@ -184,6 +185,9 @@ void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
                                                                           {"snow depth", depth}};
   if (snowpack) {
     for (const MapValues& v : snowpack->values) given.emplace_back(v.name, v.values);
+  }
+  if (extra) {
+    for (const MapValues& v : extra->values) given.emplace_back(v.name, v.values);
   }
   for (const auto& [name, v] : given) {
     if (v && v->size() != total) {
@@ -199,7 +203,7 @@ void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
     throw InputError(dir.string() + ": " + kNotMapsFolder);
   }
   write_folder_atomically(dir, [&](const std::filesystem::path& tmp) {
-    write_maps_into(tmp, maps, coverage, depth, snowpack);
+    write_maps_into(tmp, maps, coverage, depth, snowpack, extra);
   });
 }
 
@@ -219,7 +223,7 @@ namespace {
 
 void write_maps_into(const std::filesystem::path& dir, const SnowMaps& maps,
                      const std::vector<float>* coverage, const std::vector<float>* depth,
-                     const MapsSnowpack* snowpack) {
+                     const MapsSnowpack* snowpack, const MapsExtra* extra) {
   const MapGrid& g = maps.grid;
   const size_t texels = g.texels();
 
@@ -232,9 +236,11 @@ void write_maps_into(const std::filesystem::path& dir, const SnowMaps& maps,
   std::vector<Kind> kinds = {{"height", nullptr, "m", "surface height, world Y"}};
   if (coverage) kinds.push_back({"coverage", coverage, "1", "share of fall directions that reach"});
   if (depth) kinds.push_back({"depth", depth, "m", "snow depth, vertical"});
-  if (snowpack) {
-    for (const MapValues& v : snowpack->values) {
-      kinds.push_back({v.name.c_str(), v.values, v.unit.c_str(), ""});
+  for (const std::vector<MapValues>* values :
+       {snowpack ? &snowpack->values : nullptr, extra ? &extra->values : nullptr}) {
+    for (size_t v = 0; values && v < values->size(); ++v) {
+      const MapValues& m = (*values)[v];
+      kinds.push_back({m.name.c_str(), m.values, m.unit.c_str(), ""});
     }
   }
 
@@ -303,56 +309,43 @@ void write_maps_into(const std::filesystem::path& dir, const SnowMaps& maps,
                             {"lost", snowpack->lost},
                             {"hour", snowpack->hour}};
   }
+  for (size_t r = 0; extra && r < extra->records.size(); ++r) {
+    manifest[extra->records[r].first] = nlohmann::ordered_json::parse(extra->records[r].second);
+  }
   write_text_atomically(dir / "manifest.json", manifest.dump(2) + "\n");
 }
 
 }  // namespace
 
-MapsSnowpack read_maps_snowpack(const std::filesystem::path& dir, const SnowMaps& maps,
-                                const std::vector<std::string>& names,
-                                std::vector<std::vector<float>>& values) {
-  const std::string where = "resume: " + dir.string();
+MapsFolder read_maps_folder(const std::filesystem::path& dir, const std::string& where,
+                            const std::vector<std::string>& names) {
   std::ifstream in(dir / "manifest.json", std::ios::binary);
   if (!in) throw InputError(where + ": no manifest.json (give a folder written by --maps)");
-  const nlohmann::json m = nlohmann::json::parse(in, nullptr, false);
+  MapsFolder out;
+  out.manifest.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  const nlohmann::json m = nlohmann::json::parse(out.manifest, nullptr, false);
   if (!m.is_object() || m.value("format", nlohmann::json()) != "snowmodel-maps") {
     throw InputError(where + ": manifest.json is not a snowmodel maps manifest");
   }
-  if (!m.contains("snowpack") || !m["snowpack"].is_object()) {
-    throw InputError(where + ": the maps hold no snowpack (write them from a --weather run)");
-  }
-  const MapGrid& g = maps.grid;
   try {
-    const float texel = m.at("texel_size").get<float>();
-    const float ox = m.at("origin").at(0).get<float>(), oz = m.at("origin").at(1).get<float>();
-    const int width = m.at("width").get<int>(), height = m.at("height").get<int>();
-    const int layers = m.at("map_layers").get<int>();
-    const float tolerance = 1e-3f * g.texel;
-    if (width != g.width || height != g.height || layers != maps.layers ||
-        std::abs(texel - g.texel) > 1e-6f * g.texel || std::abs(ox - g.origin.x) > tolerance ||
-        std::abs(oz - g.origin.y) > tolerance) {
-      char line[400];
-      std::snprintf(line, sizeof line,
-                    "%s: written for %d x %d texels of %.6g m at (%.6g, %.6g) with %d layers; this "
-                    "run's maps are %d x %d of %.6g m at (%.6g, %.6g) with %d layers (same scene, "
-                    "--texel or --max-side, --layers and --margin as the first run)",
-                    where.c_str(), width, height, double(texel), double(ox), double(oz), layers,
-                    g.width, g.height, double(g.texel), double(g.origin.x), double(g.origin.y),
-                    maps.layers);
-      throw InputError(line);
+    MapGrid& g = out.grid;
+    g.texel = m.at("texel_size").get<float>();
+    g.origin = {m.at("origin").at(0).get<float>(), m.at("origin").at(1).get<float>()};
+    g.width = m.at("width").get<int>();
+    g.height = m.at("height").get<int>();
+    out.layers = m.at("map_layers").get<int>();
+    if (g.width < 1 || g.height < 1 || out.layers < 1 || out.layers > 64 || !(g.texel > 0.0f) ||
+        double(g.width) * double(g.height) * out.layers > double(size_t(1) << 34)) {
+      throw InputError(where + ": manifest.json gives an impossible grid");
     }
-    MapsSnowpack out;
-    const nlohmann::json& p = m["snowpack"];
-    out.fallen = p.at("fallen").get<double>();
-    out.melted = p.at("melted").get<double>();
-    out.lost = p.at("lost").get<double>();
-    out.hour = p.at("hour").get<double>();
     const size_t texels = g.texels();
-    values.assign(names.size(), std::vector<float>(size_t(maps.layers) * texels, 0.0f));
+    for (const std::string& name : names) {
+      out.values.emplace_back(size_t(out.layers) * texels, name == "height" ? NAN : 0.0f);
+    }
     for (const nlohmann::json& f : m.at("files")) {
       const auto name = std::find(names.begin(), names.end(), f.at("kind").get<std::string>());
       const int l = f.at("layer").get<int>();
-      if (name == names.end() || l < 0 || l >= maps.layers) continue;
+      if (name == names.end() || l < 0 || l >= out.layers) continue;
       const std::filesystem::path path = dir / f.at("exr").get<std::string>();
       if (path.filename() != path.lexically_relative(dir)) {
         throw InputError(where + ": a file name leaves the folder: " + path.string());
@@ -365,25 +358,65 @@ MapsSnowpack read_maps_snowpack(const std::filesystem::path& dir, const SnowMaps
         if (err) FreeEXRErrorMessage(err);
         throw IOError(where + ": cannot read " + path.filename().string() + ": " + message);
       }
-      std::vector<float>& out_values = values[size_t(name - names.begin())];
+      std::vector<float>& values = out.values[size_t(name - names.begin())];
       if (w == g.width && h == g.height) {
         // LoadEXR gives RGBA; a single-channel image fills each with Y.
-        for (size_t t = 0; t < texels; ++t) {
-          const float v = image[4 * t];
-          out_values[size_t(l) * texels + t] = std::isfinite(v) && v > 0.0f ? v : 0.0f;
-        }
+        for (size_t t = 0; t < texels; ++t) values[size_t(l) * texels + t] = image[4 * t];
       }
       std::free(image);
       if (w != g.width || h != g.height) {
         throw InputError(where + ": " + path.filename().string() + " is " + std::to_string(w) +
                          " x " + std::to_string(h) + ", the manifest says " +
-                         std::to_string(width) + " x " + std::to_string(height));
+                         std::to_string(g.width) + " x " + std::to_string(g.height));
       }
     }
-    return out;
   } catch (const nlohmann::json::exception& e) {
     throw InputError(where + ": manifest.json lacks a field: " + e.what());
   }
+  return out;
+}
+
+MapsSnowpack read_maps_snowpack(const std::filesystem::path& dir, const SnowMaps& maps,
+                                const std::vector<std::string>& names,
+                                std::vector<std::vector<float>>& values) {
+  const std::string where = "resume: " + dir.string();
+  MapsFolder folder = read_maps_folder(dir, where, {});
+  const nlohmann::json m = nlohmann::json::parse(folder.manifest);
+  if (!m.contains("snowpack") || !m["snowpack"].is_object()) {
+    throw InputError(where + ": the maps hold no snowpack (write them from a --weather run)");
+  }
+  const MapGrid& g = maps.grid;
+  const MapGrid& f = folder.grid;
+  const float tolerance = 1e-3f * g.texel;
+  if (f.width != g.width || f.height != g.height || folder.layers != maps.layers ||
+      std::abs(f.texel - g.texel) > 1e-6f * g.texel ||
+      std::abs(f.origin.x - g.origin.x) > tolerance ||
+      std::abs(f.origin.y - g.origin.y) > tolerance) {
+    char line[400];
+    std::snprintf(line, sizeof line,
+                  "%s: written for %d x %d texels of %.6g m at (%.6g, %.6g) with %d layers; this "
+                  "run's maps are %d x %d of %.6g m at (%.6g, %.6g) with %d layers (same scene, "
+                  "--texel or --max-side, --layers and --margin as the first run)",
+                  where.c_str(), f.width, f.height, double(f.texel), double(f.origin.x),
+                  double(f.origin.y), folder.layers, g.width, g.height, double(g.texel),
+                  double(g.origin.x), double(g.origin.y), maps.layers);
+    throw InputError(line);
+  }
+  MapsSnowpack out;
+  try {
+    const nlohmann::json& p = m["snowpack"];
+    out.fallen = p.at("fallen").get<double>();
+    out.melted = p.at("melted").get<double>();
+    out.lost = p.at("lost").get<double>();
+    out.hour = p.at("hour").get<double>();
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(where + ": manifest.json lacks a field: " + e.what());
+  }
+  values = std::move(read_maps_folder(dir, where, names).values);
+  for (std::vector<float>& v : values) {
+    for (float& x : v) x = std::isfinite(x) && x > 0.0f ? x : 0.0f;
+  }
+  return out;
 }
 
 MapsSnowpack maps_snowpack(const SnowPack& pack, double hour,

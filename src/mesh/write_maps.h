@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "snow/maps.h"
@@ -25,6 +26,13 @@ struct MapsSnowpack {
   std::vector<MapValues> values;
   double fallen = 0.0, melted = 0.0, lost = 0.0;
   double hour = 0.0;  // hours of weather behind the state
+};
+
+/// More for write_maps to hold: values per layer texel, and records of the
+/// manifest (name and JSON text, e.g. a tile's record).
+struct MapsExtra {
+  std::vector<MapValues> values;
+  std::vector<std::pair<std::string, std::string>> records;
 };
 
 /// The snowpack's part of a maps folder for `pack` after `hour` hours of
@@ -54,10 +62,28 @@ MapsSnowpack maps_snowpack(const SnowPack& pack, double hour,
 /// InputError. Throws InputError for arrays of the wrong size, IOError when
 /// the folder or a file cannot be written.
 /// With `snowpack`, its values too (each layer of each) and a "snowpack"
-/// record in the manifest.
+/// record in the manifest; with `extra`, its values and records.
 void write_maps(const std::filesystem::path& dir, const SnowMaps& maps,
                 const std::vector<float>* coverage = nullptr,
-                const std::vector<float>* depth = nullptr, const MapsSnowpack* snowpack = nullptr);
+                const std::vector<float>* depth = nullptr, const MapsSnowpack* snowpack = nullptr,
+                const MapsExtra* extra = nullptr);
+
+/// A maps folder read back (read_maps_folder).
+struct MapsFolder {
+  MapGrid grid;
+  int layers = 0;                          // map_layers
+  std::string manifest;                    // manifest.json's text
+  std::vector<std::vector<float>> values;  // per name asked, maps' layout, as stored (a layer
+                                           // without a file: NaN for "height", else 0)
+};
+
+/// Reads the manifest of the maps folder `dir` and the values `names`
+/// ("height", "coverage", "depth" or written as MapValues). `where` starts
+/// each error message. Throws InputError for a folder that is not a maps
+/// folder, a manifest without its fields, an image of another size, or a
+/// file name that leaves the folder; IOError where a file cannot be read.
+MapsFolder read_maps_folder(const std::filesystem::path& dir, const std::string& where,
+                            const std::vector<std::string>& names);
 
 /// Reads back what write_maps wrote with a snowpack, for `maps`: the values
 /// named `names` (each in the maps' layout, 0 on layers the folder has no

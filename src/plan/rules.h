@@ -296,6 +296,24 @@ constexpr double kWeatherWindChange = 0.5;  // m/s
 /// The sun's shadow is reused while the sun moved by at most this.
 constexpr double kWeatherSunChange = 1.0;  // degrees
 
+// --- Tiles (snowmodel snow --tiles, snowmodel merge) ---
+
+/// Each tile's maps reach this far past the tile on every side (the halo),
+/// so that the snow on the tile itself is the untiled run's: what slides off
+/// a roof, pours into a pile or blows into a drift comes from within about
+/// twice the height it falls from (EN 1991-1-3 draws drifts at a step over
+/// twice its height), and the wind carries snow over its saturation length
+/// (kDriftSaturationLength) more. The shadows need no halo: the coverage
+/// draws every caster of the scene over the maps.
+constexpr double kTileHaloHeights = 2.0;  // times the scene's height
+constexpr double kTileHaloMin = 1.0;      // m
+/// The halo (m) for a scene `height` metres from its lowest to its highest
+/// point, with (`wind`) or without a wind that moves snow.
+inline double tile_halo(double height, bool wind) {
+  return std::max(kTileHaloMin, kTileHaloHeights * std::max(height, 0.0)) +
+         (wind ? kDriftSaturationLength : 0.0);
+}
+
 // --- Live preview ---
 
 /// The live preview's automatic --snow-stride draws its snow grid with at
