@@ -59,11 +59,15 @@ fs::path save_town(const fs::path& dir, int n) {
   return path;
 }
 
-/// The number after `key` in `text` (-1 when absent).
-double number_after(const std::string& text, const std::string& key) {
-  const size_t at = text.rfind(key);
+/// The number after `key` in `text`, after `from` where given (-1 when absent).
+double number_after(const std::string& text, const std::string& key, const std::string& from = "") {
+  const size_t start = from.empty() ? 0 : text.rfind(from);
+  const size_t at = start == std::string::npos ? start : text.find(key, start);
   return at == std::string::npos ? -1.0 : std::atof(text.c_str() + at + key.size());
 }
+
+/// The patches of a summary line ("snow out N in P patches").
+double patches_of(const std::string& text) { return number_after(text, " in ", "snow out "); }
 
 /// Runs every tile of a `split` ("CxR", `count` tiles) of `scene`.
 void run_tiles(const fs::path& scene, const std::string& split, int count, const fs::path& dir,
@@ -79,32 +83,42 @@ const std::string kOptions = " --texel 0.1 --directions 16";
 
 // The town snowed whole, and as 2 x 2 and 3 x 1 tiles merged: the same snow
 // volume within 1 %, the same patches, each a closed mesh, and a merged
-// scene-plus-snow glTF that the Khronos validator passes.
-TEST(Tiles, MergedTilesGiveTheUntiledRunsSnow) {
-  const fs::path dir = temp_dir("merge");
+// scene-plus-snow glTF that the Khronos validator passes; in still air, and
+// (2 x 2) in a wind that blows the snow into drifts.
+class TilesMerge : public testing::TestWithParam<std::string> {};
+
+TEST_P(TilesMerge, MergedTilesGiveTheUntiledRunsSnow) {
+  const bool wind = !GetParam().empty();
+  const fs::path dir = temp_dir(wind ? "wind" : "merge");
   const fs::path scene = save_town(dir, 3);
+  const std::string options = kOptions + GetParam();
   const test::CommandResult whole =
-      run("snow " + q(scene) + " --snow-output " + q(dir / "whole.glb") + kOptions);
+      run("snow " + q(scene) + " --snow-output " + q(dir / "whole.glb") + options);
   ASSERT_EQ(whole.code, 0) << whole.output;
   const double volume = number_after(whole.output, "; snow ");
-  const double patches = number_after(whole.output, " in ");
+  const double patches = patches_of(whole.output);
   ASSERT_GT(volume, 10.0) << whole.output;
   const Scene untiled = load_scene(dir / "whole.glb");
   for (int o = 0; o < int(untiled.objects.size()); ++o) {
     EXPECT_TRUE(check_object_topology(untiled, o).closed()) << untiled.objects[size_t(o)].name;
   }
-  for (const auto& [split, count] : {std::pair<std::string, int>{"2x2", 4}, {"3x1", 3}}) {
+  std::vector<std::pair<std::string, int>> splits = {{"2x2", 4}};
+  if (!wind) splits.push_back({"3x1", 3});
+  for (const auto& [split, count] : splits) {
     SCOPED_TRACE(split);
     const fs::path tiles = dir / ("tiles_" + split);
-    run_tiles(scene, split, count, tiles, kOptions);
+    run_tiles(scene, split, count, tiles, options);
+    for (int i = 0; i < count; ++i) {  // each tile's own snow, to look at
+      EXPECT_TRUE(fs::exists(tiles / ("tile_000" + std::to_string(i) + ".glb"))) << i;
+    }
     const fs::path merged = dir / ("merged_" + split + ".glb");
     const test::CommandResult m = run("merge " + q(tiles) + " -o " + q(merged) + " --snow-output " +
                                       q(dir / ("snow_" + split + ".glb")));
     ASSERT_EQ(m.code, 0) << m.output;
     std::printf("%s: %.3f m^3 in %.0f patches (untiled %.3f in %.0f)\n", split.c_str(),
-                number_after(m.output, "; snow "), number_after(m.output, " in "), volume, patches);
+                number_after(m.output, "; snow "), patches_of(m.output), volume, patches);
     EXPECT_NEAR(number_after(m.output, "; snow "), volume, 0.01 * volume);
-    EXPECT_EQ(number_after(m.output, " in "), patches);
+    EXPECT_EQ(patches_of(m.output), patches);
     const Scene snow = load_scene(dir / ("snow_" + split + ".glb"));
     ASSERT_EQ(double(snow.objects.size()), patches);
     EXPECT_EQ(snow.stats.degenerate_dropped, 0u) << "zero-area triangles";
@@ -119,6 +133,11 @@ TEST(Tiles, MergedTilesGiveTheUntiledRunsSnow) {
   }
   fs::remove_all(dir);
 }
+
+INSTANTIATE_TEST_SUITE_P(Tiles, TilesMerge, testing::Values("", " --wind 8,3"),
+                         [](const testing::TestParamInfo<std::string>& p) {
+                           return p.param.empty() ? "StillAir" : "Wind";
+                         });
 
 // A merge with a tile missing names it and writes nothing; a tile run again
 // replaces its own folder and leaves the others as they were.

@@ -67,8 +67,8 @@ void run_merge(MergeOptions o) {
   size_t triangles = 0;
   for (const SnowPatch& p : patches) triangles += p.mesh.indices.size() / 3;
   char line[200];
-  std::snprintf(line, sizeof line, "summary: snow out %zu triangles in %zu patches; snow %.3f m^3",
-                triangles, patches.size(), snow_volume(tiles.maps, tiles.depth));
+  std::snprintf(line, sizeof line, "summary: snow out %zu in %zu patches; snow %.3f m^3", triangles,
+                patches.size(), snow_volume(tiles.maps, tiles.depth));
   log_info(line);
 }
 

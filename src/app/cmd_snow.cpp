@@ -492,7 +492,8 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   if (tile) {
     clock.run("export", [&] {
       write_tile(o.tile_dir, tile_plan, maps, snow.coverage, snow.depth,
-                 fs::absolute(o.out.input).string(), settings_to_json(o.settings).dump());
+                 {fs::absolute(o.out.input).string(), settings_to_json(o.settings).dump(),
+                  &map_scene, s.polygonize, frame});
     });
     char line[300];
     std::snprintf(

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
+#include "mesh/export.h"
 #include "mesh/write_maps.h"
 
 namespace snow::app {
@@ -121,7 +122,7 @@ fs::path tile_folder(const fs::path& dir, int index) {
 
 void write_tile(const fs::path& dir, const TilePlan& plan, const SnowMaps& maps,
                 const std::vector<float>& coverage, const std::vector<float>& depth,
-                const std::string& input, const std::string& settings) {
+                const TileRecord& tile) {
   // The tile's own texels as maps of their own.
   SnowMaps own;
   MapGrid g = plan.global;
@@ -156,10 +157,14 @@ void write_tile(const fs::path& dir, const TilePlan& plan, const SnowMaps& maps,
                                  {"own_texels", {plan.i0, plan.j0, plan.i1, plan.j1}},
                                  {"global", grid_json(plan.global)},
                                  {"halo_m", plan.halo},
-                                 {"input", input},
-                                 {"settings", nlohmann::json::parse(settings)}};
+                                 {"input", tile.input},
+                                 {"settings", nlohmann::json::parse(tile.settings)}};
   extra.records.push_back({"tile", record.dump()});
-  write_maps(tile_folder(dir, plan.spec.index), own, &own_coverage, &own_depth, nullptr, &extra);
+  const fs::path folder = tile_folder(dir, plan.spec.index);
+  write_maps(folder, own, &own_coverage, &own_depth, nullptr, &extra);
+  std::vector<SnowPatch> patches = polygonize(own, own_depth, *tile.scene, tile.mesh);
+  for (SnowPatch& p : patches) to_file_frame(p.mesh, tile.frame);
+  write_snow_meshes(patches, folder.string() + ".glb", MeshFormat::Glb);
 }
 
 MergedTiles read_tiles(const fs::path& dir, uint64_t memory_budget) {

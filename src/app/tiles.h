@@ -12,6 +12,9 @@
 #include <string>
 #include <vector>
 
+#include "mesh/polygonize.h"
+#include "scene/frame.h"
+#include "scene/scene.h"
 #include "snow/maps.h"
 
 namespace snow::app {
@@ -45,14 +48,24 @@ TilePlan plan_tile(const MapGrid& global, const TileSpec& spec, double halo_m);
 /// The folder of tile `index` in `dir`.
 std::filesystem::path tile_folder(const std::filesystem::path& dir, int index);
 
+/// What a tile writes besides its maps.
+struct TileRecord {
+  std::string input;        // the scene snowed
+  std::string settings;     // the run's settings (JSON text, settings_to_json)
+  const Scene* scene;       // the scene of the maps (names the snow patches)
+  PolygonizeSettings mesh;  // how its snow is meshed
+  FileFrame frame;          // the file's frame, which the meshes go back to
+};
+
 /// Writes the tile's own texels of `maps` (peeled on plan.grid), `coverage`
 /// and `depth` (the maps' layout) to tile_folder(dir, index) in one step
 /// (write_maps), with a "tile" record: the split, the index, the global
-/// grid, the own texels, the halo, `input` (the scene) and `settings` (JSON
-/// text of the run's settings).
+/// grid, the own texels, the halo, the input and the settings; and their
+/// snow, meshed on its own (cut at the tile's border), as
+/// tile_folder(dir, index) + ".glb" for a look at one tile.
 void write_tile(const std::filesystem::path& dir, const TilePlan& plan, const SnowMaps& maps,
                 const std::vector<float>& coverage, const std::vector<float>& depth,
-                const std::string& input, const std::string& settings);
+                const TileRecord& record);
 
 /// Every tile of a folder, assembled.
 struct MergedTiles {

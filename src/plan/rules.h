@@ -299,19 +299,21 @@ constexpr double kWeatherSunChange = 1.0;  // degrees
 // --- Tiles (snowmodel snow --tiles, snowmodel merge) ---
 
 /// Each tile's maps reach this far past the tile on every side (the halo),
-/// so that the snow on the tile itself is the untiled run's: what slides off
-/// a roof, pours into a pile or blows into a drift comes from within about
-/// twice the height it falls from (EN 1991-1-3 draws drifts at a step over
-/// twice its height), and the wind carries snow over its saturation length
-/// (kDriftSaturationLength) more. The shadows need no halo: the coverage
-/// draws every caster of the scene over the maps.
-constexpr double kTileHaloHeights = 2.0;  // times the scene's height
-constexpr double kTileHaloMin = 1.0;      // m
+/// so that the snow on the tile itself is the untiled run's. Without wind,
+/// snow that ends on a tile comes from a roof or slope reaching over its
+/// border and slides at most to the foot of it, where it piles: within
+/// kTileSlideHalo. A wind that moves snow carries it further: drifts reach
+/// about twice the height of what shelters them downwind (EN 1991-1-3 at a
+/// step), and the flux takes its saturation length (kDriftSaturationLength)
+/// to build up. The shadows need no halo: the coverage draws every caster
+/// of the scene over the maps.
+constexpr double kTileSlideHalo = 5.0;    // m
+constexpr double kTileHaloHeights = 2.0;  // times the scene's height, with wind
 /// The halo (m) for a scene `height` metres from its lowest to its highest
 /// point, with (`wind`) or without a wind that moves snow.
 inline double tile_halo(double height, bool wind) {
-  return std::max(kTileHaloMin, kTileHaloHeights * std::max(height, 0.0)) +
-         (wind ? kDriftSaturationLength : 0.0);
+  return kTileSlideHalo +
+         (wind ? kTileHaloHeights * std::max(height, 0.0) + kDriftSaturationLength : 0.0);
 }
 
 // --- Live preview ---
