@@ -22,15 +22,15 @@ struct MergeOptions {
 };
 
 void run_merge(MergeOptions o) {
+  if (o.out.output.empty() && o.out.snow_output.empty() && o.out.maps_dir.empty()) {
+    throw InputError("nothing to write: give -o OUT, --snow-output or --maps");
+  }
   PipelineSettings budget;
   budget.memory_budget_gib = o.memory_budget_gib;
   check_settings(budget);  // its range
   MergedTiles tiles = read_tiles(o.dir, memory_budget_bytes(o.memory_budget_gib));
   o.out.input = tiles.input;
   const MeshFormat format = check_outputs(o.out);
-  if (o.out.output.empty() && o.out.snow_output.empty() && o.out.maps_dir.empty()) {
-    throw InputError("nothing to write: give -o OUT, --snow-output or --maps");
-  }
   PipelineSettings s;
   settings_from_json(nlohmann::json::parse(tiles.settings), s);
   s.memory_budget_gib = o.memory_budget_gib;

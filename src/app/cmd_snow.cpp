@@ -340,6 +340,30 @@ void log_plan(const plan::RunPlan& run) {
   for (const std::string& line : plan::describe(run)) log_debug(line);
 }
 
+/// Tile `spec` of the untiled run's grid of `scene` with the halo its
+/// settings need (plan::tile_halo).
+TilePlan tile_of(const Scene& scene, const PipelineSettings& s, const TileSpec& spec) {
+  const Bounds& b = scene.bounds;
+  const bool wind = s.wind_transport && glm::length(s.coverage.wind) > 0.0f;
+  return plan_tile(make_grid(b, s.peel), spec,
+                   plan::tile_halo(double(b.max.y) - double(b.min.y), wind));
+}
+
+/// Writes a tile run's tile (app/tiles.h) and says where it went.
+void write_tile_of_run(const SnowOptions& o, const TilePlan& plan, const SnowMaps& maps,
+                       const SnowResult& snow, const Scene& scene, const PipelineSettings& s,
+                       const FileFrame& frame) {
+  write_tile(o.tile_dir, plan, maps, snow.coverage, snow.depth,
+             {fs::absolute(o.out.input).string(), settings_to_json(o.settings).dump(), &scene,
+              s.polygonize, frame});
+  char line[300];
+  std::snprintf(line, sizeof line,
+                "wrote tile %d of %d x %d (texels %d..%d x %d..%d, halo %.3g m) to %s",
+                plan.spec.index, plan.spec.columns, plan.spec.rows, plan.i0, plan.i1 - 1, plan.j0,
+                plan.j1 - 1, double(plan.halo), tile_folder(o.tile_dir, plan.spec.index).c_str());
+  log_info(line);
+}
+
 void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   MeshFormat format = MeshFormat::Glb;
   PipelineSettings s = checked_settings(o, format);
@@ -431,10 +455,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
       if (run.bvh_ahead) build_bvh_ahead();
     }
     if (tile) {
-      const Bounds& b = map_scene.bounds;
-      tile_plan = plan_tile(make_grid(b, s.peel), *tile,
-                            plan::tile_halo(double(b.max.y) - double(b.min.y),
-                                            s.wind_transport && glm::length(s.coverage.wind) > 0));
+      tile_plan = tile_of(map_scene, s, *tile);
       maps = peel_layers(map_scene, tile_plan.grid, s.peel, run.gl);
     } else {
       maps = peel_layers(map_scene, s.peel, run.gl);
@@ -490,17 +511,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   warn_if_unsettled(snow, s.stabilize);
   warn_if_sheltered(map_scene, maps, snow.coverage);
   if (tile) {
-    clock.run("export", [&] {
-      write_tile(o.tile_dir, tile_plan, maps, snow.coverage, snow.depth,
-                 {fs::absolute(o.out.input).string(), settings_to_json(o.settings).dump(),
-                  &map_scene, s.polygonize, frame});
-    });
-    char line[300];
-    std::snprintf(
-        line, sizeof line, "wrote tile %d of %d x %d (texels %d..%d x %d..%d, halo %.3g m) to %s",
-        tile->index, tile->columns, tile->rows, tile_plan.i0, tile_plan.i1 - 1, tile_plan.j0,
-        tile_plan.j1 - 1, double(tile_plan.halo), tile_folder(o.tile_dir, tile->index).c_str());
-    log_info(line);
+    clock.run("export", [&] { write_tile_of_run(o, tile_plan, maps, snow, map_scene, s, frame); });
     return;
   }
 
