@@ -21,8 +21,9 @@ constexpr int kMaxTilesPerSide = 1024;
 /// The values a tile holds besides height, coverage and depth.
 const std::vector<std::string> kTileValues = {"normal_x", "normal_y", "normal_z", "object"};
 
-/// The `first`..`last` texels of `from` (a per layer texel array of
-/// `source`'s layout) on `to`'s grid at texel (di, dj) and on.
+/// Copies the w x h texels from (si, sj) on of each of `layers` layers of
+/// `from` (a per layer texel array on `source`) to (di, dj) on of `to` (one
+/// on `target`).
 template <class T, class U>
 void copy_rect(const T& from, const MapGrid& source, int layers, int si, int sj, int w, int h,
                U& to, const MapGrid& target, int di, int dj) {
