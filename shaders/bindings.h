@@ -58,6 +58,8 @@
 #define SNOW_STABILIZE_TILE_LIST 0
 // SSBO uint: set by a pointer-jumping pass that moved a pointer on (stabilize_jump.frag).
 #define SNOW_STABILIZE_JUMP_CHANGED 1
+// SSBO uint[2]: a checked pass's largest move and move into the void (stabilize_moves.comp).
+#define SNOW_STABILIZE_MOVES 2
 // usampler2DArray R32UI per tile and layer: 1 where the layer has a surface in the tile.
 #define SNOW_STABILIZE_TILE_LAYERS 9
 // usampler2D R8UI per column: its layers with a surface (they are packed from layer 0).

@@ -112,6 +112,7 @@ void LiveSim::make_stabilizer(const SnowMaps& maps, const std::vector<float>* de
     upload_depth(maps);
   } else {
     auto gpu = std::make_unique<Stabilizer>(maps, s);
+    gpu->set_async_checks(true);  // no frame waits for its own passes
     if (depth) gpu->set_depth(*depth);
     gpu_ = std::move(gpu);
     cpu_.reset();

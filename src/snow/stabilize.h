@@ -348,6 +348,15 @@ class Stabilizer {
   /// Off: iterate() leaves volume and lost_volume 0, for a caller that sums
   /// them once at the end (each is a sum over the maps).
   void set_volume_sums(bool on);
+  /// On: each convergence check asks the GPU for its largest moves and
+  /// reads those of the check before (its fence long passed), so no check
+  /// waits for the passes just queued; the decisions (convergence, strides,
+  /// drains) come a check late, and a call reports the last check read. A
+  /// call's first check reads its own when no earlier one is pending (after
+  /// construction, set_depth or add_snow). For the live preview, whose
+  /// frames each end with a check; off (the default): every check reads its
+  /// own pass, which the batch job and the tests compare passes by.
+  void set_async_checks(bool on);
   /// iterate(settings.max_iterations), with volume and lost_volume summed
   /// exactly (double) from a full readback.
   StabilizeResult run();

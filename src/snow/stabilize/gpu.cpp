@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <optional>
 #include <string>
 
 #include "core/error.h"
@@ -47,6 +48,7 @@ struct Stabilizer::Impl {
   bool route_pending = false;
   bool lost_is_zero = true;      // no pass ran since construction or set_depth
   bool volume_sums = true;       // iterate() sums volume and lost_volume
+  bool async_checks = false;     // set_async_checks
   int cur = 0;                   // depth[cur] holds the current snow
   std::vector<uint8_t> surface;  // per layer texel: has a surface
   // The cells with a surface, for pouring the piles on the CPU
@@ -93,7 +95,13 @@ struct Stabilizer::Impl {
   void create_textures();
   void create_framebuffers();
   void create_programs();
-  ~Impl() { release_bindings(); }
+  ~Impl() {
+    drop_pending();
+    for (GLsync& f : moves_fence) {
+      if (f) glDeleteSync(f);
+    }
+    release_bindings();
+  }
   Impl(const Impl&) = delete;
   Impl& operator=(const Impl&) = delete;
   // Leaves no program, vertex array or framebuffer of ours bound, so state
@@ -144,6 +152,22 @@ struct Stabilizer::Impl {
   // The largest move (m) of the last relaxation pass, which must have been
   // measured, and the largest into the void.
   glm::vec2 largest_move() const;
+  // Asynchronous checks (set_async_checks): the largest moves of a checked
+  // pass reduced on the GPU (stabilize_moves.comp) and copied into a slot
+  // of a persistently mapped buffer behind a fence, read a check later.
+  gl::Buffer moves, moves_read;
+  const GLuint* moves_mapped = nullptr;  // 2 slots of 2 uints
+  GLsync moves_fence[2] = {nullptr, nullptr};
+  int pending_slot = -1;   // the slot of the check not read yet, -1: none
+  int pending_stride = 1;  // its pass's stride
+  gl::Program moves_reduce;
+  void request_moves(int slot);
+  glm::vec2 read_moves(int slot);
+  void drop_pending();
+  // The largest moves a check decides by, and the stride of their pass:
+  // this check's, or with async_checks the one before (none at the first
+  // check after a reset).
+  std::optional<glm::vec2> checked_moves(int stride, int& measured_stride);
   std::vector<glm::vec2> read_depth() const;
   // pour_pressed_snow on the depth read back; uploads it when snow was poured.
   bool pour_pressed();
@@ -329,6 +353,8 @@ void Stabilizer::Impl::create_programs() {
   add = gl::Program({"stabilize.vert", "stabilize_add.frag"});
   sums = gl::Program({"stabilize.vert", "stabilize_sums.frag"});
   tile_select = gl::Program({"stabilize_tiles.comp"});
+  moves_reduce = gl::Program({"stabilize_moves.comp"});
+  moves_reduce.set("u_tiles", glm::ivec2(tiles_x, tiles_y));
   outflow_tiled = gl::Program({"stabilize_tile.vert", "stabilize_outflow.frag"});
   gather_tiled = gl::Program({"stabilize_tile.vert", "stabilize_gather.frag"});
   erode_tiled = gl::Program({"stabilize_tile.vert", "stabilize_erode.frag"});
@@ -803,6 +829,65 @@ void Stabilizer::Impl::relax_pass(int stride, bool measure) {
   cur = 1 - cur;
 }
 
+void Stabilizer::Impl::request_moves(int slot) {
+  if (!moves) {
+    moves = gl::create_buffer();
+    glNamedBufferStorage(moves.id(), 2 * sizeof(GLuint), nullptr, GL_DYNAMIC_STORAGE_BIT);
+    moves_read = gl::create_buffer();
+    const GLbitfield flags = GL_MAP_READ_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+    glNamedBufferStorage(moves_read.id(), 4 * sizeof(GLuint), nullptr, flags);
+    moves_mapped = static_cast<const GLuint*>(
+        glMapNamedBufferRange(moves_read.id(), 0, 4 * sizeof(GLuint), flags));
+    gl::check_error("stabilize: the moves' readback buffer");
+    if (!moves_mapped) throw GLError("stabilize: cannot map the moves' readback buffer");
+  }
+  const GLuint zero = 0;
+  glClearNamedBufferData(moves.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+  glBindImageTexture(SNOW_STABILIZE_TILE_MOVES, tile_moves.id(), 0, GL_FALSE, 0, GL_READ_ONLY,
+                     GL_R32UI);
+  glBindImageTexture(SNOW_STABILIZE_TILE_VOID, tile_void.id(), 0, GL_FALSE, 0, GL_READ_ONLY,
+                     GL_R32UI);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_MOVES, moves.id());
+  moves_reduce.use();
+  glDispatchCompute(GLuint((tiles_x + 7) / 8), GLuint((tiles_y + 7) / 8), 1);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
+  glCopyNamedBufferSubData(moves.id(), moves_read.id(), 0, GLintptr(slot) * 2 * sizeof(GLuint),
+                           2 * sizeof(GLuint));
+  if (moves_fence[slot]) glDeleteSync(moves_fence[slot]);
+  moves_fence[slot] = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  glFlush();
+  gl::check_error("stabilize: asking for the largest moves");
+}
+
+glm::vec2 Stabilizer::Impl::read_moves(int slot) {
+  while (glClientWaitSync(moves_fence[slot], GL_SYNC_FLUSH_COMMANDS_BIT, 1000000000) ==
+         GL_TIMEOUT_EXPIRED) {
+  }
+  glDeleteSync(moves_fence[slot]);
+  moves_fence[slot] = nullptr;
+  glm::vec2 result;
+  std::memcpy(&result[0], &moves_mapped[2 * slot], sizeof(float));
+  std::memcpy(&result[1], &moves_mapped[2 * slot + 1], sizeof(float));
+  return result;
+}
+
+void Stabilizer::Impl::drop_pending() { pending_slot = -1; }
+
+std::optional<glm::vec2> Stabilizer::Impl::checked_moves(int stride, int& measured_stride) {
+  measured_stride = stride;
+  if (!async_checks) return largest_move();
+  const int slot = pending_slot == 0 ? 1 : 0;
+  request_moves(slot);
+  std::optional<glm::vec2> before;
+  if (pending_slot >= 0) {
+    measured_stride = pending_stride;
+    before = read_moves(pending_slot);
+  }
+  pending_slot = slot;
+  pending_stride = stride;
+  return before;
+}
+
 glm::dvec3 Stabilizer::Impl::sum_blocks() {
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
   bind(SNOW_STABILIZE_OUT_A, out_a);
@@ -880,12 +965,15 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
     ++result.iterations;
     if (check) {
       last_check = pass;
-      const glm::vec2 moves = largest_move();
+      int measured_stride = stride;
+      const std::optional<glm::vec2> measured = checked_moves(stride, measured_stride);
+      if (!measured) continue;  // the first asynchronous check: nothing known yet
+      const glm::vec2 moves = *measured;
       result.residual = moves.x;
-      schedule.checked(stride, result.residual);
+      schedule.checked(measured_stride, result.residual);
       // A strided pass's largest move says nothing of single steps (its
       // paths may be blocked where single steps still move snow).
-      if (stride == 1 && result.residual < settings.tolerance) {
+      if (measured_stride == 1 && result.residual < settings.tolerance) {
         result.converged = true;
         break;
       }
@@ -932,6 +1020,7 @@ void Stabilizer::set_depth(const std::vector<float>& depth) {
   }
   impl_->upload_depth(clean);  // lost (g) = 0
   impl_->upload_holds(&clean);
+  impl_->drop_pending();
   impl_->route_pending = true;
   impl_->reset_tiles();
   impl_->schedule.restart();
@@ -949,6 +1038,7 @@ void Stabilizer::add_snow(const std::vector<float>& amount, float scale) {
     add[k] = impl_->surface[k] && a > 0.0f ? a : 0.0f;  // NaN and negative add nothing
   }
   impl_->add_snow(add);
+  impl_->drop_pending();
   impl_->route_pending = true;
   impl_->reset_tiles();
   impl_->schedule.restart();
@@ -974,6 +1064,7 @@ void Stabilizer::set_snow_amount(const std::vector<float>& amount) {
 void Stabilizer::add_snow(float scale) {
   if (!impl_->kept_amount) return;
   impl_->add_pass(impl_->kept_amount, scale);
+  impl_->drop_pending();
   impl_->route_pending = true;
   impl_->reset_tiles();
   impl_->schedule.restart();
@@ -982,6 +1073,11 @@ void Stabilizer::add_snow(float scale) {
 StabilizeResult Stabilizer::iterate(int passes) { return impl_->iterate(std::max(0, passes)); }
 
 void Stabilizer::set_volume_sums(bool on) { impl_->volume_sums = on; }
+
+void Stabilizer::set_async_checks(bool on) {
+  impl_->async_checks = on;
+  impl_->drop_pending();
+}
 
 StabilizeResult Stabilizer::run() {
   const double before = impl_->lost_is_zero ? 0.0 : lost_volume();
