@@ -103,6 +103,7 @@ void LiveSim::make_stabilizer(const SnowMaps& maps, const std::vector<float>* de
   const StabilizeSettings& s = settings_.stabilize;
   if (snow::stabilizes_on_cpu(s, StabilizerUse::Live, gl_)) {
     auto cpu = std::make_unique<CpuStabilizer>(maps, s);
+    cpu->set_volume_sums(false);
     cpu->set_depth(depth ? *depth : std::vector<float>(maps.ground.size(), 0.0f));
     gl::Texture texture = gl::create_texture_2d_array(GL_R32F, maps.grid.width, maps.grid.height,
                                                       maps.layers, "live snow depth");
@@ -113,6 +114,7 @@ void LiveSim::make_stabilizer(const SnowMaps& maps, const std::vector<float>* de
   } else {
     auto gpu = std::make_unique<Stabilizer>(maps, s);
     gpu->set_async_checks(true);  // no frame waits for its own passes
+    gpu->set_volume_sums(false);  // the panel reads them now and then (snow_volume)
     if (depth) gpu->set_depth(*depth);
     gpu_ = std::move(gpu);
     cpu_.reset();

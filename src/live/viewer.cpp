@@ -37,6 +37,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+/// Frames between the panel's snow volumes (each a full readback of the depth).
+constexpr int64_t kPanelVolumesEvery = 15;
+
 double ms_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
@@ -162,7 +165,9 @@ class Viewer {
   char screenshot_path_[512] = {};
   char maps_path_[512] = {};
   bool export_snow_only_ = false;
-  float scrub_hour_ = 0.0f;                // the time slider's hour while it is dragged
+  float scrub_hour_ = 0.0f;                        // the time slider's hour while it is dragged
+  double lying_volume_ = 0.0, lost_volume_ = 0.0;  // m^3, as of volumes_frame_
+  int64_t volumes_frame_ = -1;
   double lying_ = 0.0, lying_hour_ = NAN;  // m^3 of water lying, as of the snowpack's hour
   std::string status_;
 };
@@ -269,8 +274,14 @@ void Viewer::draw_panel(double frame_ms) {
     ImGui::Text("frame %lld, residual %.2g m", static_cast<long long>(sim.frame()),
                 sim.last_result().residual);
   } else {
-    ImGui::Text("snow %.3f m^3 lying, %.3f fallen, %.3f lost", sim.last_result().volume,
-                sim.fallen_volume(), sim.last_result().lost_volume);
+    // Volumes need a full readback: a few times a second of frames.
+    if (sim.frame() != volumes_frame_ && sim.frame() % kPanelVolumesEvery == 0) {
+      lying_volume_ = snow_volume(maps, sim.depth());
+      lost_volume_ = sim.lost_volume();
+      volumes_frame_ = sim.frame();
+    }
+    ImGui::Text("snow %.3f m^3 lying, %.3f fallen, %.3f lost", lying_volume_, sim.fallen_volume(),
+                lost_volume_);
     ImGui::Text("fallen %.3f of %.3f m, frame %lld, residual %.2g m", sim.fallen_depth(),
                 sim.settings().total_depth, static_cast<long long>(sim.frame()),
                 sim.last_result().residual);
