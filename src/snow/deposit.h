@@ -72,7 +72,8 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
 /// the ceiling) the pressure only diffuses, over thousands of passes, or
 /// rocks back and forth between texels; the pile spreads through the full
 /// gaps to the nearest room in one go. Both stabilizers call it at the same
-/// checks (pressed_snow_due). Returns the piles poured.
+/// checks (pressed_snow_due). Returns the piles that moved snow (a pile
+/// with no room anywhere leaves its texel as it was and does not count).
 size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
                          float min_over);
 

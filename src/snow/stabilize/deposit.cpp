@@ -598,12 +598,21 @@ size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid
   if (terminals.empty()) return 0;
   const size_t count = size_t(grid.width) * size_t(grid.height) * size_t(grid.layers);
   ZeroedArray<float> arrive(count);
-  for (uint32_t k : terminals) {
+  std::vector<float> before(terminals.size());
+  for (size_t t = 0; t < terminals.size(); ++t) {
+    const uint32_t k = terminals[t];
     const float kept = std::max(0.0f, (cells[k].y - kCeilingClearance) - cells[k].x);
+    before[t] = depth[k];
     arrive[k] = depth[k] - kept;
     depth[k] = kept;
   }
-  return deposit_piles(cells, depth, arrive.data(), std::move(terminals), grid);
+  const std::vector<uint32_t> pressed = terminals;
+  deposit_piles(cells, depth, arrive.data(), std::move(terminals), grid);
+  // A pile with no room anywhere leaves its snow where it was: that texel
+  // stays as it was, and does not count.
+  size_t moved = 0;
+  for (size_t t = 0; t < pressed.size(); ++t) moved += depth[pressed[t]] != before[t];
+  return moved;
 }
 
 size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
