@@ -40,19 +40,11 @@ using test::write_all;
 const fs::path kCourtyard = fs::path(SNOW_SOURCE_DIR) / "assets/scenes/courtyard.glb";
 const std::string kFast = " --max-side 48 --directions 8 --layers 4";
 
-test::CommandResult run(const std::string& args) {
-  return test::run_command(std::string(SNOWMODEL_EXE) + " " + args);
-}
+test::CommandResult run(const std::string& args) { return test::run_snowmodel(args); }
 
-std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
+std::string q(const fs::path& p) { return test::quoted(p); }
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("snow_outputs_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path temp_dir(const std::string& name) { return test::fresh_dir("snow_outputs", name); }
 
 /// A 1 m floor with a table top, as a .gltf (with "<stem>.bin") or .glb.
 void save_table(const fs::path& path) {

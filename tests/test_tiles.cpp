@@ -24,19 +24,11 @@ namespace snow {
 namespace {
 namespace fs = std::filesystem;
 
-test::CommandResult run(const std::string& args) {
-  return test::run_command(std::string(SNOWMODEL_EXE) + " " + args);
-}
+test::CommandResult run(const std::string& args) { return test::run_snowmodel(args); }
 
-std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
+std::string q(const fs::path& p) { return test::quoted(p); }
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("snow_tiles_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path temp_dir(const std::string& name) { return test::fresh_dir("snow_tiles", name); }
 
 /// A town: `n` x `n` gable-roofed houses 12 m apart on open ground, as a .glb.
 fs::path save_town(const fs::path& dir, int n) {

@@ -25,19 +25,11 @@ namespace fs = std::filesystem;
 
 const std::string kFast = " --max-side 96 --directions 8";
 
-test::CommandResult run(const std::string& args) {
-  return test::run_command(std::string(SNOWMODEL_EXE) + " " + args);
-}
+test::CommandResult run(const std::string& args) { return test::run_snowmodel(args); }
 
-std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
+std::string q(const fs::path& p) { return test::quoted(p); }
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("snow_weather_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path temp_dir(const std::string& name) { return test::fresh_dir("snow_weather", name); }
 
 /// A 16 m yard with a gable-roofed house, as a .glb.
 fs::path save_yard(const fs::path& dir) {

@@ -31,10 +31,7 @@ std::optional<WeatherRun> weather_run_of(const PipelineSettings& s) {
 
 float weather_fall_depth(const WeatherRun& run) {
   double depth = 0.0;
-  for (const WeatherStep& step : run.steps) {
-    const double swe = double(step.precip_mm) * 1e-3 * double(snow_share(step.temp_c));
-    depth += swe * double(kWaterDensity) / double(fresh_snow_density(step.temp_c));
-  }
+  for (const WeatherStep& step : run.steps) depth += double(fresh_snow_depth(step));
   return float(std::min(depth, 1000.0));
 }
 

@@ -16,14 +16,13 @@
 #include "snow/stabilize_cpu.h"
 
 namespace snow::live {
-namespace {
-
-using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point start) {
   glFinish();
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
+
+namespace {
 
 // fn(stabilizer) on whichever of the two exists (same contract, same passes).
 template <class Fn>

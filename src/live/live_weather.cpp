@@ -11,15 +11,8 @@
 namespace snow::live {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
 /// Slack on hour comparisons (hours): the clock adds frame after frame.
 constexpr double kHourSlack = 1e-9;
-
-double seconds_since(Clock::time_point start) {
-  glFinish();
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 double end_of(const WeatherStep& step) { return step.hour + step.hours; }
 
@@ -73,8 +66,7 @@ void LiveSim::play_weather_to(double hour) {
     const WeatherStep& step = steps[w.next];
     if (std::optional<std::vector<float>> moved = w.stepper->snowfall(step, w.pack, w.stats)) {
       account_moves(w.pack, maps_, *moved);
-      fallen_depth_ += step.precip_mm * 1e-3f * snow_share(step.temp_c) * kWaterDensity /
-                       fresh_snow_density(step.temp_c);
+      fallen_depth_ += fresh_snow_depth(step);
     }
     w.stepper->melt(step, w.pack);
   }
@@ -106,7 +98,7 @@ const WeatherStep* LiveSim::weather_now() const {
 bool LiveSim::snowing() const {
   if (!weather_) return settings_.fall_rate > 0.0f && fallen_depth_ < settings_.total_depth;
   const WeatherStep* now = weather_now();
-  return now && now->precip_mm * snow_share(now->temp_c) > 0.0f;
+  return now && snow_water(*now) > 0.0f;
 }
 
 glm::vec2 LiveSim::fall_wind() const {

@@ -1,5 +1,6 @@
 #pragma once
 // LiveSim's weather series state (internal to src/live; live_weather.cpp).
+#include <chrono>
 #include <cstddef>
 #include <memory>
 
@@ -8,6 +9,11 @@
 #include "snow/weather_step.h"
 
 namespace snow::live {
+
+using Clock = std::chrono::steady_clock;
+
+/// Wall seconds since `start`, after glFinish: the GPU's time too.
+double seconds_since(Clock::time_point start);
 
 struct LiveSim::Weather {
   std::shared_ptr<const WeatherRun> run;    // settings().weather

@@ -380,7 +380,7 @@ MapsSnowpack read_maps_snowpack(const std::filesystem::path& dir, const SnowMaps
                                 const std::vector<std::string>& names,
                                 std::vector<std::vector<float>>& values) {
   const std::string where = "resume: " + dir.string();
-  MapsFolder folder = read_maps_folder(dir, where, {});
+  MapsFolder folder = read_maps_folder(dir, where, names);
   const nlohmann::json m = nlohmann::json::parse(folder.manifest);
   if (!m.contains("snowpack") || !m["snowpack"].is_object()) {
     throw InputError(where + ": the maps hold no snowpack (write them from a --weather run)");
@@ -412,7 +412,7 @@ MapsSnowpack read_maps_snowpack(const std::filesystem::path& dir, const SnowMaps
   } catch (const nlohmann::json::exception& e) {
     throw InputError(where + ": manifest.json lacks a field: " + e.what());
   }
-  values = std::move(read_maps_folder(dir, where, names).values);
+  values = std::move(folder.values);
   for (std::vector<float>& v : values) {
     for (float& x : v) x = std::isfinite(x) && x > 0.0f ? x : 0.0f;
   }

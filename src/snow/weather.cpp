@@ -316,6 +316,14 @@ float snow_share(float temp_c) {
   return (kRainAllAboveC - temp_c) / (kRainAllAboveC - kSnowAllBelowC);
 }
 
+float snow_water(const WeatherStep& step) {
+  return step.precip_mm * 1e-3f * snow_share(step.temp_c);
+}
+
+float fresh_snow_depth(const WeatherStep& step) {
+  return snow_water(step) * kWaterDensity / fresh_snow_density(step.temp_c);
+}
+
 float fresh_snow_density(float temp_c) {
   // Hedstrom & Pomeroy (1998), eq. 3; above 0 C its 0 C value.
   const double t = std::min(double(temp_c), 0.0);

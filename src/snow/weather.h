@@ -86,6 +86,10 @@ std::vector<WeatherStep> parse_weather(const std::string& text, const std::strin
 float snow_share(float temp_c);
 /// Density of fresh snow (kg/m^3) falling at air temperature `temp_c`.
 float fresh_snow_density(float temp_c);
+/// Metres of water that fall as snow in `step` (its share of the
+/// precipitation), and the depth (m) of fresh snow they make.
+float snow_water(const WeatherStep& step);
+float fresh_snow_depth(const WeatherStep& step);
 /// The density (kg/m^3) of snow of density `density` after settling `hours`,
 /// melting or not.
 float settled_density(float density, double hours, bool melting);

@@ -69,7 +69,7 @@ void WeatherStepper::forget() {
 
 std::optional<std::vector<float>> WeatherStepper::snowfall(const WeatherStep& step, SnowPack& pack,
                                                            SnowResult& stats) {
-  const float snow_swe = step.precip_mm * 1e-3f * snow_share(step.temp_c);
+  const float snow_swe = snow_water(step);
   if (!(snow_swe > 0.0f)) return std::nullopt;
   const glm::vec2 wind = run_.compass.wind(step.wind_ms, step.wind_from_deg);
   if (!fall_wind_ || glm::length(wind - *fall_wind_) > float(plan::kWeatherWindChange)) {
@@ -84,7 +84,7 @@ std::optional<std::vector<float>> WeatherStepper::snowfall(const WeatherStep& st
     fall_wind_ = wind;
   }
   const float density = fresh_snow_density(step.temp_c);
-  const float fresh_depth = snow_swe * kWaterDensity / density;
+  const float fresh_depth = fresh_snow_depth(step);
   const double fallen = pack.fallen;
   add_fresh_snow(pack, maps_, coverage_, snow_swe, density);
   stats.fallen_volume += (pack.fallen - fallen) * double(kWaterDensity / density);
@@ -101,8 +101,7 @@ std::optional<std::vector<float>> WeatherStepper::snowfall(const WeatherStep& st
 }
 
 void WeatherStepper::melt(const WeatherStep& step, SnowPack& pack) {
-  const float water = step.precip_mm * 1e-3f;
-  const float rain = water - water * snow_share(step.temp_c);
+  const float rain = step.precip_mm * 1e-3f - snow_water(step);
   const StepSun sun = sun_of(run_, step);
   StepSun lit = sun;
   if (sun.elevation_deg > 0.0f && step.temp_c > kMeltThresholdC) {

@@ -96,7 +96,6 @@ struct Stabilizer::Impl {
   void create_framebuffers();
   void create_programs();
   ~Impl() {
-    drop_pending();
     for (GLsync& f : moves_fence) {
       if (f) glDeleteSync(f);
     }
