@@ -83,12 +83,17 @@ float snow_rise(float total_depth) {
 /// from).
 std::string export_maps(LiveSim& sim, const ViewerOptions& options, const std::string& path) {
   check_output_paths(options.input, {{"maps", path, OutputKind::Maps, {}, {}}});
-  sim.sync_snowpack();
-  const std::vector<float> depth = sim.depth();
   std::vector<std::vector<float>> storage;
   std::optional<MapsSnowpack> pack;
-  if (sim.snowpack()) pack = maps_snowpack(*sim.snowpack(), sim.snowpack_hour(), storage);
-  write_maps(path, sim.maps(), &sim.coverage(), &depth, pack ? &*pack : nullptr);
+  std::vector<float> depth;
+  if (sim.snowpack()) {
+    sim.sync_snowpack();  // reads the depth back into the pack
+    pack = maps_snowpack(*sim.snowpack(), sim.snowpack_hour(), storage);
+  } else {
+    depth = sim.depth();
+  }
+  write_maps(path, sim.maps(), &sim.coverage(), pack ? &sim.snowpack()->depth : &depth,
+             pack ? &*pack : nullptr);
   return "wrote maps to " + path;
 }
 
