@@ -32,7 +32,8 @@ void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, c
 namespace {
 
 // The scene without the objects for which `drop(index, object)` is true
-// (each is logged with `why`); `scene` itself when none is dropped.
+// (each is logged with `why`); `scene` itself when none is dropped. Its
+// lines and motions pass through unchanged (without_geometry keeps them).
 template <class Drop>
 Scene without(Scene scene, Drop drop, const char* why) {
   bool any = false;

@@ -27,8 +27,8 @@ std::optional<FlatGround> find_flat_ground(const Scene& scene);
 
 /// `scene` with the ground's triangles replaced by one rectangle over
 /// `region` (x, z; within the ground's bounds) at the ground's height,
-/// facing up: the maps then cover the region alone. Other objects are kept
-/// as they are; bounds recomputed.
+/// facing up: the maps then cover the region alone. Other objects, the
+/// lines and the motions are kept as they are; bounds recomputed.
 Scene with_ground_clipped(const Scene& scene, const FlatGround& ground, const Bounds& region);
 
 }  // namespace snow

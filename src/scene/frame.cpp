@@ -24,6 +24,18 @@ void to_metres_y_up(Scene& scene, const FileFrame& frame) {
     scene.bounds.extend(p);
   }
   for (glm::vec3& n : scene.normals) n = turn(n);
+  for (SceneLines& lines : scene.lines)
+    for (glm::vec3& p : lines.segments) p = turn(p) * frame.unit_scale;
+  // The frame's map F (scale, then turn) as a matrix; a motion M in the
+  // file's frame is F * M * F^-1 in the run's.
+  const double s = frame.unit_scale;
+  const glm::dmat4 map = frame.z_up ? glm::dmat4(glm::dvec4(s, 0, 0, 0), glm::dvec4(0, 0, -s, 0),
+                                                 glm::dvec4(0, s, 0, 0), glm::dvec4(0, 0, 0, 1))
+                                    : glm::dmat4(glm::dvec4(s, 0, 0, 0), glm::dvec4(0, s, 0, 0),
+                                                 glm::dvec4(0, 0, s, 0), glm::dvec4(0, 0, 0, 1));
+  const glm::dmat4 unmap = glm::inverse(map);
+  for (NodeMotion& motion : scene.motions)
+    for (glm::mat4& move : motion.moves) move = glm::mat4(map * glm::dmat4(move) * unmap);
 }
 
 void to_file_frame(TriMesh& mesh, const FileFrame& frame) {

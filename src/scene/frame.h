@@ -26,7 +26,9 @@ bool z_up_from_name(const std::string& name);
 /// `scene` in metres, +Y up: positions scaled by unit_scale and, with z_up,
 /// turned so that the file's +Z is +Y ((x, y, z) -> (x, z, -y), a right-
 /// handed turn of -90 degrees about +X); normals turned alike; bounds
-/// recomputed. The identity frame changes nothing.
+/// recomputed; the points of `lines` mapped as positions, and each of the
+/// motions' `moves` M conjugated to F * M * F^-1 (F: the map of positions),
+/// so that it moves the mapped points. The identity frame changes nothing.
 void to_metres_y_up(Scene& scene, const FileFrame& frame);
 
 /// The inverse of to_metres_y_up on a mesh (positions, normals), for the

@@ -3,7 +3,8 @@
 // storage (3.6), meshes and primitive topologies (3.7.2), the node hierarchy
 // (3.5), materials (3.9.2) and textures (3.8); extensions
 // KHR_mesh_quantization, KHR_texture_transform, KHR_draco_mesh_compression
-// and EXT_mesh_gpu_instancing.
+// and EXT_mesh_gpu_instancing; with LoadSettings::lines line primitives, and
+// with LoadSettings::motions animations (3.11).
 //
 // This file holds the entry points and the order of the steps
 // (GltfLoader::load); the steps are in scene/gltf/ (see
@@ -48,6 +49,7 @@ Scene GltfLoader::load() {
            std::to_string(scene_.stats.degenerate_dropped) + " degenerate ones");
     fail("the scene has no triangles");
   }
+  if (settings_.motions) read_motions();
   if (settings_.load_images) load_images();
   if (settings_.keep_source) {
     // The JSON is moved, not copied: the loader is done with it.

@@ -33,6 +33,15 @@ struct LoadLimits {
   // before each is allocated (bytes). The commands set it from
   // --memory-budget.
   uint64_t memory_budget = uint64_t(4) << 30;
+  // Line segments in the whole scene (count, LoadSettings::lines), before
+  // zero-length ones are dropped; a mesh instanced N times counts N times.
+  uint64_t max_line_segments = 50'000'000;
+  // Samples stored in Scene::motions, summed over nodes (count,
+  // LoadSettings::motions). It also bounds the keyframes read from the
+  // animations (summed over channels), and the work of sampling: each
+  // sample of a node costs one step per animated node on its path from the
+  // root, plus one, and those steps may be at most 64 times this limit.
+  uint64_t max_motion_samples = 1'000'000;
 };
 
 struct LoadSettings {
@@ -42,6 +51,10 @@ struct LoadSettings {
                              // Scene::normals and Scene::uvs stay empty
   LoadLimits limits;         // resource limits (see LoadLimits)
   bool keep_source = false;  // keep the parsed file in Scene::source (scene/source_gltf.h)
+  bool lines = false;        // load LINES, LINE_LOOP, LINE_STRIP into Scene::lines (else
+                             // they are skipped with a warning)
+  bool motions = false;      // sample the animations of the nodes into Scene::motions (else
+                             // the animations are not read)
 };
 
 /// The file that a glTF uri names, as the loader reads it: `uri`
@@ -64,6 +77,25 @@ std::optional<std::filesystem::path> resolve_relative_uri(const std::filesystem:
 ///   many nodes) and EXT_mesh_gpu_instancing; the traversal is iterative.
 /// - Primitive modes TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN; POINTS and
 ///   LINES* are skipped with a warning naming mesh and primitive.
+/// - With settings.lines: LINES, LINE_STRIP and LINE_LOOP primitives go to
+///   Scene::lines instead (world space, the same transforms and instancing
+///   as triangles), one SceneLines per (node, primitive) with segments left;
+///   zero-length segments are dropped; a strip or loop of fewer than 2
+///   points has none, a loop of 2 points is one segment; an odd LINES index
+///   count ignores the last (warned). At most LoadLimits::max_line_segments.
+/// - With settings.motions: the animations (glTF 2.0 section 3.11: LINEAR,
+///   with quaternions slerped on the shorter arc, STEP, CUBICSPLINE; values
+///   clamped before the first and after the last keyframe) are sampled into
+///   Scene::motions, one NodeMotion per node that has objects or lines in
+///   the scene and whose world transform is animated (a translation,
+///   rotation or scale channel on it or an ancestor); EXT_mesh_gpu_instancing
+///   instances move with their node. Times: the keyframes of those channels
+///   and the first and last of all node channels of the file, with evenly
+///   spaced samples between so that none are more than 1/60 s apart. Where
+///   two channels animate the same property of a node, the later in the file
+///   wins. `weights` channels and other targets (KHR_animation_pointer) are
+///   ignored. At most LoadLimits::max_motion_samples. Without
+///   settings.motions the animations are not read.
 /// - uint8/16/32 or no indices; float or (KHR_mesh_quantization) 8/16-bit
 ///   normalized or integer attributes; sparse accessors; byteStride.
 /// - KHR_draco_mesh_compression when built with Draco (see
@@ -91,7 +123,12 @@ std::optional<std::filesystem::path> resolve_relative_uri(const std::filesystem:
 /// not regular files (FIFOs, devices: refused before they are opened), JSON
 /// nested deeper than kMaxJsonDepth, data over LoadLimits::memory_budget
 /// (the input policy: scene/input_policy.h), unsupported required
-/// extensions, a scene without triangles. Buffer files are read only as far
+/// extensions, a scene without triangles; with settings.motions also broken
+/// animations: accessors out of range or of the wrong type or count,
+/// keyframe times not finite or not strictly increasing, values not finite,
+/// channel nodes or samplers out of range, unknown interpolations, zero
+/// rotation quaternions, an animated node with a 'matrix', motions that
+/// are not finite. Buffer files are read only as far
 /// as their byteLength. With settings.keep_source the parsed file is kept in
 /// Scene::source (scene/source_gltf.h) for the combined writer. Throws IOError when the scene file
 /// itself does not exist, is a folder or cannot be read.

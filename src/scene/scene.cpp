@@ -15,6 +15,8 @@ Scene without_geometry(const Scene& scene) {
   out.warnings = scene.warnings;
   out.source = scene.source;
   out.generator = scene.generator;
+  out.lines = scene.lines;
+  out.motions = scene.motions;
   return out;
 }
 

@@ -55,6 +55,25 @@ struct SceneObject {
   uint32_t triangle_count = 0;
 };
 
+/// A glTF LINES, LINE_STRIP or LINE_LOOP primitive instanced by one node
+/// (loaded with LoadSettings::lines): world-space segments, 2 points each.
+struct SceneLines {
+  std::string name;                 // as SceneObject::name
+  std::string node_path;            // as SceneObject::node_path
+  int node = -1;                    // glTF node index
+  std::vector<glm::vec3> segments;  // 2 points per segment, world (m, +Y up after to_metres_y_up)
+};
+
+/// A node's animation (loaded with LoadSettings::motions): its world
+/// transform relative to the rest pose the scene's geometry was loaded in,
+/// sampled over the time range of all the file's animations played together.
+struct NodeMotion {
+  int node = -1;                 // glTF node index (SceneObject::node, SceneLines::node)
+  std::vector<float> times;      // seconds, strictly ascending, >= 1 entry
+  std::vector<glm::mat4> moves;  // per time: world(t) * inverse(world at rest); maps a rest-pose
+                                 // world point to where it is at times[k]
+};
+
 struct SceneStats {
   uint64_t triangles_read = 0;      // before degenerate ones are dropped
   uint64_t degenerate_dropped = 0;  // zero-area or repeated-index triangles
@@ -68,12 +87,16 @@ struct SceneStats {
 /// empty when no primitive had TEXCOORD_0; normals are filled, with flat
 /// normals where the file had none). A scene loaded without shading
 /// (LoadSettings::shading) has neither: both are empty. Objects' triangle
-/// ranges are contiguous, in order, and cover every triangle.
+/// ranges are contiguous, in order, and cover every triangle. Lines and
+/// motions are loaded only on request (LoadSettings::lines, ::motions); they
+/// are not triangles and do not count in `bounds`.
 struct Scene {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;
   std::vector<glm::vec2> uvs;
   std::vector<SceneObject> objects;
+  std::vector<SceneLines> lines;    // in the order of the objects; empty unless loaded
+  std::vector<NodeMotion> motions;  // by ascending node; empty unless loaded
   std::vector<Material> materials;
   std::vector<Image> images;
   Bounds bounds;
@@ -90,8 +113,9 @@ struct Scene {
 };
 
 /// `scene` without its geometry: its materials, images, stats, warnings,
-/// source and generator, no objects or triangles (empty bounds); for the
-/// steps that rebuild a scene's objects.
+/// source and generator, and its lines and motions unchanged (they are not
+/// triangles); no objects or triangles (empty bounds); for the steps that
+/// rebuild a scene's objects.
 Scene without_geometry(const Scene& scene);
 
 /// Bounds of `object`'s triangles (empty for an object without any).

@@ -21,6 +21,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   // Keep single inputs cheap: the limits are the loader's own, scaled down.
   settings.limits.max_triangles = 2'000'000;
   settings.limits.max_image_pixels = 1 << 20;
+  // Lines and animations (the tracks' sources) are read too.
+  settings.lines = settings.motions = true;
+  settings.limits.max_line_segments = 1'000'000;
+  settings.limits.max_motion_samples = 100'000;
   try {
     const snow::Scene scene = snow::load_scene(path, settings);
     if (scene.positions.size() % 3 != 0 || scene.normals.size() != scene.positions.size() ||

@@ -92,6 +92,8 @@ struct Gltf {
   }
   int vec3s(const std::vector<glm::vec3>& p) { return positions(p); }
   int vec2s(const std::vector<glm::vec2>& p) { return accessor(view(p), kFloat, p.size(), "VEC2"); }
+  int scalars(const std::vector<float>& v) { return accessor(view(v), kFloat, v.size(), "SCALAR"); }
+  int vec4s(const std::vector<glm::vec4>& v) { return accessor(view(v), kFloat, v.size(), "VEC4"); }
   int indices32(const std::vector<uint32_t>& i) {
     return accessor(view(i), kUInt, i.size(), "SCALAR");
   }
@@ -111,6 +113,19 @@ struct Gltf {
   int node(json n) {
     doc["nodes"].push_back(std::move(n));
     return int(doc["nodes"].size() - 1);
+  }
+  /// Appends an animation of one channel, on `node`'s `path`, with one
+  /// sampler (accessors `input`, `output`); returns its index.
+  int animation(int node, const std::string& path, int input, int output,
+                const std::string& interpolation = "LINEAR") {
+    if (!doc.contains("animations")) doc["animations"] = json::array();
+    doc["animations"].push_back(
+        {{"channels",
+          json::array({{{"sampler", 0}, {"target", {{"node", node}, {"path", path}}}}})},
+         {"samplers",
+          json::array(
+              {{{"input", input}, {"output", output}, {"interpolation", interpolation}}})}});
+    return int(doc["animations"].size() - 1);
   }
   void scene(const std::vector<int>& roots) {
     doc["scenes"] = json::array({{{"nodes", roots}}});

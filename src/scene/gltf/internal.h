@@ -11,6 +11,7 @@
 //   scene/gltf/materials.cpp   materials, KHR_texture_transform, baseColor images
 //   scene/gltf/primitives.cpp  primitives in mesh space, topology, world-space triangles
 //   scene/gltf/draco.cpp       KHR_draco_mesh_compression (with SNOW_HAVE_DRACO)
+//   scene/gltf/animation.cpp   animations sampled into node motions (LoadSettings::motions)
 //
 // Every value read from the file is validated before use; a failure is one
 // InputError "<file>: <element at fault>: <what>" (fail()).
@@ -88,11 +89,44 @@ struct UvMapping {
 /// One primitive decoded in mesh space; shared by all instances of its mesh.
 struct PrimitiveGeometry {
   bool skip = false;
+  bool lines = false;  // a line primitive (LoadSettings::lines): segments, no triangles
   int material = -1;
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;   // empty or one per position
   std::vector<glm::vec2> uvs;       // empty or one per position
   std::vector<uint32_t> triangles;  // three vertex indices per triangle
+  std::vector<uint32_t> segments;   // two vertex indices per segment (lines)
+};
+
+/// A node's translation, rotation or scale channel (glTF 2.0 section 3.11),
+/// its sampler read and validated.
+struct MotionChannel {
+  enum Path { kTranslation = 0, kRotation = 1, kScale = 2 };
+  enum Interpolation { kLinear, kStep, kCubicSpline };
+  int node = -1;
+  Path path = kTranslation;
+  Interpolation interpolation = kLinear;
+  std::vector<float> times;   // seconds, finite, strictly ascending, >= 1 entry
+  std::vector<float> values;  // per time 3 (translation, scale) or 4 (rotation x, y, z, w)
+                              // finite values; CUBICSPLINE: in-tangent, value, out-tangent
+};
+
+/// Translation (x, y, z), rotation (x, y, z, w) and scale (x, y, z) of a
+/// node, indexed by MotionChannel::Path.
+using TrsValues = std::array<glm::dvec4, 3>;
+
+/// What sampling the motions shares (animation.cpp).
+struct MotionSet {
+  std::vector<MotionChannel> channels;
+  std::vector<std::array<int, 3>> per_node;  // per node, its channel per Path, or -1
+  std::vector<TrsValues> rest;               // per animated node in the scene, its rest TRS
+  std::vector<int> up;                       // per node, its nearest animated ancestor, or -1
+  std::vector<glm::dmat4> above;  // per node, the rest local transforms between up (or the
+                                  // root) and it, both left out
+  double start = 0.0;             // first keyframe time of all channels (s)
+  double end = 0.0;               // last keyframe time of all channels (s)
+  uint64_t samples = 0;           // stored so far (count)
+  uint64_t work = 0;              // sampling steps so far (LoadLimits::max_motion_samples)
 };
 
 /// A (node, mesh) pair found by the traversal, with its world matrix.
@@ -243,6 +277,17 @@ class GltfLoader {
   bool read_primitive(const json& prim, const json& attributes, int mode, bool draco,
                       const std::string& what, const std::string& uv_name,
                       PrimitiveGeometry& geometry);
+  /// The vertex indices of a primitive (its `indices`, each checked to be
+  /// below `vertex_count`, else 0 .. vertex_count - 1).
+  std::vector<uint32_t> read_vertex_indices(const json& prim, size_t vertex_count,
+                                            const std::string& what);
+  /// A LINES, LINE_LOOP or LINE_STRIP primitive's positions and segments
+  /// (settings_.lines); false, with `geometry` untouched, when it has no POSITION.
+  bool read_lines(const json& prim, const json& attributes, int mode, const std::string& what,
+                  PrimitiveGeometry& geometry);
+  /// LINES, LINE_LOOP, LINE_STRIP index lists to a segment list.
+  void expand_lines(int mode, const std::vector<uint32_t>& indices, const std::string& what,
+                    std::vector<uint32_t>& segments);
   /// TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN index lists to a triangle list.
   void expand_topology(int mode, std::vector<uint32_t>& indices, const std::string& what,
                        std::vector<uint32_t>& triangles);
@@ -257,6 +302,38 @@ class GltfLoader {
   /// Appends one primitive of one instance to scene_ as a SceneObject.
   void append(const Instance& instance, int primitive, const PrimitiveGeometry& g,
               std::vector<glm::vec3>& wp, std::vector<glm::vec3>& wn);
+  /// Appends one line primitive of one instance to Scene::lines.
+  void append_lines(const Instance& instance, int primitive, const PrimitiveGeometry& g,
+                    std::vector<glm::vec3>& wp, std::vector<glm::vec3>& wn);
+  /// SceneObject::name of primitive `primitive` of an instance.
+  std::string object_name(const Instance& instance, int primitive) const;
+
+  // --- animations (animation.cpp) ------------------------------------------------
+
+  /// Scene::motions from the file's animations (settings_.motions), for the
+  /// nodes with objects or lines in scene_.
+  void read_motions();
+  /// Channel `c` of animation `a` into `out`; false when it is not a node
+  /// translation, rotation or scale channel (ignored). Counts its keyframes
+  /// in `keyframes` against LoadLimits::max_motion_samples.
+  bool read_channel(uint64_t a, const json& animation, uint64_t c, uint64_t& keyframes,
+                    MotionChannel& out);
+  /// A sampler's interpolation, keyframe times (`input`) and values
+  /// (`output`) into `out`, whose path is set.
+  void read_sampler(const json& sampler, const std::string& what, uint64_t& keyframes,
+                    MotionChannel& out);
+  /// The keyframe values of `out` (times read) from accessor `accessor`.
+  void read_keyframe_values(uint64_t accessor, const std::string& what, MotionChannel& out);
+  /// The rest translation, rotation (unit) and scale of an animated node.
+  TrsValues rest_trs(int node) const;
+  /// Node `node`'s local transform at time `t` (seconds); it is animated.
+  glm::dmat4 local_at(int node, double t, const MotionSet& set) const;
+  /// The motion of `node`, which has objects or lines and an animated path
+  /// from the root; counts its samples and work in `set`.
+  NodeMotion sample_motion(int node, MotionSet& set);
+  /// The sample times of `node`, animated by the channels `used`: their
+  /// keyframes, set.start and set.end, and evenly spaced times between.
+  std::vector<float> motion_times(int node, const std::vector<int>& used, MotionSet& set);
 
   // --- Draco (draco.cpp) --------------------------------------------------------
 
@@ -284,6 +361,13 @@ class GltfLoader {
   std::vector<int> material_images_;
   std::vector<std::string> node_paths_;
   std::unordered_map<int, std::vector<std::unique_ptr<PrimitiveGeometry>>> geometry_cache_;
+  uint64_t line_segments_read_ = 0;  // segments of Scene::lines before zero-length ones are dropped
+  // With settings_.motions, per node of the scene as traversed: its parent
+  // there (-1 for a root, -2 for a node not in the scene), its local and
+  // its world matrix.
+  std::vector<int> scene_parents_;
+  std::vector<glm::dmat4> node_locals_;
+  std::vector<glm::dmat4> node_worlds_;
   Scene scene_;
 };
 

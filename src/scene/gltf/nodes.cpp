@@ -124,13 +124,19 @@ std::vector<Instance> GltfLoader::traverse() {
     int node;
     bool exit;
     glm::dmat4 parent;
+    int parent_node;  // -1 for a root
   };
   std::vector<Entry> stack;
   std::vector<uint8_t> state(node_count, 0);  // 0 new, 1 on the current path, 2 done
   std::vector<int> path;
   std::vector<Instance> instances;
   for (auto it = roots.rbegin(); it != roots.rend(); ++it)
-    stack.push_back({*it, false, glm::dmat4(1.0)});
+    stack.push_back({*it, false, glm::dmat4(1.0), -1});
+  if (settings_.motions) {
+    scene_parents_.assign(node_count, -2);
+    node_locals_.assign(node_count, glm::dmat4(1.0));
+    node_worlds_.assign(node_count, glm::dmat4(1.0));
+  }
   while (!stack.empty()) {
     const Entry entry = stack.back();
     stack.pop_back();
@@ -147,14 +153,20 @@ std::vector<Instance> GltfLoader::traverse() {
     path.push_back(n);
     ++scene_.stats.nodes;
     const json& object = node_array[size_t(n)];
-    const glm::dmat4 world = entry.parent * local_matrix(uint64_t(n), object);
+    const glm::dmat4 local = local_matrix(uint64_t(n), object);
+    const glm::dmat4 world = entry.parent * local;
     if (!finite(world)) fail(node_label(n) + ": world transform is not finite");
-    stack.push_back({n, true, glm::dmat4(1.0)});
+    if (settings_.motions) {
+      scene_parents_[size_t(n)] = entry.parent_node;
+      node_locals_[size_t(n)] = local;
+      node_worlds_[size_t(n)] = world;
+    }
+    stack.push_back({n, true, glm::dmat4(1.0), -1});
     const int64_t mesh = opt_index(object, "mesh", mesh_count, node_label(n), "meshes");
     if (mesh >= 0) add_instances(n, int(mesh), world, object, path, instances);
     if (const json* children = member(object, "children")) {
       for (auto c = children->rbegin(); c != children->rend(); ++c)
-        stack.push_back({int(c->get<uint64_t>()), false, world});
+        stack.push_back({int(c->get<uint64_t>()), false, world, n});
     }
   }
   return instances;

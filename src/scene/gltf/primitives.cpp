@@ -22,19 +22,20 @@ const char* const kModeNames[] = {"POINTS",    "LINES",          "LINE_LOOP",   
 // triangles into the scene.
 constexpr size_t kLoadChunk = size_t(1) << 15;
 
-/// Drops vertices no triangle uses (primitives often index a small part of
-/// a vertex array shared with others), so instances transform only these.
-void compact_vertices(PrimitiveGeometry& g) {
+/// Drops vertices that no element of `elements` (g's triangles or segments)
+/// uses (primitives often index a small part of a vertex array shared with
+/// others), so instances transform only these.
+void compact_vertices(PrimitiveGeometry& g, std::vector<uint32_t>& elements) {
   const size_t vertex_count = g.positions.size();
-  if (g.triangles.size() >= vertex_count * 2) {
+  if (elements.size() >= vertex_count * 2) {
     // Usually every vertex is used: check before building a remap.
     std::vector<uint8_t> used(vertex_count, 0);
-    for (uint32_t i : g.triangles) used[i] = 1;
+    for (uint32_t i : elements) used[i] = 1;
     if (std::find(used.begin(), used.end(), 0) == used.end()) return;
   }
   std::vector<uint32_t> remap(vertex_count, UINT32_MAX);
   uint32_t next = 0;
-  for (uint32_t& i : g.triangles) {
+  for (uint32_t& i : elements) {
     if (remap[i] == UINT32_MAX) remap[i] = next++;
     i = remap[i];
   }
@@ -93,6 +94,17 @@ PrimitiveGeometry GltfLoader::decode_primitive(int mesh, uint64_t p, const json&
   const std::string mesh_name = opt_string(meshes()[size_t(mesh)], "name");
   const std::string short_mesh =
       mesh_name.empty() ? std::to_string(mesh) : "'" + one_line(mesh_name, 60) + "'";
+  const bool line_mode = settings_.lines && mode >= 1 && mode <= 3;
+  if (line_mode) {
+    const json* attributes = member(prim, "attributes");
+    if (!attributes || !attributes->is_object()) fail(what + " has no 'attributes' object");
+    if (!read_lines(prim, *attributes, int(mode), what, geometry)) {
+      warn("ignoring primitive " + std::to_string(p) + " of mesh " + short_mesh + " (no POSITION)");
+      ++scene_.stats.primitives_skipped;
+      geometry.skip = true;
+    }
+    return geometry;
+  }
   if (mode < 4) {
     warn("ignoring primitive " + std::to_string(p) + " of mesh " + short_mesh + " (" +
          kModeNames[mode] + ")");
@@ -117,7 +129,7 @@ PrimitiveGeometry GltfLoader::decode_primitive(int mesh, uint64_t p, const json&
     geometry.skip = true;
     return geometry;
   }
-  compact_vertices(geometry);
+  compact_vertices(geometry, geometry.triangles);
   if (!geometry.uvs.empty() && geometry.material >= 0) {
     const UvMapping& mapping = uv_mappings_[size_t(geometry.material)];
     if (mapping.transform) {
@@ -174,6 +186,14 @@ bool GltfLoader::read_primitive(const json& prim, const json& attributes, int mo
         std::memcpy(geometry.uvs.data(), values.data(), values.size() * sizeof(float));
     }
   }
+  std::vector<uint32_t> indices = read_vertex_indices(prim, vertex_count, what);
+  expand_topology(mode, indices, what, geometry.triangles);
+  return true;
+}
+
+std::vector<uint32_t> GltfLoader::read_vertex_indices(const json& prim, size_t vertex_count,
+                                                      const std::string& what) {
+  const size_t accessor_count = top_array("accessors").size();
   std::vector<uint32_t> indices;
   const int64_t index_accessor = opt_index(prim, "indices", accessor_count, what, "accessors");
   if (index_accessor >= 0) {
@@ -188,8 +208,47 @@ bool GltfLoader::read_primitive(const json& prim, const json& attributes, int mo
     indices.resize(vertex_count);
     for (size_t i = 0; i < vertex_count; ++i) indices[i] = uint32_t(i);
   }
-  expand_topology(mode, indices, what, geometry.triangles);
+  return indices;
+}
+
+bool GltfLoader::read_lines(const json& prim, const json& attributes, int mode,
+                            const std::string& what, PrimitiveGeometry& geometry) {
+  const size_t accessor_count = top_array("accessors").size();
+  const int64_t position = opt_index(attributes, "POSITION", accessor_count, what, "accessors");
+  if (position < 0) return false;
+  const std::vector<float> values =
+      read_attribute(uint64_t(position), 3, what + " POSITION", nullptr);
+  const size_t vertex_count = values.size() / 3;
+  geometry.lines = true;
+  geometry.positions.resize(vertex_count);
+  if (vertex_count > 0)  // an empty vector's data() may be null
+    std::memcpy(geometry.positions.data(), values.data(), vertex_count * 3 * sizeof(float));
+  expand_lines(mode, read_vertex_indices(prim, vertex_count, what), what, geometry.segments);
+  compact_vertices(geometry, geometry.segments);
   return true;
+}
+
+void GltfLoader::expand_lines(int mode, const std::vector<uint32_t>& indices,
+                              const std::string& what, std::vector<uint32_t>& segments) {
+  const size_t n = indices.size();
+  if (mode == 1) {  // LINES: {v_2i, v_2i+1}
+    if (n % 2 != 0) warn(what + ": index count " + std::to_string(n) + " is odd; the last ignored");
+    segments.assign(indices.begin(), indices.begin() + ptrdiff_t(n - n % 2));
+    return;
+  }
+  if (n < 2) return;
+  // LINE_STRIP: {v_i, v_i+1}; LINE_LOOP also {v_n-1, v_0}, but not for 2
+  // points, where it would repeat the one segment.
+  const bool close = mode == 2 && n > 2;
+  segments.reserve(2 * (n - 1 + (close ? 1 : 0)));
+  for (size_t i = 0; i + 1 < n; ++i) {
+    segments.push_back(indices[i]);
+    segments.push_back(indices[i + 1]);
+  }
+  if (close) {
+    segments.push_back(indices[n - 1]);
+    segments.push_back(indices[0]);
+  }
 }
 
 void GltfLoader::expand_topology(int mode, std::vector<uint32_t>& indices, const std::string& what,
@@ -254,7 +313,11 @@ void GltfLoader::build_geometry(const std::vector<Instance>& instances) {
     const size_t primitive_count = primitives_of(instance.mesh).size();
     for (size_t p = 0; p < primitive_count; ++p) {
       const PrimitiveGeometry& g = geometry(instance.mesh, p);
-      if (!g.skip) append(instance, int(p), g, world_positions, world_normals);
+      if (g.skip) continue;
+      if (g.lines)
+        append_lines(instance, int(p), g, world_positions, world_normals);
+      else
+        append(instance, int(p), g, world_positions, world_normals);
     }
     if (--uses[instance.mesh] == 0) geometry_cache_.erase(instance.mesh);
     progress.update(double(i + 1));
@@ -403,14 +466,40 @@ void GltfLoader::append(const Instance& instance, int primitive, const Primitive
   if (kept == 0) return;
   if (scene_.triangle_count() > UINT32_MAX) fail("the scene has more than 2^32 triangles");
   object.triangle_count = uint32_t(kept);
-  const std::string node_name = opt_string(nodes()[size_t(instance.node)], "name");
-  const std::string mesh_name = opt_string(meshes()[size_t(instance.mesh)], "name");
-  object.name = !node_name.empty() ? node_name
-                : !mesh_name.empty()
-                    ? mesh_name
-                    : "mesh" + std::to_string(instance.mesh) + ".prim" + std::to_string(primitive);
+  object.name = object_name(instance, primitive);
   object.node_path = node_paths_[instance.path];
   scene_.objects.push_back(std::move(object));
+}
+
+std::string GltfLoader::object_name(const Instance& instance, int primitive) const {
+  const std::string node_name = opt_string(nodes()[size_t(instance.node)], "name");
+  const std::string mesh_name = opt_string(meshes()[size_t(instance.mesh)], "name");
+  return !node_name.empty() ? node_name
+         : !mesh_name.empty()
+             ? mesh_name
+             : "mesh" + std::to_string(instance.mesh) + ".prim" + std::to_string(primitive);
+}
+
+void GltfLoader::append_lines(const Instance& instance, int primitive, const PrimitiveGeometry& g,
+                              std::vector<glm::vec3>& wp, std::vector<glm::vec3>& wn) {
+  const uint64_t segment_count = g.segments.size() / 2;
+  if (line_segments_read_ + segment_count > settings_.limits.max_line_segments)
+    fail("more than " + std::to_string(settings_.limits.max_line_segments) +
+         " line segments (LoadLimits::max_line_segments)");
+  line_segments_read_ += segment_count;
+  transform_vertices(instance, g, wp, wn);  // fails on a point not finite
+  SceneLines lines;
+  for (uint64_t s = 0; s < segment_count; ++s) {
+    const glm::vec3 a = wp[g.segments[2 * s]], b = wp[g.segments[2 * s + 1]];
+    if (a == b) continue;  // zero length
+    lines.segments.push_back(a);
+    lines.segments.push_back(b);
+  }
+  if (lines.segments.empty()) return;
+  lines.name = object_name(instance, primitive);
+  lines.node_path = node_paths_[instance.path];
+  lines.node = instance.node;
+  scene_.lines.push_back(std::move(lines));
 }
 
 }  // namespace snow::gltf
