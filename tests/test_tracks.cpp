@@ -159,6 +159,30 @@ TEST(Tracks, AClearedPathHasNoSnowAndPilesBesideItHoldWhatWasRemoved) {
   }
 }
 
+// A sole with two cleats (boxes reaching 3 cm lower than the plate between
+// them) pressed where it stands: the cleats press to the compacted floor,
+// the groove between them leaves 3 cm more snow, and beside the sole the
+// snow is as it was but for the berms.
+TEST(Tracks, TheContactsShapePrintsIntoTheSnow) {
+  Field f = snowed_plane();
+  SceneBuilder b;
+  b.add_box("Cleat", {-0.15f, 0.0f, -0.1f}, {-0.05f, 0.05f, 0.1f});
+  b.add_box("Cleat", {0.05f, 0.0f, -0.1f}, {0.15f, 0.05f, 0.1f});
+  b.add_box("Plate", {-0.15f, 0.03f, -0.1f}, {0.15f, 0.08f, 0.1f});
+  TrackSource s;
+  s.name = "Sole";
+  s.triangles = b.build().positions;
+  TrackSettings settings;
+  settings.pressure_kpa = 20.0f;  // a boot
+  make_tracks(f.maps, f.pack, {s}, settings);
+  const float model =
+      pressed_depth(kSnow, kSettledSnowDensity, settings.pressure_kpa, settings.displaced_share);
+  EXPECT_NEAR(f.pack.depth[at(f.maps, -0.1f, 0.01f)], model, 0.005f);
+  EXPECT_NEAR(f.pack.depth[at(f.maps, 0.1f, 0.01f)], model, 0.005f);
+  EXPECT_NEAR(f.pack.depth[at(f.maps, 0.0f, 0.01f)], model + 0.03f, 0.005f);
+  EXPECT_LT(model, kSnow - 0.05f);
+}
+
 TEST(Tracks, ShapesAndSettingsOutOfRangeAreOneLineErrors) {
   Field f = snowed_plane();
   TrackSource empty;

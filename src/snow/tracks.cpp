@@ -272,12 +272,162 @@ struct Pile {
   double swe = 0.0, depth = 0.0;  // over one texel, as sent
   float width = 0.0f;             // m: a berm's width, or a pile's half base
   float peak = 0.0f;              // m
-  double weights = 0.0;
+  size_t group = 0;               // its edge's piles (lay)
 };
 
 float profile(TrackMode mode, float from_edge, float width) {
   if (mode == TrackMode::Press) return std::max(0.0f, 1.0f - from_edge / width);
   return std::max(0.0f, 1.0f - std::abs(from_edge - width) / width);
+}
+
+/// Texels around an edge texel over which its pile's cross-section is
+/// averaged (which edge texel is nearest to the snow inside a track, and so
+/// takes it, alternates along a diagonal edge or a round end).
+constexpr int kEdgeAverageTexels = 4;
+
+/// Per pile, the cross-section (m^2 per metre of edge) its volume makes,
+/// averaged over the piles of its layer within kEdgeAverageTexels.
+std::map<size_t, float> edge_areas(const SnowMaps& maps, const std::map<size_t, Pile>& piles) {
+  std::map<size_t, float> areas;
+  const int r = kEdgeAverageTexels;
+  for (const auto& entry : piles) {
+    const Place at = place_of(maps, entry.first);
+    double sum = 0.0;
+    int n = 0;
+    for (int j = std::max(at.j - r, 0); j <= std::min(at.j + r, maps.grid.height - 1); ++j) {
+      for (int i = std::max(at.i - r, 0); i <= std::min(at.i + r, maps.grid.width - 1); ++i) {
+        const auto it = piles.find(maps.index(at.l, i, j));
+        if (it != piles.end()) sum += it->second.depth, ++n;
+      }
+    }
+    areas[entry.first] = float(sum / double(n)) * maps.grid.texel;
+  }
+  return areas;
+}
+
+/// The piles' edge texels joined where they touch (8 neighbours): the piles
+/// along one edge of a track. Sets each pile's group; returns their count.
+size_t group_piles(const Field& f, std::map<size_t, Pile>& piles) {
+  std::map<size_t, size_t> parent;
+  for (const auto& entry : piles) parent[entry.first] = entry.first;
+  const auto root = [&](size_t k) {
+    while (parent[k] != k) k = parent[k] = parent[parent[k]];
+    return k;
+  };
+  for (const auto& entry : piles) {
+    neighbours(f, entry.first, [&](size_t n, float) {
+      if (piles.count(n)) parent[root(n)] = root(entry.first);
+    });
+  }
+  std::map<size_t, size_t> index;
+  for (auto& [e, p] : piles) p.group = index.emplace(root(e), index.size()).first->second;
+  return index.size();
+}
+
+/// A group that would lay its snow more than kMaxCrowding times as high as
+/// its profile (a pocket between a track and a wall that the snow of a
+/// track's end runs into) gives it to the nearest group with room, whose
+/// piles grow by it; where none has room, it stays.
+constexpr double kMaxCrowding = 2.0;
+
+void merge_crowded(const SnowMaps& maps, std::map<size_t, Pile>& piles, std::vector<Sent>& held,
+                   const std::vector<Sent>& shape) {
+  const auto crowded = [&](size_t g) {
+    return !(shape[g].depth > 0.0) || held[g].depth > kMaxCrowding * shape[g].depth;
+  };
+  std::vector<size_t> into(held.size());
+  for (size_t g = 0; g < held.size(); ++g) into[g] = g;
+  for (const auto& [e, p] : piles) {
+    if (!crowded(p.group) || into[p.group] != p.group) continue;
+    const Place at = place_of(maps, e);
+    double nearest = INFINITY;
+    for (const auto& [e2, p2] : piles) {
+      if (crowded(p2.group)) continue;
+      const Place to = place_of(maps, e2);
+      const double d = std::hypot(double(to.i - at.i), double(to.j - at.j));
+      if (d < nearest) nearest = d, into[p.group] = p2.group;
+    }
+  }
+  for (size_t g = 0; g < held.size(); ++g) {
+    if (into[g] == g) continue;
+    held[into[g]].depth += held[g].depth, held[into[g]].swe += held[g].swe;
+    held[g] = Sent();
+  }
+  for (auto& entry : piles) entry.second.group = into[entry.second.group];
+}
+
+/// Passes of a 3 x 3 mean over the laid heights (among the texels that lay
+/// snow, on their layer): the profiles of neighbouring edge texels meet
+/// without steps where a track bends or ends.
+constexpr int kSmoothPasses = 2;
+
+void smooth(const SnowMaps& maps, std::map<size_t, double>& height) {
+  for (int pass = 0; pass < kSmoothPasses; ++pass) {
+    std::map<size_t, double> out;
+    for (const auto& [k, h] : height) {
+      const Place at = place_of(maps, k);
+      double sum = 0.0;
+      int n = 0;
+      for (int j = std::max(at.j - 1, 0); j <= std::min(at.j + 1, maps.grid.height - 1); ++j) {
+        for (int i = std::max(at.i - 1, 0); i <= std::min(at.i + 1, maps.grid.width - 1); ++i) {
+          const auto it = height.find(maps.index(at.l, i, j));
+          if (it != height.end()) sum += it->second, ++n;
+        }
+      }
+      out[k] = sum / double(n);
+    }
+    height = std::move(out);
+  }
+}
+
+/// Lays the piles over the texels `outside` reached from their edge texels:
+/// each texel takes its edge texel's profile (a berm or a pile of that
+/// edge texel's width and peak) at its straight distance from that edge
+/// texel (the search's path lengths step in eighths of a turn), scaled per
+/// group so that each group lays exactly the depth and the water its edge
+/// texels hold (the wedges a convex corner fans out into, or a concave one
+/// squeezes, would otherwise lay more or less). A texel with no room under
+/// its ceiling for the peak takes none; crowded groups go to others
+/// (merge_crowded); a group with no room at all is laid on its edge texels.
+void lay(Field& f, std::map<size_t, Pile>& piles, const Reached& outside, TrackMode mode) {
+  const float texel = f.maps.grid.texel;
+  std::vector<Sent> held(group_piles(f, piles));
+  for (const auto& [e, p] : piles) held[p.group].swe += p.swe, held[p.group].depth += p.depth;
+  const auto per = [](const Pile& p) { return p.swe / std::max(p.depth, 1e-12); };
+  std::map<size_t, double> height;
+  for (const auto& [k, r] : outside) {
+    const Pile& p = piles.at(r.owner);
+    const float room = f.maps.ceiling[k] - f.maps.ground[k] - f.pack.depth[k];
+    if (k != r.owner && room < p.peak) continue;
+    const Place a = place_of(f.maps, k), b = place_of(f.maps, r.owner);
+    const float from_edge = (std::hypot(float(a.i - b.i), float(a.j - b.j)) + 0.5f) * texel;
+    const double h = double(p.peak) * double(profile(mode, from_edge, p.width));
+    if (h > 0.0) height[k] = h;
+  }
+  smooth(f.maps, height);
+  const auto shapes = [&] {
+    std::vector<Sent> shape(held.size());
+    for (const auto& [k, h] : height) {
+      const Pile& p = piles.at(outside.at(k).owner);
+      shape[p.group].depth += h, shape[p.group].swe += h * per(p);
+    }
+    return shape;
+  };
+  merge_crowded(f.maps, piles, held, shapes());
+  const std::vector<Sent> shape = shapes();
+  const auto add = [&](size_t k, double depth, double swe) {
+    f.pack.depth[k] = float(double(f.pack.depth[k]) + depth);
+    f.pack.swe[k] = float(double(f.pack.swe[k]) + swe);
+  };
+  for (const auto& [k, h] : height) {
+    const Pile& p = piles.at(outside.at(k).owner);
+    const Sent& want = held[p.group];
+    const Sent& has = shape[p.group];
+    add(k, h * want.depth / has.depth, h * per(p) * want.swe / std::max(has.swe, 1e-300));
+  }
+  for (const auto& [e, p] : piles) {
+    if (!(shape[p.group].depth > 0.0)) add(e, p.depth, p.swe);
+  }
 }
 
 /// Spreads what the texels of `sent` send beside the tracks (above); where
@@ -307,8 +457,9 @@ void spread(Field& f, const std::map<size_t, Sent>& sent, TrackMode mode,
   const float slope = std::tan(glm::radians(settings.repose_deg));
   std::vector<std::pair<size_t, Reach>> edges;
   float reach = 0.0f;  // texels
+  const std::map<size_t, float> areas = edge_areas(f.maps, piles);
   for (auto& [e, p] : piles) {
-    const float area = float(p.depth) * texel;  // m^2 of cross-section per metre of edge
+    const float area = areas.at(e);  // m^2 of cross-section per metre of edge
     p.width =
         std::max(std::sqrt((mode == TrackMode::Press ? 2.0f : 1.0f) * area / slope), 0.5f * texel);
     p.peak = p.width * slope;
@@ -319,21 +470,7 @@ void spread(Field& f, const std::map<size_t, Sent>& sent, TrackMode mode,
     return !sent.count(k2) && d <= reach &&
            d * texel <= (mode == TrackMode::Press ? 1.0f : 2.0f) * piles[owner].width + texel;
   });
-  const auto weight = [&](size_t k, const Reach& r) {
-    const Pile& p = piles.at(r.owner);
-    const float room = f.maps.ceiling[k] - f.maps.ground[k] - f.pack.depth[k];
-    if (k != r.owner && room < p.peak) return 0.0f;
-    return profile(mode, (r.distance + 0.5f) * texel, p.width);
-  };
-  for (const auto& [k, r] : outside) piles[r.owner].weights += double(weight(k, r));
-  for (const auto& [k, r] : outside) {
-    const Pile& p = piles[r.owner];
-    const double w =
-        p.weights > 0.0 ? double(weight(k, r)) / p.weights : (k == r.owner ? 1.0 : 0.0);
-    if (!(w > 0.0)) continue;
-    f.pack.swe[k] = float(double(f.pack.swe[k]) + p.swe * w);
-    f.pack.depth[k] = float(double(f.pack.depth[k]) + p.depth * w);
-  }
+  lay(f, piles, outside, mode);
 }
 
 void check(const TrackSource& s, const TrackSettings& settings) {
