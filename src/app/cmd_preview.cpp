@@ -10,6 +10,7 @@
 #include "app/settings.h"
 #include "app/snow_warnings.h"
 #include "app/snow_weather.h"
+#include "app/tracks.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "live/viewer.h"
@@ -122,6 +123,10 @@ void run_preview(PreviewOptions o) {
   // the scene from the orbit camera).
   // The export (the scene plus snow) writes from the JSON the loader parsed.
   s.load.keep_source = true;
+  s.load.lines = s.load.motions = wants_tracks(s);
+  if (s.track_hour >= 0.0) {
+    throw InputError("--track-hour: the preview presses the tracks once the snow rests");
+  }
   Scene loaded = load_scene(o.input, s.load);
   to_metres_y_up(loaded, v.frame);
   warn_unmatched(loaded, s.ignore, "--ignore");
@@ -141,6 +146,15 @@ void run_preview(PreviewOptions o) {
   if (!maps.note.empty()) log_info(maps.note);
   if (s.peel.texel <= 0.0f) v.sim.peel.max_side = maps.max_side;
   warn_if_not_metres_y_up(scene);
+  if (wants_tracks(s)) {
+    // Poses at most half a texel apart on maps at least this fine.
+    const glm::vec3 size = scene.bounds.size();
+    const float texel = s.peel.texel > 0.0f
+                            ? s.peel.texel
+                            : std::max(size.x, size.z) / float(std::max(maps.max_side, 1));
+    v.tracks = track_sources(scene, s, texel);
+    v.track_settings = track_settings(s);
+  }
   const live::ViewerReport r = live::run_viewer(scene, v);
   char summary[400];
   std::snprintf(

@@ -25,6 +25,7 @@
 #include "app/snow_warnings.h"
 #include "app/snow_weather.h"
 #include "app/tiles.h"
+#include "app/tracks.h"
 #include "core/error.h"
 #include "core/fs.h"
 #include "core/heap.h"
@@ -175,13 +176,17 @@ PipelineSettings checked_settings(const SnowOptions& o, MeshFormat& format) {
   s.peel.memory_budget = memory_budget_bytes(s.memory_budget_gib);
   s.load.limits.memory_budget = s.peel.memory_budget;  // the scene's data, images included
   s.stabilize.seed = uint32_t(s.coverage.seed);
+  if (tiled && wants_tracks(s)) {
+    throw InputError("--tiles and --track/--clear: tracks are made on the whole scene");
+  }
   if (tiled) check_tile_options(o, s);
   format = check_outputs(o.out);
   check_stabilize_settings(s.stabilize);
   fall_directions(s.coverage);  // checks the coverage settings
   if (s.weather.empty()) {
-    for (const auto& [given, flag] :
-         {std::pair{!o.resume.empty(), "--resume"}, {!o.sequence.empty(), "--sequence"}}) {
+    for (const auto& [given, flag] : {std::pair{!o.resume.empty(), "--resume"},
+                                      {!o.sequence.empty(), "--sequence"},
+                                      {s.track_hour >= 0.0, "--track-hour"}}) {
       if (given) throw InputError(std::string(flag) + " needs --weather");
     }
   } else {
@@ -391,6 +396,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
   const bool combined = !o.out.output.empty() && !o.out.snow_only &&
                         (format == MeshFormat::Glb || format == MeshFormat::Gltf);
   s.load.keep_source = combined;
+  s.load.lines = s.load.motions = wants_tracks(s);
   Scene scene;
   CombinedInputPtr combined_input;
   clock.run("load", [&] {
@@ -478,6 +484,10 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
            " layers");
   warn_if_deep_in_texels(maps, s.accumulate.fall_depth);
 
+  const std::vector<TrackSource> tracks =
+      wants_tracks(s) ? track_sources(map_scene, s, maps.grid.texel) : std::vector<TrackSource>{};
+  std::vector<float> compaction;  // per layer texel, where tracks were made
+
   SnowResult snow;
   std::optional<SnowPack> pack;  // a weather run's
   double pack_hour = 0.0;        // hours of weather behind it
@@ -495,6 +505,12 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
     if (!weather) {
       snow = accumulate(map_scene, maps, s.coverage, s.stabilize, s.accumulate, gl_after_peel,
                         receives, bvh ? &*bvh : nullptr);
+      if (!tracks.empty()) {
+        SnowPack settled = settled_pack(maps, snow.depth);
+        compaction = press_tracks(maps, settled, tracks, s);
+        snow.depth = std::move(settled.depth);
+        snow.volume = snow_volume(maps, snow.depth);
+      }
       return;
     }
     pack = starting_pack(o.resume, maps, weather->steps.front().hour, pack_hour);
@@ -503,6 +519,11 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
       weather->on_frame = [&](int number, double hour, const SnowPack& now) {
         write_sequence_frame(o, number, hour, now, maps, map_scene, s.polygonize, frame);
       };
+    }
+    if (!tracks.empty()) {
+      const WeatherStep& last = weather->steps.back();
+      weather->tracks_hour = s.track_hour >= 0.0 ? s.track_hour : last.hour + last.hours;
+      weather->on_tracks = [&](SnowPack& now) { compaction = press_tracks(maps, now, tracks, s); };
     }
     snow = accumulate_weather(map_scene, maps, s.coverage, s.stabilize, *weather, *pack,
                               gl_after_peel, receives, bvh ? &*bvh : nullptr);
@@ -533,8 +554,11 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
     std::vector<std::vector<float>> storage;
     std::optional<MapsSnowpack> snowpack;
     if (pack) snowpack = maps_snowpack(*pack, pack_hour, storage);
+    MapsExtra extra;
+    if (!compaction.empty()) extra.values.push_back({"compaction", &compaction, "share"});
     write_outputs(o.out, format, std::move(combined_input), patches, frame, maps, &snow.coverage,
-                  &snow.depth, snowpack ? &*snowpack : nullptr, settings_to_json(o.settings));
+                  &snow.depth, snowpack ? &*snowpack : nullptr, settings_to_json(o.settings),
+                  &extra);
   });
   if (!o.out.preview.empty()) {
     clock.run("preview", [&] {

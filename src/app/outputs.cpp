@@ -79,7 +79,7 @@ void write_outputs(const MeshOutputs& o, MeshFormat format, CombinedInputPtr com
                    const std::vector<SnowPatch>& metre_patches, const FileFrame& frame,
                    const SnowMaps& maps, const std::vector<float>* coverage,
                    const std::vector<float>* depth, const MapsSnowpack* snowpack,
-                   const nlohmann::json& settings) {
+                   const nlohmann::json& settings, const MapsExtra* extra) {
   std::vector<SnowPatch> file_patches;
   if (!frame.is_identity()) {
     file_patches = metre_patches;
@@ -100,7 +100,7 @@ void write_outputs(const MeshOutputs& o, MeshFormat format, CombinedInputPtr com
     log_info("wrote " + o.snow_output);
   }
   if (!o.maps_dir.empty()) {
-    write_maps(o.maps_dir, maps, coverage, depth, snowpack);
+    write_maps(o.maps_dir, maps, coverage, depth, snowpack, extra);
     log_info("wrote maps to " + o.maps_dir);
   }
   nlohmann::json record;

@@ -45,7 +45,7 @@ std::vector<OutputPath> output_paths(const MeshOutputs& o, MeshFormat format);
 MeshFormat check_outputs(const MeshOutputs& o);
 
 /// Writes `output`, `snow_output`, `maps_dir` (with `coverage`, `depth` and
-/// `snowpack` where given) and the settings record (`settings`, as
+/// `snowpack` and `extra` where given) and the settings record (`settings`, as
 /// settings_to_json writes them) beside the first output. The meshes go
 /// back to the file's frame (`frame`); the maps stay in metres, +Y up.
 /// `combined_input`: the scene for a glb/gltf `output` that is not snow
@@ -54,6 +54,6 @@ void write_outputs(const MeshOutputs& o, MeshFormat format, CombinedInputPtr com
                    const std::vector<SnowPatch>& metre_patches, const FileFrame& frame,
                    const SnowMaps& maps, const std::vector<float>* coverage,
                    const std::vector<float>* depth, const MapsSnowpack* snowpack,
-                   const nlohmann::json& settings);
+                   const nlohmann::json& settings, const MapsExtra* extra = nullptr);
 
 }  // namespace snow::app

@@ -240,6 +240,7 @@ void add_settings_options(CLI::App& cmd, PipelineSettings& settings, bool show_d
             : group == "snow"         ? "Snowfall and sliding"
             : group == "mesh"         ? "Meshes"
             : group == "weather"      ? "Weather over time"
+            : group == "tracks"       ? "Tracks in the snow"
                                       : "Object filters";
         CLI::Option* opt = nullptr;
         if constexpr (std::is_same_v<T, glm::vec2>) {

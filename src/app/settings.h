@@ -44,6 +44,12 @@ struct PipelineSettings {
   float longitude = 0.0f;        // degrees, east positive
   std::string start;             // UTC of the file's hour 0; "": the file's sun columns
   glm::vec2 north{0.0f, -1.0f};  // the scene's north, world (x, z)
+  // Tracks in the snow (snow/tracks.h).
+  std::vector<std::string> track;  // name globs: objects or lines that press tracks
+  std::vector<std::string> clear;  // name globs: objects or lines that clear paths
+  float track_width = 0.2f;        // m, the width a line presses or clears
+  float track_load = 200.0f;       // kPa, the contact pressure of --track
+  double track_hour = -1.0;        // hours into a --weather run (negative: at its end)
 };
 
 /// The values a numeric setting accepts: lo..hi, both included, every value
@@ -199,6 +205,26 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
     s.start, kNoRange);
   v("weather.north", "--north", "The scene's north as X,Z in world coordinates", s.north,
     Range{-1e6, 1e6});
+  // Tracks.
+  v("tracks.press", "--track",
+    "Name glob of objects that press tracks into the snow where they stand and, animated, "
+    "wherever they go (wheels, feet, a box pushed along); glTF lines press a path --track-width "
+    "wide (repeatable)",
+    s.track, kNoRange);
+  v("tracks.clear", "--clear",
+    "Name glob of objects or lines that clear the snow away, into piles beside them (a shovelled "
+    "path, a plough; repeatable)",
+    s.clear, kNoRange);
+  v("tracks.width", "--track-width", "Width of the path a glTF line presses or clears, metres",
+    s.track_width, Range{0.01, 100});
+  v("tracks.load_kpa", "--track-load",
+    "Contact pressure of --track objects, kPa: about 200 for a car tyre, 20 for a boot (the "
+    "snow compacts more under more)",
+    s.track_load, Range{1, 10000});
+  v("tracks.hour", "--track-hour",
+    "Hour of a --weather run at which the tracks are made (negative = at its end); the snow "
+    "falling after it fills them",
+    s.track_hour, Range{0, 1e7, true});
   v("snow.drain_edges", "--drain-edges",
     "Once snow creeps off an edge into the void, drain what will leave in one go (true/false)",
     s.stabilize.drain_edges, kNoRange);

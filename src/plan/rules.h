@@ -316,6 +316,14 @@ inline double tile_halo(double height, bool wind) {
          (wind ? kTileHaloHeights * std::max(height, 0.0) + kDriftSaturationLength : 0.0);
 }
 
+// --- Tracks (snow/tracks.h) ---
+
+/// A moving contact is pressed at poses no point of it moves more than this
+/// many texels between, so that its track has no gaps.
+constexpr double kTrackPoseSpacingTexels = 0.5;  // texels
+/// At most this many poses per contact (its triangles are drawn at each).
+constexpr size_t kMaxTrackPoses = 200000;  // count
+
 // --- Live preview ---
 
 /// The live preview's automatic --snow-stride draws its snow grid with at

@@ -103,6 +103,12 @@ struct WeatherRun {
   /// what lies).
   double every_hours = 0.0;
   std::function<void(int frame, double hour, const SnowPack& pack)> on_frame;
+  /// Called once, with the pack, at the end of the first step that ends at
+  /// or after tracks_hour (the steps' hours), before that step's frame:
+  /// what it changes in the pack (tracks pressed into it) lies under the
+  /// snow of the steps after.
+  double tracks_hour = 0.0;
+  std::function<void(SnowPack& pack)> on_tracks;
 };
 
 /// Runs `run` from `pack` (an empty pack, SnowPack::empty, or a resumed

@@ -25,6 +25,7 @@ void run_weather(AnyStabilizer& stabilizer, CoverageRenderer& shadows, const Sno
   int frame =
       run.every_hours > 0.0 ? int(std::floor(run.steps.front().hour / run.every_hours + 1e-9)) : 0;
   Progress progress("weather", double(run.steps.size()));
+  bool tracked = false;
   for (size_t n = 0; n < run.steps.size(); ++n) {
     const WeatherStep& step = run.steps[n];
     if (std::optional<std::vector<float>> depth = stepper.snowfall(step, pack, result)) {
@@ -35,9 +36,13 @@ void run_weather(AnyStabilizer& stabilizer, CoverageRenderer& shadows, const Sno
       account_moves(pack, maps, stabilizer.depth());
     }
     stepper.melt(step, pack);
+    const double end = step.hour + step.hours;
+    if (run.on_tracks && !tracked && end >= run.tracks_hour - 1e-9) {
+      run.on_tracks(pack);
+      tracked = true;
+    }
     // Frames at the multiples of every_hours since hour 0 (so a resumed
     // run's frames go on counting), and at the end.
-    const double end = step.hour + step.hours;
     const bool last = n + 1 == run.steps.size();
     if (run.on_frame && run.every_hours > 0.0) {
       const int due = int(std::floor(end / run.every_hours + 1e-9));

@@ -1,0 +1,113 @@
+#include "app/tracks.h"
+
+#include <fnmatch.h>
+
+#include <cstdio>
+
+#include "app/filters.h"
+#include "core/error.h"
+#include "core/log.h"
+#include "plan/rules.h"
+
+namespace snow::app {
+namespace {
+
+bool line_matches(const std::vector<std::string>& globs, const SceneLines& lines) {
+  for (const std::string& glob : globs) {
+    if (fnmatch(glob.c_str(), lines.name.c_str(), 0) == 0 ||
+        fnmatch(glob.c_str(), lines.node_path.c_str(), 0) == 0) {
+      return true;
+    }
+  }
+  return false;
+}
+
+/// Press or Clear for a thing named `name` that `press` and `clear` say
+/// match it; nothing where neither does.
+std::optional<TrackMode> mode_of(bool press, bool clear, const std::string& name) {
+  if (press && clear) throw InputError("--track and --clear both name '" + name + "'");
+  if (press) return TrackMode::Press;
+  if (clear) return TrackMode::Clear;
+  return std::nullopt;
+}
+
+/// The poses of the thing at node `node` (none where it does not move).
+std::vector<glm::mat4> poses_of(const Scene& scene, int node, const TrackSource& source,
+                                float texel) {
+  for (const NodeMotion& motion : scene.motions) {
+    if (motion.node != node) continue;
+    Bounds rest;
+    for (const glm::vec3& p : source.triangles) rest.extend(p);
+    for (const glm::vec3& p : source.segments) rest.extend(p);
+    return track_poses(motion.moves, rest, float(plan::kTrackPoseSpacingTexels) * texel,
+                       plan::kMaxTrackPoses, source.name);
+  }
+  return {};
+}
+
+void warn_unmatched_tracks(const Scene& scene, const std::vector<std::string>& globs,
+                           const char* flag) {
+  for (const std::string& glob : globs) {
+    const bool any = std::any_of(scene.objects.begin(), scene.objects.end(),
+                                 [&](const SceneObject& o) { return matches({glob}, o); }) ||
+                     std::any_of(scene.lines.begin(), scene.lines.end(),
+                                 [&](const SceneLines& l) { return line_matches({glob}, l); });
+    if (!any) log_warn(std::string(flag) + " '" + glob + "' matches no object or line");
+  }
+}
+
+}  // namespace
+
+std::vector<TrackSource> track_sources(const Scene& scene, const PipelineSettings& s, float texel) {
+  warn_unmatched_tracks(scene, s.track, "--track");
+  warn_unmatched_tracks(scene, s.clear, "--clear");
+  std::vector<TrackSource> sources;
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    const SceneObject& o = scene.objects[i];
+    const auto mode = mode_of(matches(s.track, o), matches(s.clear, o), o.name);
+    if (!mode || o.triangle_count == 0) continue;
+    TrackSource source;
+    source.name = o.name;
+    source.mode = *mode;
+    source.object = int(i);
+    const auto first = scene.positions.begin() + ptrdiff_t(size_t(o.first_triangle) * 3);
+    source.triangles.assign(first, first + ptrdiff_t(size_t(o.triangle_count) * 3));
+    source.poses = poses_of(scene, o.node, source, texel);
+    sources.push_back(std::move(source));
+  }
+  for (const SceneLines& l : scene.lines) {
+    const auto mode = mode_of(line_matches(s.track, l), line_matches(s.clear, l), l.name);
+    if (!mode || l.segments.empty()) continue;
+    TrackSource source;
+    source.name = l.name;
+    source.mode = *mode;
+    source.segments = l.segments;
+    source.width = s.track_width;
+    source.poses = poses_of(scene, l.node, source, texel);
+    sources.push_back(std::move(source));
+  }
+  return sources;
+}
+
+TrackSettings track_settings(const PipelineSettings& s) {
+  TrackSettings t;
+  t.pressure_kpa = s.track_load;
+  t.repose_deg = s.stabilize.repose_deg;
+  return t;
+}
+
+std::vector<float> press_tracks(const SnowMaps& maps, SnowPack& pack,
+                                const std::vector<TrackSource>& sources,
+                                const PipelineSettings& s) {
+  std::vector<float> compaction;
+  const TrackResult r = make_tracks(maps, pack, sources, track_settings(s), &compaction);
+  char line[400];
+  std::snprintf(line, sizeof line,
+                "tracks: %zu source(s) at %zu pose(s): %zu texels pressed, %zu cleared; water "
+                "equivalent %.4g m^3 kept in the tracks, %.4g moved into berms and piles",
+                sources.size(), r.poses, r.pressed, r.cleared, r.compacted, r.moved);
+  log_info(line);
+  return compaction;
+}
+
+}  // namespace snow::app
