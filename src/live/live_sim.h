@@ -7,6 +7,7 @@
 // job's: docs/ARCHITECTURE.md; Tokoi 2006 and Fearing 2000).
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "gl/objects.h"
@@ -18,6 +19,7 @@
 #include "snow/peel.h"
 #include "snow/snowpack.h"
 #include "snow/stabilize.h"
+#include "snow/tracks.h"
 
 namespace snow {
 class CpuStabilizer;
@@ -140,6 +142,17 @@ class LiveSim {
   /// the snowpack's water (account_moves; a full readback), so snowpack()
   /// holds the snow drawn.
   void sync_snowpack();
+
+  /// Presses `sources` into the snow lying now (snow/tracks.h's
+  /// make_tracks; a weather series' snowpack, else the snow at
+  /// kSettledSnowDensity); the stabilizer goes on from there, the tracks'
+  /// snow held where it lies. A full readback and upload.
+  TrackResult make_tracks(const std::vector<TrackSource>& sources, const TrackSettings& settings);
+  /// Where the ray from `origin` along `direction` (world, metres) first
+  /// meets the top of the snow or of the highest surface (layer 0), marched
+  /// at half a texel over the maps; nothing where it misses them. A full
+  /// readback.
+  std::optional<glm::vec3> pick(glm::vec3 origin, glm::vec3 direction) const;
 
   float fallen_depth() const { return fallen_depth_; }  // metres fallen on open flat ground
   /// m^3 of fresh snow added, and drifted in over the maps' border.

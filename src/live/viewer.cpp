@@ -109,6 +109,8 @@ class Viewer {
   Viewer(const Scene& scene, const ViewerOptions& options)
       : scene_(scene), options_(options), pending_(options.sim), view_settings_(options.view) {
     paused_ = options.paused;
+    tracks_due_ = !options.tracks.empty();
+    brush_radius_ = options.brush_radius;
     stride_setting_ = options.snow_stride;
     panel_ = options.panel;
     std::snprintf(export_path_, sizeof export_path_, "%s",
@@ -139,6 +141,12 @@ class Viewer {
   // and writes the screenshots due (`last`: the run's last frame).
   void draw_frame(int fb_w, int fb_h, bool last, double frame_ms);
   void apply_pending();
+  /// Presses options_.tracks into the snow (LiveSim::make_tracks).
+  void press_tracks();
+  /// The brush at the cursor (x, y in window pixels; `fb` the window's
+  /// size): a disc of brush_radius_ pressed (or cleared) where the view ray
+  /// meets the snow.
+  void brush(double x, double y, glm::ivec2 fb, TrackMode mode);
   void set_status(const std::string& message) {
     status_ = message;
     log_info(message);
@@ -175,6 +183,8 @@ class Viewer {
   int64_t volumes_frame_ = -1;
   double lying_ = 0.0, lying_hour_ = NAN;  // m^3 of water lying, as of the snowpack's hour
   std::string status_;
+  bool tracks_due_ = false;    // options_.tracks wait to be pressed
+  float brush_radius_ = 0.3f;  // m
 };
 
 void Viewer::sync_view() {
@@ -214,7 +224,13 @@ void Viewer::handle_input(GLFWwindow* window, int fb_height) {
     const bool right = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ||
                        glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS;
     const bool shift = glfwGetKey(window, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS;
-    if ((dx != 0 || dy != 0) && (left || right)) {
+    const bool ctrl = glfwGetKey(window, GLFW_KEY_LEFT_CONTROL) == GLFW_PRESS;
+    const bool alt = glfwGetKey(window, GLFW_KEY_LEFT_ALT) == GLFW_PRESS;
+    if (left && (ctrl || alt)) {
+      int w = 0, h = 0;
+      glfwGetWindowSize(window, &w, &h);
+      brush(x, y, {w, h}, ctrl ? TrackMode::Press : TrackMode::Clear);
+    } else if ((dx != 0 || dy != 0) && (left || right)) {
       if (right || shift) {
         orbit_.pan(dx, dy, float(fb_height));
       } else {
@@ -238,6 +254,7 @@ void Viewer::handle_input(GLFWwindow* window, int fb_height) {
           break;
         case GLFW_KEY_R:
           sim_->reset();
+          tracks_due_ = !options_.tracks.empty();
           break;
         case GLFW_KEY_P:
           want_screenshot_ = true;
@@ -257,6 +274,33 @@ void Viewer::handle_input(GLFWwindow* window, int fb_height) {
     }
   }
   input_.keys.clear();
+}
+
+void Viewer::press_tracks() {
+  tracks_due_ = false;
+  const TrackResult r = sim_->make_tracks(options_.tracks, options_.track_settings);
+  char line[200];
+  std::snprintf(line, sizeof line, "tracks: %zu texels pressed, %zu cleared", r.pressed, r.cleared);
+  set_status(line);
+}
+
+void Viewer::brush(double x, double y, glm::ivec2 fb, TrackMode mode) {
+  const render::PreviewCamera camera =
+      orbit_.camera(with_snow(scene_.bounds, sim_->settings().total_depth), aspect_);
+  const glm::mat4 inverse = glm::inverse(camera.view_projection());
+  const glm::vec2 ndc(2.0f * float(x) / float(std::max(fb.x, 1)) - 1.0f,
+                      1.0f - 2.0f * float(y) / float(std::max(fb.y, 1)));
+  const glm::vec4 near = inverse * glm::vec4(ndc, -1.0f, 1.0f);
+  const glm::vec4 far = inverse * glm::vec4(ndc, 1.0f, 1.0f);
+  const glm::vec3 from = glm::vec3(near) / near.w, to = glm::vec3(far) / far.w;
+  const std::optional<glm::vec3> at = sim_->pick(from, to - from);
+  if (!at) return;
+  TrackSource disc;
+  disc.name = "brush";
+  disc.mode = mode;
+  disc.segments = {*at, *at};
+  disc.width = 2.0f * brush_radius_;
+  sim_->make_tracks({disc}, options_.track_settings);
 }
 
 void Viewer::draw_panel(double frame_ms) {
@@ -297,7 +341,17 @@ void Viewer::draw_panel(double frame_ms) {
   ImGui::SameLine();
   if (ImGui::Button("Step")) step_once_ = true;
   ImGui::SameLine();
-  if (ImGui::Button("Reset")) sim_->reset();
+  if (ImGui::Button("Reset")) {
+    sim_->reset();
+    tracks_due_ = !options_.tracks.empty();
+  }
+  if (!options_.tracks.empty()) {
+    ImGui::SameLine();
+    if (ImGui::Button("Tracks")) press_tracks();
+  }
+  ImGui::SliderFloat("brush radius (m)", &brush_radius_, 0.05f, 5.0f, "%.2f",
+                     ImGuiSliderFlags_Logarithmic);
+  ImGui::TextDisabled("Ctrl+drag presses tracks, Alt+drag clears");
   ImGui::SameLine();
   if (ImGui::Button("Frame (F)")) want_frame_ = true;
 
@@ -553,9 +607,12 @@ ViewerReport Viewer::run() {
         sim_->step();
         step_once_ = false;
       }
+      const bool last = options_.frames > 0 && frames + 1 >= options_.frames;
+      if (tracks_due_ && (last || (!sim_->snowing() && sim_->last_result().converged))) {
+        press_tracks();
+      }
       sync_view();
 
-      const bool last = options_.frames > 0 && frames + 1 >= options_.frames;
       draw_frame(size.x, size.y, last, frame_ms);
       surface.present();
 

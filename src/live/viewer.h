@@ -12,6 +12,7 @@
 #include "mesh/polygonize.h"
 #include "scene/frame.h"
 #include "scene/scene.h"
+#include "snow/tracks.h"
 
 namespace snow::live {
 
@@ -41,6 +42,13 @@ struct ViewerOptions {
   bool snow_only = false;           // export the snow only, also to .glb/.gltf
   FileFrame frame;                  // the file's frame: the export goes back to it
   std::vector<uint8_t> receives;    // per scene object: 0 = no fresh snow (may be empty)
+  // Tracks (snow/tracks.h): pressed once the snowfall ended and the snow
+  // rests, or at the last of --frames (again after a reset, or from the
+  // panel); the brush (Ctrl+drag presses, Alt+drag clears) uses the same
+  // settings.
+  std::vector<TrackSource> tracks;
+  TrackSettings track_settings;
+  float brush_radius = 0.3f;  // m
 };
 
 /// What a run measured.
