@@ -234,6 +234,26 @@ TEST(TracksCli, ALineClearsAPathAndTheSnowGoesBesideIt) {
   fs::remove_all(dir);
 }
 
+// The headless preview presses the sled's trail at its last frame and
+// exports it: the exported snow has the trail's compacted floor.
+TEST(TracksCli, ThePreviewPressesTheTracks) {
+  const fs::path dir = test::fresh_dir("snow_tracks", "preview");
+  const fs::path scene = save_yard(dir);
+  const test::CommandResult r =
+      run("preview " + q(scene) + " --headless --frames 12 --size 320x200 --track Sled --maps " +
+          q(dir / "maps") + " --max-side 128 --directions 8 --fall-rate 2");
+  if (r.code == 3) GTEST_SKIP() << "no OpenGL: " << r.output;
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("tracks: "), std::string::npos) << r.output;
+  const std::vector<float> depth = layer0(dir / "maps", "depth");
+  // The trail's middle against the open yard beside it (12 m over 128 texels).
+  const auto at = [&](float x, float z) {
+    return depth[size_t((z + 6.0f) / 12.0f * 128.0f) * 128 + size_t((x + 6.0f) / 12.0f * 128.0f)];
+  };
+  EXPECT_LT(at(0.0f, 0.0f), at(0.0f, 2.0f) - 0.05f);
+  fs::remove_all(dir);
+}
+
 TEST(TracksCli, OptionsThatDoNotGoTogetherAreOneLineErrors) {
   const fs::path dir = test::fresh_dir("snow_tracks", "errors");
   const fs::path scene = save_yard(dir);

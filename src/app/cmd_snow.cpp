@@ -505,12 +505,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
     if (!weather) {
       snow = accumulate(map_scene, maps, s.coverage, s.stabilize, s.accumulate, gl_after_peel,
                         receives, bvh ? &*bvh : nullptr);
-      if (!tracks.empty()) {
-        SnowPack settled = settled_pack(maps, snow.depth);
-        compaction = press_tracks(maps, settled, tracks, s);
-        snow.depth = std::move(settled.depth);
-        snow.volume = snow_volume(maps, snow.depth);
-      }
+      if (!tracks.empty()) compaction = tracks_in_snow(snow, maps, tracks, s);
       return;
     }
     pack = starting_pack(o.resume, maps, weather->steps.front().hour, pack_hour);
@@ -520,11 +515,7 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
         write_sequence_frame(o, number, hour, now, maps, map_scene, s.polygonize, frame);
       };
     }
-    if (!tracks.empty()) {
-      const WeatherStep& last = weather->steps.back();
-      weather->tracks_hour = s.track_hour >= 0.0 ? s.track_hour : last.hour + last.hours;
-      weather->on_tracks = [&](SnowPack& now) { compaction = press_tracks(maps, now, tracks, s); };
-    }
+    if (!tracks.empty()) tracks_in_weather(*weather, maps, tracks, s, compaction);
     snow = accumulate_weather(map_scene, maps, s.coverage, s.stabilize, *weather, *pack,
                               gl_after_peel, receives, bvh ? &*bvh : nullptr);
     pack_hour = weather->steps.back().hour + weather->steps.back().hours;

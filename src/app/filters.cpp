@@ -11,14 +11,19 @@
 
 namespace snow::app {
 
-bool matches(const std::vector<std::string>& globs, const SceneObject& object) {
+bool matches(const std::vector<std::string>& globs, const std::string& name,
+             const std::string& node_path) {
   for (const std::string& glob : globs) {
-    if (fnmatch(glob.c_str(), object.name.c_str(), 0) == 0 ||
-        fnmatch(glob.c_str(), object.node_path.c_str(), 0) == 0) {
+    if (fnmatch(glob.c_str(), name.c_str(), 0) == 0 ||
+        fnmatch(glob.c_str(), node_path.c_str(), 0) == 0) {
       return true;
     }
   }
   return false;
+}
+
+bool matches(const std::vector<std::string>& globs, const SceneObject& object) {
+  return matches(globs, object.name, object.node_path);
 }
 
 void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, const char* flag) {

@@ -13,6 +13,9 @@ namespace snow::app {
 
 /// True when any of `globs` matches the object's name or node path.
 bool matches(const std::vector<std::string>& globs, const SceneObject& object);
+/// The same for any thing's name and node path (glTF lines).
+bool matches(const std::vector<std::string>& globs, const std::string& name,
+             const std::string& node_path);
 
 /// Warns, naming `flag`, for each glob that matches no object of `scene`.
 void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, const char* flag);

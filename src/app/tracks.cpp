@@ -1,25 +1,18 @@
 #include "app/tracks.h"
 
-#include <fnmatch.h>
-
 #include <cstdio>
 
 #include "app/filters.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "plan/rules.h"
+#include "snow/stabilize.h"
 
 namespace snow::app {
 namespace {
 
 bool line_matches(const std::vector<std::string>& globs, const SceneLines& lines) {
-  for (const std::string& glob : globs) {
-    if (fnmatch(glob.c_str(), lines.name.c_str(), 0) == 0 ||
-        fnmatch(glob.c_str(), lines.node_path.c_str(), 0) == 0) {
-      return true;
-    }
-  }
-  return false;
+  return matches(globs, lines.name, lines.node_path);
 }
 
 /// Press or Clear for a thing named `name` that `press` and `clear` say
@@ -108,6 +101,26 @@ std::vector<float> press_tracks(const SnowMaps& maps, SnowPack& pack,
                 sources.size(), r.poses, r.pressed, r.cleared, r.compacted, r.moved);
   log_info(line);
   return compaction;
+}
+
+std::vector<float> tracks_in_snow(SnowResult& snow, const SnowMaps& maps,
+                                  const std::vector<TrackSource>& sources,
+                                  const PipelineSettings& s) {
+  SnowPack settled = settled_pack(maps, snow.depth);
+  std::vector<float> compaction = press_tracks(maps, settled, sources, s);
+  snow.depth = std::move(settled.depth);
+  snow.volume = snow_volume(maps, snow.depth);
+  return compaction;
+}
+
+void tracks_in_weather(WeatherRun& run, const SnowMaps& maps,
+                       const std::vector<TrackSource>& sources, const PipelineSettings& s,
+                       std::vector<float>& compaction) {
+  const WeatherStep& last = run.steps.back();
+  run.tracks_hour = s.track_hour >= 0.0 ? s.track_hour : last.hour + last.hours;
+  run.on_tracks = [&maps, &sources, &s, &compaction](SnowPack& now) {
+    compaction = press_tracks(maps, now, sources, s);
+  };
 }
 
 }  // namespace snow::app

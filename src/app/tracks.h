@@ -6,6 +6,7 @@
 
 #include "app/settings.h"
 #include "scene/scene.h"
+#include "snow/accumulate.h"
 #include "snow/maps.h"
 #include "snow/snowpack.h"
 #include "snow/tracks.h"
@@ -30,5 +31,20 @@ TrackSettings track_settings(const PipelineSettings& s);
 /// returns the compaction per layer texel (make_tracks' `compaction`).
 std::vector<float> press_tracks(const SnowMaps& maps, SnowPack& pack,
                                 const std::vector<TrackSource>& sources, const PipelineSettings& s);
+
+/// A run without weather: `sources` pressed into the snow of `snow` (taken
+/// at kSettledSnowDensity); its depth and volume follow. Returns the
+/// compaction as press_tracks.
+std::vector<float> tracks_in_snow(SnowResult& snow, const SnowMaps& maps,
+                                  const std::vector<TrackSource>& sources,
+                                  const PipelineSettings& s);
+
+/// A weather run: `sources` pressed at --track-hour (the end of the run
+/// where it is negative) into the pack (WeatherRun::on_tracks), the
+/// compaction into `compaction`. `maps`, `sources`, `s` and `compaction`
+/// must outlive the run.
+void tracks_in_weather(WeatherRun& run, const SnowMaps& maps,
+                       const std::vector<TrackSource>& sources, const PipelineSettings& s,
+                       std::vector<float>& compaction);
 
 }  // namespace snow::app

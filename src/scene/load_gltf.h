@@ -91,7 +91,8 @@ std::optional<std::filesystem::path> resolve_relative_uri(const std::filesystem:
 ///   rotation or scale channel on it or an ancestor); EXT_mesh_gpu_instancing
 ///   instances move with their node. Times: the keyframes of those channels
 ///   and the first and last of all node channels of the file, with evenly
-///   spaced samples between so that none are more than 1/60 s apart. Where
+///   spaced samples between at kMotionSampleHz (scene/gltf/animation.cpp)
+///   at least. Where
 ///   two channels animate the same property of a node, the later in the file
 ///   wins. `weights` channels and other targets (KHR_animation_pointer) are
 ///   ignored. At most LoadLimits::max_motion_samples. Without

@@ -58,7 +58,7 @@ constexpr float kCompactionPressure = 100.0f;
 /// (a wheel modelled sunk into the ground still presses the ground's snow).
 constexpr float kContactReach = 0.25f;
 /// Density of the snow a run without weather lays, kg/m^3: fresh snow
-/// settled for a few days (snow/weather.h's settling takes 100 to 200).
+/// settled for a few days (snow/weather.h's settling).
 constexpr float kSettledSnowDensity = 150.0f;
 
 enum class TrackMode {
