@@ -505,7 +505,6 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
     if (!weather) {
       snow = accumulate(map_scene, maps, s.coverage, s.stabilize, s.accumulate, gl_after_peel,
                         receives, bvh ? &*bvh : nullptr);
-      if (!tracks.empty()) compaction = tracks_in_snow(snow, maps, tracks, s);
       return;
     }
     pack = starting_pack(o.resume, maps, weather->steps.front().hour, pack_hour);
@@ -520,6 +519,9 @@ void run_snow(const SnowOptions& o, const GlobalOptions& global) {
                               gl_after_peel, receives, bvh ? &*bvh : nullptr);
     pack_hour = weather->steps.back().hour + weather->steps.back().hours;
   });
+  if (!weather && !tracks.empty()) {
+    clock.run("tracks", [&] { compaction = tracks_in_snow(snow, maps, tracks, s); });
+  }
   warn_if_unsettled(snow, s.stabilize);
   warn_if_sheltered(map_scene, maps, snow.coverage);
   if (tile) {
