@@ -261,6 +261,8 @@ TEST(TracksCli, OptionsThatDoNotGoTogetherAreOneLineErrors) {
     std::string args, says;
   } cases[] = {
       {" --track Sled --track-hour 3", "--track-hour needs --weather"},
+      {" --track Sled --track-hour 30 --weather " + q(save_snowfall(dir / "w.csv", 0, 12)),
+       "--track-hour 30 is after the weather's end (hour 12)"},
       {" --track 'Sl*' --clear Sled", "both name 'Sled'"},
       {" --track Sled --tiles 2x2 --tile 0 --tile-dir " + q(dir / "tiles"), "--tiles and --track"},
   };

@@ -117,7 +117,14 @@ void tracks_in_weather(WeatherRun& run, const SnowMaps& maps,
                        const std::vector<TrackSource>& sources, const PipelineSettings& s,
                        std::vector<float>& compaction) {
   const WeatherStep& last = run.steps.back();
-  run.tracks_hour = s.track_hour >= 0.0 ? s.track_hour : last.hour + last.hours;
+  const double end = last.hour + last.hours;
+  if (s.track_hour > end + 1e-9) {
+    char line[200];
+    std::snprintf(line, sizeof line, "--track-hour %.6g is after the weather's end (hour %.6g)",
+                  s.track_hour, end);
+    throw InputError(line);
+  }
+  run.tracks_hour = s.track_hour >= 0.0 ? s.track_hour : end;
   run.on_tracks = [&maps, &sources, &s, &compaction](SnowPack& now) {
     compaction = press_tracks(maps, now, sources, s);
   };

@@ -42,7 +42,7 @@ std::vector<float> tracks_in_snow(SnowResult& snow, const SnowMaps& maps,
 /// A weather run: `sources` pressed at --track-hour (the end of the run
 /// where it is negative) into the pack (WeatherRun::on_tracks), the
 /// compaction into `compaction`. `maps`, `sources`, `s` and `compaction`
-/// must outlive the run.
+/// must outlive the run. Throws InputError for an hour after the run's end.
 void tracks_in_weather(WeatherRun& run, const SnowMaps& maps,
                        const std::vector<TrackSource>& sources, const PipelineSettings& s,
                        std::vector<float>& compaction);
