@@ -100,6 +100,11 @@ std::vector<float> press_tracks(const SnowMaps& maps, SnowPack& pack,
                 "equivalent %.4g m^3 kept in the tracks, %.4g moved into berms and piles",
                 sources.size(), r.poses, r.pressed, r.cleared, r.compacted, r.moved);
   log_info(line);
+  if (r.pressed + r.cleared == 0) {
+    log_warn(
+        "tracks: nothing was pressed or cleared: the sources touch no snow (a source's own "
+        "surfaces are never pressed)");
+  }
   return compaction;
 }
 
