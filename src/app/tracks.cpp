@@ -38,6 +38,26 @@ std::vector<glm::mat4> poses_of(const Scene& scene, int node, const TrackSource&
   return {};
 }
 
+/// InputError where pressing `source` at its poses would take more than
+/// plan::kMaxTrackWork.
+void check_work(const TrackSource& source, float texel) {
+  Bounds rest;
+  for (const glm::vec3& p : source.triangles) rest.extend(p);
+  for (const glm::vec3& p : source.segments) rest.extend(p);
+  const glm::vec3 size = rest.size() + glm::vec3(source.width);
+  const double texels = (double(size.x) / texel + 2.0) * (double(size.z) / texel + 2.0);
+  const double shapes = double(source.triangles.size() / 3 + source.segments.size() / 2);
+  const double work = double(std::max<size_t>(source.poses.size(), 1)) * (shapes + texels);
+  if (work > plan::kMaxTrackWork) {
+    char line[300];
+    std::snprintf(line, sizeof line,
+                  "tracks: '%s' would take %.3g triangle and texel visits (%zu poses), over %.3g: "
+                  "press with a simpler shape, a shorter animation or coarser maps",
+                  source.name.c_str(), work, source.poses.size(), plan::kMaxTrackWork);
+    throw InputError(line);
+  }
+}
+
 void warn_unmatched_tracks(const Scene& scene, const std::vector<std::string>& globs,
                            const char* flag) {
   for (const std::string& glob : globs) {
@@ -66,6 +86,7 @@ std::vector<TrackSource> track_sources(const Scene& scene, const PipelineSetting
     const auto first = scene.positions.begin() + ptrdiff_t(size_t(o.first_triangle) * 3);
     source.triangles.assign(first, first + ptrdiff_t(size_t(o.triangle_count) * 3));
     source.poses = poses_of(scene, o.node, source, texel);
+    check_work(source, texel);
     sources.push_back(std::move(source));
   }
   for (const SceneLines& l : scene.lines) {
@@ -77,6 +98,7 @@ std::vector<TrackSource> track_sources(const Scene& scene, const PipelineSetting
     source.segments = l.segments;
     source.width = s.track_width;
     source.poses = poses_of(scene, l.node, source, texel);
+    check_work(source, texel);
     sources.push_back(std::move(source));
   }
   return sources;

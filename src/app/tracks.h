@@ -21,7 +21,8 @@ inline bool wants_tracks(const PipelineSettings& s) { return !s.track.empty() ||
 /// (clearing; lines --track-width wide); an animated one goes through its
 /// node's motion at poses plan::kTrackPoseSpacingTexels texels of `texel`
 /// apart. Warns for a glob that matches nothing; throws InputError for a
-/// thing both match, or a motion of more than plan::kMaxTrackPoses poses.
+/// thing both match, a motion of more than plan::kMaxTrackPoses poses, or a
+/// source whose pressing would take more than plan::kMaxTrackWork visits.
 std::vector<TrackSource> track_sources(const Scene& scene, const PipelineSettings& s, float texel);
 
 /// The tracks' settings: --track-load, the stabilizer's angle of repose.

@@ -323,6 +323,9 @@ inline double tile_halo(double height, bool wind) {
 constexpr double kTrackPoseSpacingTexels = 0.5;  // texels
 /// At most this many poses per contact (its triangles are drawn at each).
 constexpr size_t kMaxTrackPoses = 200000;  // count
+/// At most this much work per contact: its poses times its triangles and
+/// segments plus the texels under its bounds (minutes of one core).
+constexpr double kMaxTrackWork = 2e9;  // triangle or texel visits
 
 // --- Live preview ---
 

@@ -140,8 +140,9 @@ struct Field {
   }
 };
 
-/// The lowest floor of every pose of `s` per layer texel it presses.
-using Floors = std::map<size_t, float>;
+/// The lowest floor of every pose of `s` per layer texel it presses (the
+/// order of the poses does not change a minimum; lower() sorts the texels).
+using Floors = std::unordered_map<size_t, float>;
 
 void press_pose(const Field& f, const TrackSource& s, const glm::mat4& pose,
                 const TrackSettings& settings, Floors& floors) {
@@ -186,7 +187,9 @@ struct Sent {
 std::map<size_t, Sent> lower(Field& f, const Floors& floors, TrackMode mode,
                              const TrackSettings& settings) {
   std::map<size_t, Sent> sent;
-  for (const auto& [k, floor] : floors) {
+  std::vector<std::pair<size_t, float>> sorted(floors.begin(), floors.end());
+  std::sort(sorted.begin(), sorted.end());
+  for (const auto& [k, floor] : sorted) {
     const float d = f.pack.depth[k];
     const float kept = std::clamp(floor - f.maps.ground[k], 0.0f, d);
     const double per = double(f.water_per_depth(k));
