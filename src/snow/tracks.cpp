@@ -239,7 +239,10 @@ void neighbours(const Field& f, size_t k, Visit&& visit) {
   }
 }
 
-/// A Dijkstra search over layer texels (distances in texels), from seeds.
+/// A search over layer texels from seeds, in order of the straight distance
+/// (texels) to the seed each is reached from (the owner): each texel gets
+/// its nearest seed along paths on the same surface, as a vector-propagating
+/// distance transform does.
 struct Reach {
   float distance = kInf;
   size_t owner = 0;  // the seed it was reached from
@@ -260,8 +263,10 @@ Reached search(const Field& f, const std::vector<std::pair<size_t, Reach>>& seed
     queue.pop();
     if (d > reached[k].distance) continue;
     const size_t owner = reached[k].owner;
-    neighbours(f, k, [&](size_t k2, float step) {
-      const float d2 = d + step;
+    const Place from = place_of(f.maps, owner);
+    neighbours(f, k, [&](size_t k2, float) {
+      const Place at = place_of(f.maps, k2);
+      const float d2 = std::hypot(float(at.i - from.i), float(at.j - from.j));
       if (!may(k2, owner, d2)) return;
       Reach& to = reached[k2];
       if (d2 < to.distance) to = {d2, owner}, queue.push({d2, k2});
