@@ -239,16 +239,18 @@ void neighbours(const Field& f, size_t k, Visit&& visit) {
   }
 }
 
-/// A search over layer texels from seeds, in order of the straight distance
-/// (texels) to the seed each is reached from (the owner): each texel gets
-/// its nearest seed along paths on the same surface, as a vector-propagating
-/// distance transform does.
+/// How a search reached a layer texel.
 struct Reach {
-  float distance = kInf;
-  size_t owner = 0;  // the seed it was reached from
+  float distance = kInf;  // texels, straight, to the owner
+  size_t owner = 0;       // the seed it was reached from
 };
 using Reached = std::unordered_map<size_t, Reach>;
 
+/// A search over layer texels from `seeds`, in order of the straight
+/// distance (texels) to the seed each is reached from (the owner): each
+/// texel gets its nearest seed along paths on the same surface, as a
+/// vector-propagating distance transform does. may(k, owner, distance)
+/// says whether texel k may be reached so.
 template <class May>
 Reached search(const Field& f, const std::vector<std::pair<size_t, Reach>>& seeds, May&& may) {
   using Entry = std::pair<float, size_t>;
