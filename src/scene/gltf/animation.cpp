@@ -23,8 +23,6 @@ constexpr double kMotionSampleHz = 60.0;
 // Sampling steps (per sample, one per animated node on the path from the
 // root, plus one) allowed per LoadLimits::max_motion_samples (count).
 constexpr uint64_t kMotionWorkPerSample = 64;
-// A rotation quaternion no longer than this is zero.
-constexpr double kZeroQuaternion = 1e-12;
 
 constexpr int kByte = 5120;
 constexpr int kUnsignedByte = 5121;
@@ -43,15 +41,6 @@ bool finite(const glm::mat4& m) {
 
 bool animated(const std::array<int, 3>& channels) {
   return channels[0] >= 0 || channels[1] >= 0 || channels[2] >= 0;
-}
-
-/// T * R * S of translation, rotation (unit, x, y, z, w) and scale.
-glm::dmat4 matrix_of(const TrsValues& trs) {
-  const glm::dvec4& q = trs[MotionChannel::kRotation];
-  glm::dmat4 m = glm::mat4_cast(glm::dquat(q.w, q.x, q.y, q.z));
-  for (int c = 0; c < 3; ++c) m[c] *= trs[MotionChannel::kScale][c];
-  m[3] = glm::dvec4(glm::dvec3(trs[MotionChannel::kTranslation]), 1.0);
-  return m;
 }
 
 /// Spherical interpolation of two quaternions (x, y, z, w; not zero) on
@@ -274,26 +263,10 @@ void GltfLoader::read_keyframe_values(uint64_t accessor, const std::string& what
 }
 
 TrsValues GltfLoader::rest_trs(int node) const {
-  const std::string what = node_label(node);
   const json& object = nodes()[size_t(node)];
   if (member(object, "matrix"))
-    fail(what + " is animated but has a 'matrix' (glTF animates only TRS nodes)");
-  TrsValues trs = {glm::dvec4(0.0), glm::dvec4(0.0, 0.0, 0.0, 1.0), glm::dvec4(1.0, 1.0, 1.0, 0.0)};
-  if (const json* t = member(object, "translation")) {
-    const auto v = numbers<3>(*t, what + " 'translation'");
-    trs[MotionChannel::kTranslation] = glm::dvec4(v[0], v[1], v[2], 0.0);
-  }
-  if (const json* r = member(object, "rotation")) {
-    const auto q = numbers<4>(*r, what + " 'rotation'");
-    const glm::dvec4 v(q[0], q[1], q[2], q[3]);
-    if (!(glm::length(v) > kZeroQuaternion)) fail(what + " 'rotation' is a zero quaternion");
-    trs[MotionChannel::kRotation] = glm::normalize(v);
-  }
-  if (const json* s = member(object, "scale")) {
-    const auto v = numbers<3>(*s, what + " 'scale'");
-    trs[MotionChannel::kScale] = glm::dvec4(v[0], v[1], v[2], 0.0);
-  }
-  return trs;
+    fail(node_label(node) + " is animated but has a 'matrix' (glTF animates only TRS nodes)");
+  return node_trs(uint64_t(node), object);
 }
 
 glm::dmat4 GltfLoader::local_at(int node, double t, const MotionSet& set) const {
@@ -306,7 +279,7 @@ glm::dmat4 GltfLoader::local_at(int node, double t, const MotionSet& set) const 
     fail(node_label(node) + ": its rotation at " + std::to_string(t) +
          " s is a zero quaternion (CUBICSPLINE tangents)");
   trs[MotionChannel::kRotation] /= length;
-  return matrix_of(trs);
+  return trs_matrix(trs);
 }
 
 NodeMotion GltfLoader::sample_motion(int node, MotionSet& set) {
@@ -372,9 +345,8 @@ std::vector<float> GltfLoader::motion_times(int node, const std::vector<int>& us
     const double a = keys[i], d = double(keys[i + 1]) - a, n = steps(keys[i], keys[i + 1]);
     for (double j = 1; j < n; ++j) {
       const float t = float(a + d * j / n);
-      if (t > times.back() && t < keys[i + 1])
-        times.push_back(t);  // float rounding may
-                             // repeat a time
+      // Float rounding may repeat a time.
+      if (t > times.back() && t < keys[i + 1]) times.push_back(t);
     }
     times.push_back(keys[i + 1]);
   }

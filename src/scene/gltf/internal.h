@@ -114,6 +114,10 @@ struct MotionChannel {
 /// Translation (x, y, z), rotation (x, y, z, w) and scale (x, y, z) of a
 /// node, indexed by MotionChannel::Path.
 using TrsValues = std::array<glm::dvec4, 3>;
+/// T * R * S of a node's translation, rotation (unit) and scale (nodes.cpp).
+glm::dmat4 trs_matrix(const TrsValues& trs);
+/// A rotation quaternion no longer than this is zero.
+constexpr double kZeroQuaternion = 1e-12;
 
 /// What sampling the motions shares (animation.cpp).
 struct MotionSet {
@@ -252,7 +256,11 @@ class GltfLoader {
 
   // --- node hierarchy (nodes.cpp) ----------------------------------------------
 
+  /// A node's local transform: its 'matrix', else trs_matrix(node_trs).
   glm::dmat4 local_matrix(uint64_t node, const json& object) const;
+  /// A node's translation, rotation (normalized; a zero one fails) and
+  /// scale, the defaults where absent.
+  TrsValues node_trs(uint64_t node, const json& object) const;
   std::string node_name(int node) const;
   /// "/root/child/..." for SceneObject::node_path; deep paths are elided.
   std::string path_string(const std::vector<int>& path) const;

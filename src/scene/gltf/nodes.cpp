@@ -20,33 +20,44 @@ bool finite(const glm::dmat4& m) {
 
 }  // namespace
 
-glm::dmat4 GltfLoader::local_matrix(uint64_t node, const json& object) const {
+glm::dmat4 trs_matrix(const TrsValues& trs) {
+  const glm::dvec4& q = trs[MotionChannel::kRotation];
+  glm::dmat4 m = glm::mat4_cast(glm::dquat(q.w, q.x, q.y, q.z));
+  for (int c = 0; c < 3; ++c) m[c] *= trs[MotionChannel::kScale][c];
+  m[3] = glm::dvec4(glm::dvec3(trs[MotionChannel::kTranslation]), 1.0);
+  return m;
+}
+
+TrsValues GltfLoader::node_trs(uint64_t node, const json& object) const {
   const std::string what = node_label(int(node));
+  TrsValues trs = {glm::dvec4(0.0), glm::dvec4(0.0, 0.0, 0.0, 1.0), glm::dvec4(1.0, 1.0, 1.0, 0.0)};
+  if (const json* t = member(object, "translation")) {
+    const auto v = numbers<3>(*t, what + " 'translation'");
+    trs[MotionChannel::kTranslation] = glm::dvec4(v[0], v[1], v[2], 0.0);
+  }
+  if (const json* r = member(object, "rotation")) {
+    const auto q = numbers<4>(*r, what + " 'rotation'");
+    const glm::dvec4 v(q[0], q[1], q[2], q[3]);
+    const double length = glm::length(v);
+    if (!(length > kZeroQuaternion)) fail(what + " 'rotation' is a zero quaternion");
+    trs[MotionChannel::kRotation] = v / length;
+  }
+  if (const json* s = member(object, "scale")) {
+    const auto v = numbers<3>(*s, what + " 'scale'");
+    trs[MotionChannel::kScale] = glm::dvec4(v[0], v[1], v[2], 0.0);
+  }
+  return trs;
+}
+
+glm::dmat4 GltfLoader::local_matrix(uint64_t node, const json& object) const {
   if (const json* matrix = member(object, "matrix")) {
-    const auto m = numbers<16>(*matrix, what + " 'matrix'");
+    const auto m = numbers<16>(*matrix, node_label(int(node)) + " 'matrix'");
     glm::dmat4 out;
     for (int c = 0; c < 4; ++c)
       for (int r = 0; r < 4; ++r) out[c][r] = m[size_t(c * 4 + r)];
     return out;
   }
-  glm::dmat4 out(1.0);
-  if (const json* t = member(object, "translation")) {
-    const auto v = numbers<3>(*t, what + " 'translation'");
-    out[3] = glm::dvec4(v[0], v[1], v[2], 1.0);
-  }
-  if (const json* r = member(object, "rotation")) {
-    const auto q = numbers<4>(*r, what + " 'rotation'");
-    glm::dquat quat(q[3], q[0], q[1], q[2]);  // glTF stores x, y, z, w
-    const double length = glm::length(quat);
-    if (!(length > 1e-12)) fail(what + " 'rotation' is a zero quaternion");
-    out = out * glm::dmat4(glm::mat4_cast(quat / length));
-  }
-  if (const json* s = member(object, "scale")) {
-    const auto v = numbers<3>(*s, what + " 'scale'");
-    out = out * glm::dmat4(glm::dvec4(v[0], 0, 0, 0), glm::dvec4(0, v[1], 0, 0),
-                           glm::dvec4(0, 0, v[2], 0), glm::dvec4(0, 0, 0, 1));
-  }
-  return out;
+  return trs_matrix(node_trs(node, object));
 }
 
 std::string GltfLoader::node_name(int node) const {
