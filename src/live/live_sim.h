@@ -153,6 +153,11 @@ class LiveSim {
   /// at half a texel over the maps; nothing where it misses them. A full
   /// readback.
   std::optional<glm::vec3> pick(glm::vec3 origin, glm::vec3 direction) const;
+  /// The preview's brush: a disc of `radius` metres pressed
+  /// (or cleared) where pick() finds the snow along the ray, on one
+  /// readback; nothing where the ray misses the maps.
+  std::optional<TrackResult> brush(glm::vec3 origin, glm::vec3 direction, float radius,
+                                   TrackMode mode, const TrackSettings& settings);
 
   float fallen_depth() const { return fallen_depth_; }  // metres fallen on open flat ground
   /// m^3 of fresh snow added, and drifted in over the maps' border.
@@ -177,6 +182,12 @@ class LiveSim {
   /// The relaxation passes of a frame (none when nothing fell and the last
   /// passes converged); `fell`: snow was added this frame.
   void relax(bool fell);
+  /// make_tracks on `lying`, the depth just read back.
+  TrackResult press(const std::vector<float>& lying, const std::vector<TrackSource>& sources,
+                    const TrackSettings& settings);
+  /// pick on `lying`.
+  std::optional<glm::vec3> hit(const std::vector<float>& lying, glm::vec3 origin,
+                               glm::vec3 direction) const;
   // The weather series' part (live_weather.cpp).
   struct Weather;
   void restart_weather();

@@ -9,13 +9,31 @@ namespace snow::live {
 
 TrackResult LiveSim::make_tracks(const std::vector<TrackSource>& sources,
                                  const TrackSettings& settings) {
+  return press(depth(), sources, settings);
+}
+
+std::optional<TrackResult> LiveSim::brush(glm::vec3 origin, glm::vec3 direction, float radius,
+                                          TrackMode mode, const TrackSettings& settings) {
+  const std::vector<float> lying = depth();
+  const std::optional<glm::vec3> at = hit(lying, origin, direction);
+  if (!at) return std::nullopt;
+  TrackSource disc;
+  disc.name = "brush";
+  disc.mode = mode;
+  disc.segments = {*at, *at};
+  disc.width = 2.0f * radius;
+  return press(lying, {disc}, settings);
+}
+
+TrackResult LiveSim::press(const std::vector<float>& lying, const std::vector<TrackSource>& sources,
+                           const TrackSettings& settings) {
   SnowPack settled;
   SnowPack* pack = &settled;
   if (weather_) {
-    sync_snowpack();
+    account_moves(weather_->pack, maps_, lying);  // sync_snowpack, on the depth read
     pack = &weather_->pack;
   } else {
-    settled = settled_pack(maps_, depth());
+    settled = settled_pack(maps_, lying);
   }
   const TrackResult result = snow::make_tracks(maps_, *pack, sources, settings);
   replace_depth(pack->depth);
@@ -23,6 +41,11 @@ TrackResult LiveSim::make_tracks(const std::vector<TrackSource>& sources,
 }
 
 std::optional<glm::vec3> LiveSim::pick(glm::vec3 origin, glm::vec3 direction) const {
+  return hit(depth(), origin, direction);
+}
+
+std::optional<glm::vec3> LiveSim::hit(const std::vector<float>& lying, glm::vec3 origin,
+                                      glm::vec3 direction) const {
   const MapGrid& g = maps_.grid;
   if (g.texels() == 0 || !(glm::length(direction) > 0.0f)) return std::nullopt;
   direction = glm::normalize(direction);
@@ -41,7 +64,6 @@ std::optional<glm::vec3> LiveSim::pick(glm::vec3 origin, glm::vec3 direction) co
     t1 = std::min(t1, std::max(ta, tb));
   }
   if (!(t0 <= t1)) return std::nullopt;
-  const std::vector<float> lying = depth();
   const float step = 0.5f * g.texel;
   for (float t = t0; t <= t1; t += step) {
     const glm::vec3 p = origin + t * direction;

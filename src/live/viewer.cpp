@@ -293,14 +293,7 @@ void Viewer::brush(double x, double y, glm::ivec2 fb, TrackMode mode) {
   const glm::vec4 near = inverse * glm::vec4(ndc, -1.0f, 1.0f);
   const glm::vec4 far = inverse * glm::vec4(ndc, 1.0f, 1.0f);
   const glm::vec3 from = glm::vec3(near) / near.w, to = glm::vec3(far) / far.w;
-  const std::optional<glm::vec3> at = sim_->pick(from, to - from);
-  if (!at) return;
-  TrackSource disc;
-  disc.name = "brush";
-  disc.mode = mode;
-  disc.segments = {*at, *at};
-  disc.width = 2.0f * brush_radius_;
-  sim_->make_tracks({disc}, options_.track_settings);
+  sim_->brush(from, to - from, brush_radius_, mode, options_.track_settings);
 }
 
 void Viewer::draw_panel(double frame_ms) {
