@@ -26,11 +26,22 @@ bool matches(const std::vector<std::string>& globs, const SceneObject& object) {
   return matches(globs, object.name, object.node_path);
 }
 
-void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, const char* flag) {
+bool matches(const std::vector<std::string>& globs, const SceneLines& lines) {
+  return matches(globs, lines.name, lines.node_path);
+}
+
+void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, const char* flag,
+                    bool with_lines) {
   for (const std::string& glob : globs) {
-    const bool any = std::any_of(scene.objects.begin(), scene.objects.end(),
-                                 [&](const SceneObject& o) { return matches({glob}, o); });
-    if (!any) log_warn(std::string(flag) + " '" + glob + "' matches no object");
+    const bool any =
+        std::any_of(scene.objects.begin(), scene.objects.end(),
+                    [&](const SceneObject& o) { return matches({glob}, o); }) ||
+        (with_lines && std::any_of(scene.lines.begin(), scene.lines.end(),
+                                   [&](const SceneLines& l) { return matches({glob}, l); }));
+    if (!any) {
+      log_warn(std::string(flag) + " '" + glob + "' matches no object" +
+               (with_lines ? " or line" : ""));
+    }
   }
 }
 

@@ -13,12 +13,15 @@ namespace snow::app {
 
 /// True when any of `globs` matches the object's name or node path.
 bool matches(const std::vector<std::string>& globs, const SceneObject& object);
-/// The same for any thing's name and node path (glTF lines).
+/// The same for glTF lines, and for any name and node path.
+bool matches(const std::vector<std::string>& globs, const SceneLines& lines);
 bool matches(const std::vector<std::string>& globs, const std::string& name,
              const std::string& node_path);
 
-/// Warns, naming `flag`, for each glob that matches no object of `scene`.
-void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, const char* flag);
+/// Warns, naming `flag`, for each glob that matches no object of `scene`
+/// (nor, `with_lines`, any of its glTF lines).
+void warn_unmatched(const Scene& scene, const std::vector<std::string>& globs, const char* flag,
+                    bool with_lines = false);
 
 /// The scene without the objects that match `ignore` (they neither receive
 /// nor shelter; each is logged): `scene` itself when none is ignored (moved

@@ -11,10 +11,6 @@
 namespace snow::app {
 namespace {
 
-bool line_matches(const std::vector<std::string>& globs, const SceneLines& lines) {
-  return matches(globs, lines.name, lines.node_path);
-}
-
 /// Press or Clear for a thing named `name` that `press` and `clear` say
 /// match it; nothing where neither does.
 std::optional<TrackMode> mode_of(bool press, bool clear, const std::string& name) {
@@ -24,16 +20,22 @@ std::optional<TrackMode> mode_of(bool press, bool clear, const std::string& name
   return std::nullopt;
 }
 
+/// The box of a source's shape at rest (its lines without their width).
+Bounds rest_bounds(const TrackSource& source) {
+  Bounds rest;
+  for (const glm::vec3& p : source.triangles) rest.extend(p);
+  for (const glm::vec3& p : source.segments) rest.extend(p);
+  return rest;
+}
+
 /// The poses of the thing at node `node` (none where it does not move).
 std::vector<glm::mat4> poses_of(const Scene& scene, int node, const TrackSource& source,
                                 float texel) {
   for (const NodeMotion& motion : scene.motions) {
     if (motion.node != node) continue;
-    Bounds rest;
-    for (const glm::vec3& p : source.triangles) rest.extend(p);
-    for (const glm::vec3& p : source.segments) rest.extend(p);
-    return track_poses(motion.moves, rest, float(plan::kTrackPoseSpacingTexels) * texel,
-                       plan::kMaxTrackPoses, source.name);
+    return track_poses(motion.moves, rest_bounds(source),
+                       float(plan::kTrackPoseSpacingTexels) * texel, plan::kMaxTrackPoses,
+                       source.name);
   }
   return {};
 }
@@ -41,10 +43,7 @@ std::vector<glm::mat4> poses_of(const Scene& scene, int node, const TrackSource&
 /// InputError where pressing `source` at its poses would take more than
 /// plan::kMaxTrackWork.
 void check_work(const TrackSource& source, float texel) {
-  Bounds rest;
-  for (const glm::vec3& p : source.triangles) rest.extend(p);
-  for (const glm::vec3& p : source.segments) rest.extend(p);
-  const glm::vec3 size = rest.size() + glm::vec3(source.width);
+  const glm::vec3 size = rest_bounds(source).size() + glm::vec3(source.width);
   const double texels = (double(size.x) / texel + 2.0) * (double(size.z) / texel + 2.0);
   const double shapes = double(source.triangles.size() / 3 + source.segments.size() / 2);
   const double work = double(std::max<size_t>(source.poses.size(), 1)) * (shapes + texels);
@@ -58,22 +57,11 @@ void check_work(const TrackSource& source, float texel) {
   }
 }
 
-void warn_unmatched_tracks(const Scene& scene, const std::vector<std::string>& globs,
-                           const char* flag) {
-  for (const std::string& glob : globs) {
-    const bool any = std::any_of(scene.objects.begin(), scene.objects.end(),
-                                 [&](const SceneObject& o) { return matches({glob}, o); }) ||
-                     std::any_of(scene.lines.begin(), scene.lines.end(),
-                                 [&](const SceneLines& l) { return line_matches({glob}, l); });
-    if (!any) log_warn(std::string(flag) + " '" + glob + "' matches no object or line");
-  }
-}
-
 }  // namespace
 
 std::vector<TrackSource> track_sources(const Scene& scene, const PipelineSettings& s, float texel) {
-  warn_unmatched_tracks(scene, s.track, "--track");
-  warn_unmatched_tracks(scene, s.clear, "--clear");
+  warn_unmatched(scene, s.track, "--track", true);
+  warn_unmatched(scene, s.clear, "--clear", true);
   std::vector<TrackSource> sources;
   for (size_t i = 0; i < scene.objects.size(); ++i) {
     const SceneObject& o = scene.objects[i];
@@ -90,7 +78,7 @@ std::vector<TrackSource> track_sources(const Scene& scene, const PipelineSetting
     sources.push_back(std::move(source));
   }
   for (const SceneLines& l : scene.lines) {
-    const auto mode = mode_of(line_matches(s.track, l), line_matches(s.clear, l), l.name);
+    const auto mode = mode_of(matches(s.track, l), matches(s.clear, l), l.name);
     if (!mode || l.segments.empty()) continue;
     TrackSource source;
     source.name = l.name;
