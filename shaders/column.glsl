@@ -22,6 +22,9 @@ uniform float u_stand;     // metres, StabilizeSettings::cohesion.stand_height
 // Routing: 1 in the first erosion pass, which takes the kept heights at their
 // start value (kept_height) rather than from u_stable.
 uniform int u_start;
+// Routing: 1 when routing creeping snow (Routing::Creep): the kept heights
+// start at the free tops, not capped at the holding depth.
+uniform int u_repose_only;
 
 const int kCellSurface = 1;
 const int kCellSolid = 2;
@@ -62,9 +65,11 @@ float held(ivec3 t, vec4 cell, float s) {
 }
 
 // Routing: the kept height layer texel t starts from: its free top, no
-// higher than its holding depth above its ground (CpuStabilizer::start_height).
+// higher than its holding depth above its ground unless u_repose_only
+// (CpuStabilizer::start_height).
 float start_height(ivec3 t, vec4 cell) {
-  return min(free_top(cell, texelFetch(u_depth, t, 0).r), cell.x + texelFetch(u_hold, t, 0).r);
+  float top = free_top(cell, texelFetch(u_depth, t, 0).r);
+  return u_repose_only != 0 ? top : min(top, cell.x + texelFetch(u_hold, t, 0).r);
 }
 
 // Routing: the highest snow surface layer texel t (with cell `cell`) keeps,

@@ -264,11 +264,41 @@ TEST(StabilizeGpu, KeptSnowAmountAddsWhatAddSnowAdds) {
 // It comes to the same rest as with every check reading its own pass, within
 // the backends' tolerance (1 mm per texel, 0.1 % of the volume), and knows
 // it within two checks and a call of the synchronous run.
+// Routing creeping snow is decided at the first check at or after each
+// kCreepRouteEvery passes, on the check before (late: the last one read).
+TEST(StrideSchedule, CreepingSnowIsRoutedAtFixedPasses) {
+  StabilizeSettings settings = loose_settings();
+  settings.check_every = 4;
+  StrideSchedule schedule(settings);
+  std::vector<int> routed;
+  float residual = 1e-2f;
+  for (int pass = 1; pass <= 100; ++pass) {
+    schedule.next();
+    if (pass % 6 != 0) continue;  // a check every 6 passes
+    residual *= 0.99f;            // creeping: falls by far less than half per check
+    schedule.checked(1, residual);
+    if (creep_route_due(settings, schedule, false)) routed.push_back(pass);
+  }
+  EXPECT_EQ(routed, (std::vector<int>{36, 66, 96}));  // at 32, 64, 96 or after
+  StabilizeSettings off = settings;
+  off.route_creep = false;
+  StrideSchedule quiet(off);
+  for (int pass = 1; pass <= 40; ++pass) quiet.next();
+  quiet.checked(1, 1e-2f);
+  quiet.checked(1, 0.99e-2f);
+  EXPECT_FALSE(creep_route_due(off, quiet, true));
+}
+
+// The same rest with the checks' decisions a check late. Routing creeping
+// snow is left out: a discrete step, it lands the snow a few millimetres
+// apart when drains before it came a check apart (creep routing is checked
+// by CreepingSnowIsRoutedAtFixedPasses and StabilizePiles).
 TEST(StabilizeGpu, AsynchronousChecksComeToTheSameRest) {
   REQUIRE_GL();
   const SnowMaps maps = bumpy_maps(64, 4);
   const std::vector<float> start = random_snow(maps, 0.5f, 5);
-  const StabilizeSettings settings = loose_settings();
+  StabilizeSettings settings = loose_settings();
+  settings.route_creep = false;
   Stabilizer sync(maps, settings), async(maps, settings);
   async.set_async_checks(true);
   sync.set_depth(start);

@@ -216,6 +216,7 @@ TEST(StabilizeReference, SnowCreepingOffAnEdgeIsDrained) {
   const double fell = snow_volume(maps, start);
   std::vector<float> relaxed = start, drained = start;
   StabilizeSettings settings = loose_settings();
+  settings.route_creep = false;  // the drains alone
   settings.drain_edges = false;
   const StabilizeResult r0 = stabilize_cpu(maps, relaxed, settings);
   settings.drain_edges = true;
@@ -233,6 +234,37 @@ TEST(StabilizeReference, SnowCreepingOffAnEdgeIsDrained) {
   float difference = 0.0f;
   for (size_t k = 0; k < drained.size(); ++k) {
     difference = std::max(difference, std::abs(drained[k] - relaxed[k]));
+  }
+  EXPECT_LT(difference, 1e-3f);  // a tenth of a texel
+}
+
+// Creeping snow routed again (StabilizeSettings::route_creep) rests as the
+// relaxation alone leaves it, in a fraction of the passes: the same loose
+// snow creeping off the box's edges, drains off.
+TEST(StabilizeReference, CreepingSnowIsRoutedDownItsWholePath) {
+  const SnowMaps maps = box_on_plate_maps();
+  const std::vector<float> start = snow_on_top(maps, 0.1f);
+  const double fell = snow_volume(maps, start);
+  std::vector<float> relaxed = start, routed = start;
+  StabilizeSettings settings = loose_settings();
+  settings.drain_edges = false;
+  settings.route_creep = false;
+  const StabilizeResult r0 = stabilize_cpu(maps, relaxed, settings);
+  settings.route_creep = true;
+  const StabilizeResult r1 = stabilize_cpu(maps, routed, settings);
+  std::printf("creeping: %d passes relaxed, %d with %d creep routings; %.6f against %.6f m^3\n",
+              r0.iterations, r1.iterations, r1.creep_routes, r0.volume, r1.volume);
+  EXPECT_TRUE(r0.converged);
+  EXPECT_TRUE(r1.converged);
+  EXPECT_EQ(r0.creep_routes, 0);
+  EXPECT_GE(r1.creep_routes, 1);
+  EXPECT_LT(3 * r1.iterations, r0.iterations);
+  EXPECT_NEAR(r1.volume + r1.lost_volume, fell, 1e-9);
+  EXPECT_NEAR(r1.volume, r0.volume, 1e-3 * r0.volume);
+  EXPECT_LE(largest_excess(maps, routed, settings, 1e-4f), 2e-4f);
+  float difference = 0.0f;
+  for (size_t k = 0; k < routed.size(); ++k) {
+    difference = std::max(difference, std::abs(routed[k] - relaxed[k]));
   }
   EXPECT_LT(difference, 1e-3f);  // a tenth of a texel
 }

@@ -212,15 +212,17 @@ int main(int argc, char** argv) {
           const int i = int(most % maps.grid.texels()) % maps.grid.width;
           const int j = int(most % maps.grid.texels()) / maps.grid.width;
           const int32_t object = maps.object[most];
-          std::fprintf(
-              stderr,
-              "pass %d residual %.3e m routed %.4f m^3 (%d passes, %d drains, %d pours) %.1f s, "
-              "tiles %.1f %%; largest "
-              "change %.2e m at layer %d (%d, %d) on %s, ground %.3f m, depth %.4f m\n",
-              sum.iterations, r.residual, r.routed_volume, r.route_passes, r.drains, r.pours,
-              seconds_since(t0), 100.0 * r.tile_share, after[most] - before[most], l, i, j,
-              object >= 0 ? scene.objects[size_t(object)].name.c_str() : "-", maps.ground[most],
-              after[most]);
+          std::fprintf(stderr,
+                       "pass %d residual %.3e m routed %.4f m^3 (%d passes, %d of creep, %d "
+                       "drains, %d pours) "
+                       "%.1f s, "
+                       "tiles %.1f %%; largest "
+                       "change %.2e m at layer %d (%d, %d) on %s, ground %.3f m, depth %.4f m\n",
+                       sum.iterations, r.residual, r.routed_volume, r.route_passes, r.creep_routes,
+                       r.drains, r.pours, seconds_since(t0), 100.0 * r.tile_share,
+                       after[most] - before[most], l, i, j,
+                       object >= 0 ? scene.objects[size_t(object)].name.c_str() : "-",
+                       maps.ground[most], after[most]);
           before = after;
           if (o.probe_r >= 0) print_probe(o, maps, after);
         }

@@ -215,10 +215,11 @@ void load_settings_file(const std::string& path, PipelineSettings& settings) {
 
 bool is_developer_setting(const std::string& key) {
   static const char* const kDeveloper[] = {
-      "maps.merge_distance",  "maps.device",       "coverage.batch",     "coverage.bias",
-      "coverage.method",      "snow.min_move",     "snow.max_stride",    "snow.adaptive_stride",
-      "snow.device",          "snow.route_steep",  "snow.deposit_piles", "snow.drain_edges",
-      "mesh.piece_triangles", "snow.stand_height", "snow.hold_depth",    "snow.wind_transport"};
+      "maps.merge_distance", "maps.device",          "coverage.batch",     "coverage.bias",
+      "coverage.method",     "snow.min_move",        "snow.max_stride",    "snow.adaptive_stride",
+      "snow.device",         "snow.route_steep",     "snow.deposit_piles", "snow.drain_edges",
+      "snow.route_creep",    "mesh.piece_triangles", "snow.stand_height",  "snow.hold_depth",
+      "snow.wind_transport"};
   for (const char* k : kDeveloper) {
     if (key == k) return true;
   }

@@ -228,6 +228,9 @@ void visit_settings(Visitor&& v, PipelineSettings& s) {
   v("snow.drain_edges", "--drain-edges",
     "Once snow creeps off an edge into the void, drain what will leave in one go (true/false)",
     s.stabilize.drain_edges, kNoRange);
+  v("snow.route_creep", "--route-creep",
+    "Where snow creeps, route the loose snow down its whole path in one go (true/false)",
+    s.stabilize.route_creep, kNoRange);
   // Meshes.
   v("mesh.min_thickness", "--min-thickness", "Snow thinner than this is no snow, metres",
     s.polygonize.min_thickness, Range{0, 100});

@@ -46,7 +46,8 @@ bool same(const StabilizeSettings& a, const StabilizeSettings& b) {
          a.max_iterations == b.max_iterations && a.check_every == b.check_every &&
          a.max_stride == b.max_stride && a.adaptive_stride == b.adaptive_stride &&
          a.route_steep == b.route_steep && a.deposit_piles == b.deposit_piles &&
-         a.drain_edges == b.drain_edges && a.seed == b.seed && a.device == b.device;
+         a.drain_edges == b.drain_edges && a.route_creep == b.route_creep && a.seed == b.seed &&
+         a.device == b.device;
 }
 
 void check(const LiveSettings& s) {

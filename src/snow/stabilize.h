@@ -46,13 +46,16 @@
 //    (snow/deposit.h), not left as a spike metres deep on one texel, so the
 //    relaxation only finishes the piles. Routing runs at the start of each
 //    stabilize call and after snow is added. At the convergence checks it
-//    runs only to drain (drain_due): where the snow creeps and much of what
+//    runs again where the snow creeps (creep_route_due): loose snow that
+//    slid trickles a texel per pass over the steps of held snow and along
+//    slopes near the repose angle, in passes that grow with the distance in
+//    texels; routed again on the kept heights of the repose angle alone (the
+//    rule the relaxation moves loose snow by), it goes down its whole path at
+//    once. Between those, a check drains (drain_due): where much of what
 //    moves goes into the void, the excess whose path ends there leaves at
 //    once. A path also ends in the void at a receiver beside it (one that
 //    sheds into the void at its own free top), since the next relaxation
-//    pass sends all that arrives there off the edge. Routing everything
-//    again at every check would cost much of the stabilizer's time and save
-//    no passes.
+//    pass sends all that arrives there off the edge.
 // Relaxation passes cycle through strides up to max_stride, ..., 2, 1
 // (multi-scale, see StrideSchedule), so creeping piles spread in few passes.
 // A strided pass moves only snow that a single step would move (the stride-1
@@ -110,6 +113,9 @@ struct StabilizeSettings {
                                    // for the relaxation; off: all of it on that one texel
   bool drain_edges = true;         // with route_steep: once snow creeps off an edge into the
                                    // void, drain what will leave in one go (drain_due)
+  bool route_creep = true;         // with route_steep: where the snow creeps, route the loose
+                                   // snow again down its whole path (creep_route_due); off:
+                                   // the relaxation carries it a texel per pass
   uint32_t seed = 1;               // seed of the repose jitter; same seed, same result
   bool active_tiles = true;        // GPU: relaxation and erosion passes compute only the
                                    // 4 x 4-column tiles that can still change (bit-identical
@@ -145,6 +151,7 @@ struct StabilizeResult {
                                // the routing, count
   double routed_volume = 0.0;  // m^3 moved by routing (not drains: their snow is lost_volume)
   int drains = 0;              // draining routings run (drain_due), count
+  int creep_routes = 0;        // routings of creeping snow run (creep_route_due), count
   int pours = 0;               // pours of pressed snow (pressed_snow_due), count
   double lost_volume = 0.0;    // m^3 that left the scene during the call (off the map or into
                                // the void below the lowest surface)
@@ -245,6 +252,11 @@ class StrideSchedule {
   /// Passes since pressed snow was last looked for (pressed_looked_for).
   int since_pressed() const { return since_pressed_; }
   void pressed_looked_for() { since_pressed_ = 0; }
+  /// Whether a check after the last pass is the first at or after a
+  /// multiple of kCreepRouteEvery passes since construction: where routing
+  /// creeping snow is decided (creep_route_due). Checks run at the same
+  /// passes with asynchronous ones, so both decide at the same passes.
+  bool creep_point() const { return passes_ >= creep_next_; }
 
  private:
   int max_, every_;
@@ -255,6 +267,12 @@ class StrideSchedule {
   double last_ = -1;  // its residual (m); < 0: none yet
   bool creeping_ = false;
   int since_pressed_ = 0;  // passes since pressed snow was looked for; not reset by restart()
+  bool creeping_before_ = false;  // creeping_ at the check before the last
+  float residual_now_ = 0.0f;     // residual of the last check (m)
+  float residual_before_ = 0.0f;  // and of the one before (m)
+  int passes_ = 0;                // passes since construction; not reset by restart()
+  int creep_next_ = 0;            // the pass from which the next check is a creep point
+  friend bool creep_route_due(const StabilizeSettings&, StrideSchedule&, bool);
 };
 
 /// Draining (settings.drain_edges): snow creeping off an edge into the void
@@ -269,6 +287,28 @@ class StrideSchedule {
 constexpr float kDrainShare = 0.25f;
 bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule, float residual,
                float residual_void);
+/// Routing creeping snow (settings.route_creep): at a check that is a creep
+/// point (StrideSchedule::creep_point; called at every check, it passes the
+/// point) where the check before found the snow creeping and still moving
+/// more than the tolerance, the routing runs again with the kept heights of the angle of repose
+/// alone: the holding depth, which sheds the snow as it fell from steep
+/// supports in the first routing, is not applied again, as the relaxation
+/// does not apply it to loose snow (with it, snow resting loose in a fold
+/// of a steep support is routed out, poured back by the relaxation and
+/// routed out again). What the relaxation would carry a texel per pass goes
+/// down its whole path to where it rests, and is poured there. It takes
+/// precedence over draining, which it includes. Shared by both
+/// stabilizers.
+constexpr int kCreepRouteEvery = 32;
+/// The check before: `late` (asynchronous checks, whose last check read is
+/// the one before the pass just checked) takes the last check read instead,
+/// so both kinds of checks decide on the moves of the same pass.
+bool creep_route_due(const StabilizeSettings& settings, StrideSchedule& schedule, bool late);
+/// The three routings: after snow is set or added (kept heights capped at
+/// the holding depth), draining (drain_due: only the excess whose path
+/// ends in the void moves), and of creeping snow (creep_route_due: kept
+/// heights of the angle of repose alone).
+enum class Routing { Settle, Drain, Creep };
 /// Snow pressed above its ceilings is poured (snow::pour_pressed_snow) at a
 /// check where the snow creeps, still moves more than the tolerance, and no
 /// drain runs, at most once per kPressedEvery passes (the caller then calls

@@ -81,10 +81,11 @@ class CpuStabilizer {
   void gather_pass(int stride);
   /// Routing (erosion until stable, receiver, jumps until every pointer
   /// reaches a terminal, scatter, apply); returns the erosion rounds plus
-  /// jump passes run. Adds the routed volume (m^3) to *routed_volume. With `drain`
-  /// (drain_due; routed_volume unused), only the texels whose path ends in
-  /// the void give up their excess.
-  int route(double* routed_volume, bool drain = false);
+  /// jump passes run. Adds the routed volume (m^3) to *routed_volume. With
+  /// Routing::Drain (drain_due; routed_volume unused), only the texels whose
+  /// path ends in the void give up their excess; with Routing::Creep
+  /// (creep_route_due) the kept heights start at the free tops.
+  int route(double* routed_volume, Routing kind = Routing::Settle);
   [[gnu::always_inline]] int land(int i, int j, float h, float support, float rise,
                                   bool kept = false) const;
   int gap_at(int i, int j, float h) const;
@@ -107,12 +108,12 @@ class CpuStabilizer {
   float erode_texel(int l, int i, int j) const;
   /// The kept height layer texel k starts the erosion from: its free top,
   /// no higher than its holding depth above its ground (snow deeper than
-  /// that slides off its slope, snow/cohesion.h). Mirrors column.glsl
-  /// kept_height with u_start.
-  float start_height(size_t k) const;
+  /// that slides off its slope, snow/cohesion.h) unless `repose_only`
+  /// (Routing::Creep). Mirrors column.glsl kept_height with u_start.
+  float start_height(size_t k, bool repose_only) const;
   /// stable_ from start_height, eroded until no texel changes; returns the
   /// rounds that changed a texel.
-  int erode();
+  int erode(bool repose_only);
   /// Erosion sweeps over tile t in place until none changes a texel; true
   /// when one did.
   bool erode_tile(int t);

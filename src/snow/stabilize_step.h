@@ -30,9 +30,10 @@ inline StabilizeResult stabilize_step(AnyStabilizer& stabilizer, const Stabilize
     char line[200];
     std::snprintf(
         line, sizeof line,
-        "stabilize: %d passes, largest move %.3g m, routing %d passes (%.2f s), %d drains, %d "
-        "pours of pressed snow",
-        total.iterations, double(r.residual), r.route_passes, r.route_seconds, r.drains, r.pours);
+        "stabilize: %d passes, largest move %.3g m, routing %d passes (%.2f s), %d of creeping "
+        "snow, %d drains, %d pours of pressed snow",
+        total.iterations, double(r.residual), r.route_passes, r.route_seconds, r.creep_routes,
+        r.drains, r.pours);
     log_debug(line);
     if (r.converged || passes <= 0 || total.iterations >= settings.max_iterations) break;
     // The larger of the share of passes run and the share of the way down

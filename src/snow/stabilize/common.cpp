@@ -97,10 +97,14 @@ int StrideSchedule::next() {
   while ((1 << levels) <= cap_) ++levels;  // cap_ = 2^(levels-1)
   ++since_;
   ++since_pressed_;
+  ++passes_;
   return cap_ >> (cycle_++ % levels);
 }
 
 void StrideSchedule::checked(int stride, float residual) {
+  creeping_before_ = creeping_;
+  residual_before_ = residual_now_;
+  residual_now_ = residual;
   creeping_ = false;
   if (stride != 1 || since_ < every_) return;
   // Fell by less than half per check_every passes: creeping, longer moves.
@@ -118,6 +122,14 @@ bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule
                float residual_void) {
   return settings.drain_edges && settings.route_steep && schedule.creeping() &&
          residual >= settings.tolerance && residual_void >= kDrainShare * residual;
+}
+
+bool creep_route_due(const StabilizeSettings& settings, StrideSchedule& schedule, bool late) {
+  if (!schedule.creep_point()) return false;
+  schedule.creep_next_ = (schedule.passes_ / kCreepRouteEvery + 1) * kCreepRouteEvery;
+  const bool creeping = late ? schedule.creeping_ : schedule.creeping_before_;
+  const float residual = late ? schedule.residual_now_ : schedule.residual_before_;
+  return settings.route_creep && settings.route_steep && creeping && residual >= settings.tolerance;
 }
 
 bool pressed_snow_due(const StabilizeSettings& settings, const StrideSchedule& schedule,
@@ -216,6 +228,7 @@ void StabilizeResult::add(const StabilizeResult& later) {
   route_passes += later.route_passes;
   routed_volume += later.routed_volume;
   drains += later.drains;
+  creep_routes += later.creep_routes;
   pours += later.pours;
   lost_volume += later.lost_volume;
   volume = later.volume;

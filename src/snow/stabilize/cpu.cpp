@@ -719,12 +719,13 @@ bool CpuStabilizer::erode_tile(int t) {
   }
 }
 
-float CpuStabilizer::start_height(size_t k) const {
+float CpuStabilizer::start_height(size_t k, bool repose_only) const {
   const glm::vec4 cell = cells_[k];
-  return std::min(free_top(cell, depth_[k]), cell.x + hold_[k]);
+  const float top = free_top(cell, depth_[k]);
+  return repose_only ? top : std::min(top, cell.x + hold_[k]);
 }
 
-int CpuStabilizer::erode() {
+int CpuStabilizer::erode(bool repose_only) {
   // The highest snow surface each texel can keep, from H = min(ground +
   // depth, ceiling). Only layer texels with a surface are set: free_top is 0
   // on the others.
@@ -736,7 +737,7 @@ int CpuStabilizer::erode() {
         const int col_layers = column_layers_[size_t(j) * width_ + i];
         for (int l = 0; l < col_layers; ++l) {
           const size_t k = index(l, i, j);
-          stable_[k] = start_height(k);
+          stable_[k] = start_height(k, repose_only);
         }
       }
     }
@@ -779,9 +780,10 @@ int CpuStabilizer::erode() {
   return rounds;
 }
 
-int CpuStabilizer::route(double* routed_volume, bool drain) {
+int CpuStabilizer::route(double* routed_volume, Routing kind) {
   const size_t count = cells_.size();
-  const int passes = erode();
+  const bool drain = kind == Routing::Drain;
+  const int passes = erode(kind == Routing::Creep);
   // Receiver pass (shaders/stabilize_receiver.frag): a texel holding more
   // than it can keep sends the excess towards the neighbour that limits it
   // (the void when one neighbour is the void); H falls strictly along these
@@ -948,8 +950,14 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
         result.converged = true;
         break;
       }
-      if (drain_due(settings_, schedule_, result.residual, residual_void_)) {
-        result.route_passes += route(nullptr, true);
+      if (creep_route_due(settings_, schedule_, false)) {
+        const auto t0 = std::chrono::steady_clock::now();
+        result.route_passes += route(&result.routed_volume, Routing::Creep);
+        ++result.creep_routes;
+        result.route_seconds +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      } else if (drain_due(settings_, schedule_, result.residual, residual_void_)) {
+        result.route_passes += route(nullptr, Routing::Drain);
         ++result.drains;
       } else if (pressed_snow_due(settings_, schedule_, result.residual)) {
         schedule_.pressed_looked_for();

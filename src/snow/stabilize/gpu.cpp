@@ -127,9 +127,10 @@ struct Stabilizer::Impl {
   // depth += scale * amount (an R32F or RGBA32F array, amount in r).
   void add_pass(const gl::Texture& amount, float scale);
   gl::Texture kept_amount;  // set_snow_amount's R32F array (none until then)
-  // The routing; with `drain`, only the excess on its way into the void
-  // leaves (drain_due). Returns the erosion plus jump passes run.
-  int route(bool drain = false);
+  // The routing (snow/stabilize.h, Routing); draining, only the excess on
+  // its way into the void leaves (drain_due). Returns the erosion plus jump
+  // passes run.
+  int route(Routing kind = Routing::Settle);
   void scatter_routed(int routed);
   void relax_pass(int stride, bool measure);
   void reset_tiles() { stride_last.assign(stride_last.size(), -1); }
@@ -643,7 +644,9 @@ void Stabilizer::Impl::scatter_routed(int routed) {
   glDisable(GL_BLEND);
 }
 
-int Stabilizer::Impl::route(bool drain) {
+int Stabilizer::Impl::route(Routing kind) {
+  const bool drain = kind == Routing::Drain;
+  const int repose_only = kind == Routing::Creep ? 1 : 0;
   bind(SNOW_STABILIZE_CELLS, cells);
   bind(SNOW_STABILIZE_HOLD, holds);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
@@ -671,10 +674,12 @@ int Stabilizer::Impl::route(bool drain) {
       if (passes > 0 && selected_tiles() == 0) break;
       erode_tiled.set("u_pass", erode_counter);
       erode_tiled.set("u_start", start);
+      erode_tiled.set("u_repose_only", repose_only);
       tiled_layers(erode_tiled, target);
     } else {
       erode.set("u_pass", erode_counter);
       erode.set("u_start", start);
+      erode.set("u_repose_only", repose_only);
       per_layer(erode, target);
     }
     ++erode_counter;
@@ -684,6 +689,7 @@ int Stabilizer::Impl::route(bool drain) {
       bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
       bind(SNOW_STABILIZE_STABLE_OLD, *stable_tex[1 - e]);
       erode_check.set("u_start", start);
+      erode_check.set("u_repose_only", repose_only);
       if (count_fragments(erode_check) == 0) break;
     }
     if (passes > 4 * (width + height) * layers + 16) {
@@ -976,8 +982,17 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
         result.converged = true;
         break;
       }
-      if (drain_due(settings, schedule, moves.x, moves.y)) {
-        result.route_passes += route(true);
+      if (creep_route_due(settings, schedule, async_checks)) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const double lost = sum_blocks().y * area;
+        result.route_passes += route(Routing::Creep);
+        ++result.creep_routes;
+        const glm::dvec3 after = sum_blocks();
+        result.routed_volume += (after.z + after.y) * area - lost;
+        result.route_seconds += seconds_since(t0);
+        reset_tiles();  // the routing used the outflow textures
+      } else if (drain_due(settings, schedule, moves.x, moves.y)) {
+        result.route_passes += route(Routing::Drain);
         ++result.drains;
         reset_tiles();  // the routing used the outflow textures
       } else if (pressed_snow_due(settings, schedule, moves.x)) {
