@@ -290,19 +290,19 @@ bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule
 /// Routing creeping snow (settings.route_creep): at a check that is a creep
 /// point (StrideSchedule::creep_point; called at every check, it passes the
 /// point) where the check before found the snow creeping and still moving
-/// more than the tolerance, the routing runs again with the kept heights of the angle of repose
-/// alone: the holding depth, which sheds the snow as it fell from steep
-/// supports in the first routing, is not applied again, as the relaxation
-/// does not apply it to loose snow (with it, snow resting loose in a fold
-/// of a steep support is routed out, poured back by the relaxation and
-/// routed out again). What the relaxation would carry a texel per pass goes
-/// down its whole path to where it rests, and is poured there. It takes
-/// precedence over draining, which it includes. Shared by both
-/// stabilizers.
+/// more than the tolerance, the routing runs again with the kept heights of
+/// the angle of repose alone: the holding depth, which sheds the snow as it
+/// fell from steep supports in the first routing, is not applied again, as
+/// the relaxation does not apply it to loose snow (with it, snow resting
+/// loose in a fold of a steep support is routed out, poured back by the
+/// relaxation and routed out again). What the relaxation would carry a
+/// texel per pass goes down its whole path to where it rests, and is poured
+/// there. It takes precedence over draining, which it includes. Shared by
+/// both stabilizers. `late` (asynchronous checks, whose last check read is
+/// the one before the pass just checked) takes the last check read instead
+/// of the one before, so both kinds of checks decide on the moves of the
+/// same pass.
 constexpr int kCreepRouteEvery = 32;
-/// The check before: `late` (asynchronous checks, whose last check read is
-/// the one before the pass just checked) takes the last check read instead,
-/// so both kinds of checks decide on the moves of the same pass.
 bool creep_route_due(const StabilizeSettings& settings, StrideSchedule& schedule, bool late);
 /// The three routings: after snow is set or added (kept heights capped at
 /// the holding depth), draining (drain_due: only the excess whose path

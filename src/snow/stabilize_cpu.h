@@ -86,6 +86,9 @@ class CpuStabilizer {
   /// path ends in the void give up their excess; with Routing::Creep
   /// (creep_route_due) the kept heights start at the free tops.
   int route(double* routed_volume, Routing kind = Routing::Settle);
+  /// route() of `kind` (not Drain) adding its passes, routed volume and wall
+  /// time to `result`.
+  void route_into(Routing kind, StabilizeResult& result);
   [[gnu::always_inline]] int land(int i, int j, float h, float support, float rise,
                                   bool kept = false) const;
   int gap_at(int i, int j, float h) const;

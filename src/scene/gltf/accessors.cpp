@@ -13,14 +13,6 @@
 namespace snow::gltf {
 namespace {
 
-constexpr int kByte = 5120;
-constexpr int kUnsignedByte = 5121;
-constexpr int kShort = 5122;
-constexpr int kUnsignedShort = 5123;
-constexpr int kInt = 5124;
-constexpr int kUnsignedInt = 5125;
-constexpr int kFloat = 5126;
-
 constexpr uint64_t kMaxAccessorCount = 1ull << 32;
 
 int component_size(int component_type) {

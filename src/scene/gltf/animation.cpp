@@ -24,12 +24,6 @@ constexpr double kMotionSampleHz = 60.0;
 // root, plus one) allowed per LoadLimits::max_motion_samples (count).
 constexpr uint64_t kMotionWorkPerSample = 64;
 
-constexpr int kByte = 5120;
-constexpr int kUnsignedByte = 5121;
-constexpr int kShort = 5122;
-constexpr int kUnsignedShort = 5123;
-constexpr int kFloat = 5126;
-
 int components_of(MotionChannel::Path path) { return path == MotionChannel::kRotation ? 4 : 3; }
 
 bool finite(const glm::mat4& m) {

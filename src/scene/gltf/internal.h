@@ -37,6 +37,15 @@ namespace snow::gltf {
 
 using json = nlohmann::json;
 
+/// accessor.componentType values (glTF 2.0, 3.6.2.2).
+constexpr int kByte = 5120;
+constexpr int kUnsignedByte = 5121;
+constexpr int kShort = 5122;
+constexpr int kUnsignedShort = 5123;
+constexpr int kInt = 5124;
+constexpr int kUnsignedInt = 5125;
+constexpr int kFloat = 5126;
+
 /// Bytes read from a file or a data: URI. Sized without writing zeros
 /// first: the read or the decoding writes every byte.
 using Bytes = std::vector<uint8_t, DefaultInitAllocator<uint8_t>>;

@@ -923,15 +923,19 @@ int CpuStabilizer::route(double* routed_volume, Routing kind) {
   return passes + jumps;
 }
 
+void CpuStabilizer::route_into(Routing kind, StabilizeResult& result) {
+  const auto t0 = std::chrono::steady_clock::now();
+  result.route_passes += route(&result.routed_volume, kind);
+  result.route_seconds +=
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 StabilizeResult CpuStabilizer::iterate(int passes) {
   StabilizeResult result;
   const double lost_before = volume_sums_ ? lost_volume() : 0.0;
   if (route_pending_) {
-    const auto t0 = std::chrono::steady_clock::now();
-    if (settings_.route_steep) result.route_passes = route(&result.routed_volume);
+    if (settings_.route_steep) route_into(Routing::Settle, result);
     route_pending_ = false;
-    result.route_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
   tile_work_ = 0.0;
   int last_check = 0;
@@ -951,11 +955,8 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
         break;
       }
       if (creep_route_due(settings_, schedule_, false)) {
-        const auto t0 = std::chrono::steady_clock::now();
-        result.route_passes += route(&result.routed_volume, Routing::Creep);
+        route_into(Routing::Creep, result);
         ++result.creep_routes;
-        result.route_seconds +=
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       } else if (drain_due(settings_, schedule_, result.residual, residual_void_)) {
         result.route_passes += route(nullptr, Routing::Drain);
         ++result.drains;

@@ -131,6 +131,10 @@ struct Stabilizer::Impl {
   // its way into the void leaves (drain_due). Returns the erosion plus jump
   // passes run.
   int route(Routing kind = Routing::Settle);
+  // route() of `kind` (not Drain) adding its passes, routed volume (what the
+  // scatter summed plus what went into the void since `lost_before`, m^3)
+  // and wall time to `result`.
+  void route_into(Routing kind, double lost_before, StabilizeResult& result);
   void scatter_routed(int routed);
   void relax_pass(int stride, bool measure);
   void reset_tiles() { stride_last.assign(stride_last.size(), -1); }
@@ -943,6 +947,16 @@ std::vector<glm::vec2> Stabilizer::Impl::read_depth() const {
   return data;
 }
 
+void Stabilizer::Impl::route_into(Routing kind, double lost_before, StabilizeResult& result) {
+  const auto t0 = std::chrono::steady_clock::now();
+  result.route_passes += route(kind);
+  // Routed = scattered to terminals (out_a.r) + routed into the void.
+  const glm::dvec3 after = sum_blocks();
+  const double area = double(grid.texel) * double(grid.texel);
+  result.routed_volume += (after.z + after.y) * area - lost_before;
+  result.route_seconds += seconds_since(t0);
+}
+
 StabilizeResult Stabilizer::Impl::iterate(int passes) {
   StabilizeResult result;
   const double area = double(grid.texel) * double(grid.texel);
@@ -950,14 +964,7 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
   const double lost_before = lost_is_zero || !(volume_sums || routes) ? 0.0 : sum_blocks().y * area;
   lost_is_zero = false;
   if (route_pending) {
-    if (settings.route_steep) {
-      const auto t0 = std::chrono::steady_clock::now();
-      result.route_passes = route();
-      // Routed = scattered to terminals (out_a.r) + routed into the void.
-      const glm::dvec3 after = sum_blocks();
-      result.routed_volume = (after.z + after.y) * area - lost_before;
-      result.route_seconds += seconds_since(t0);
-    }
+    if (settings.route_steep) route_into(Routing::Settle, lost_before, result);
     route_pending = false;
     reset_tiles();
   }
@@ -983,13 +990,8 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
         break;
       }
       if (creep_route_due(settings, schedule, async_checks)) {
-        const auto t0 = std::chrono::steady_clock::now();
-        const double lost = sum_blocks().y * area;
-        result.route_passes += route(Routing::Creep);
+        route_into(Routing::Creep, sum_blocks().y * area, result);
         ++result.creep_routes;
-        const glm::dvec3 after = sum_blocks();
-        result.routed_volume += (after.z + after.y) * area - lost;
-        result.route_seconds += seconds_since(t0);
         reset_tiles();  // the routing used the outflow textures
       } else if (drain_due(settings, schedule, moves.x, moves.y)) {
         result.route_passes += route(Routing::Drain);
