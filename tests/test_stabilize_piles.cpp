@@ -495,6 +495,21 @@ TEST(StabilizeGpu, DrainingMatchesReference) {
   expect_agree(maps, gpu, cpu);
 }
 
+TEST(StabilizeGpu, CreepRoutingMatchesReference) {
+  REQUIRE_GL();
+  const SnowMaps maps = box_on_plate_maps(96);
+  std::vector<float> cpu = snow_on_top(maps, 0.1f), gpu = cpu;
+  StabilizeSettings settings = loose_settings();
+  settings.drain_edges = false;  // the creep routing alone
+  const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
+  const StabilizeResult rg = stabilize(maps, gpu, settings);
+  EXPECT_GE(rc.creep_routes, 1);
+  EXPECT_EQ(rg.creep_routes, rc.creep_routes);
+  EXPECT_EQ(rg.iterations, rc.iterations);
+  EXPECT_NEAR(rg.routed_volume, rc.routed_volume, 1e-3 * rc.routed_volume + 1e-9);
+  expect_agree(maps, gpu, cpu);
+}
+
 TEST(StabilizeGpu, PressedSnowPoursMatchReference) {
   REQUIRE_GL();
   const SnowMaps maps = cellar_maps();
