@@ -290,6 +290,51 @@ TEST(Coverage, ClosedBoxFloorGetsNoSnow) {
   EXPECT_GT(interior, 1000u);
 }
 
+// A surface modelled as two sheets (a cloth's two sides, a cushion's cover
+// over its filling, a bridge laid just under a fold) takes the snow once:
+// the sheet under another, whether millimetres under it (sealed: thinner
+// than the shadow maps' bias, which would light it) or within the peel's
+// rounding of it (a second sheet, reference::second_sheet), gets none, as
+// the reference's rays find. Before, the lower sheet got the full fall too,
+// pressed out of its gap onto the top sheet: twice the snow.
+TEST(Coverage, DoubleSheetedSurfaceTakesTheSnowOnce) {
+  REQUIRE_GL();
+  const float top = 0.5f, gap = 2e-3f;  // metres
+  SceneBuilder b;
+  b.add_plane("Floor", 0.0f, {-1.5f, -1.5f}, {1.5f, 1.5f});
+  b.add_plane("Cover", top, {-0.5f, -0.5f}, {0.5f, 0.5f});
+  b.add_plane("Filling", top - gap, {-0.5f, -0.5f}, {0.5f, 0.5f});
+  const Scene scene = b.build();
+  SnowMaps sealed = peel(scene, 160);
+  // The same maps with the lower sheet within the peel's rounding of the
+  // cover (the peel itself merges sheets closer than its merge distance).
+  SnowMaps second = sealed;
+  const MapGrid& g = sealed.grid;
+  std::vector<glm::ivec2> inside;  // the columns 2 texels or more inside the sheets
+  for (int j = 0; j < g.height; ++j) {
+    for (int i = 0; i < g.width; ++i) {
+      const glm::vec2 c = g.center(i, j);
+      if (std::max(std::abs(c.x), std::abs(c.y)) > 0.5f - 2 * g.texel) continue;
+      inside.push_back({i, j});
+      ASSERT_NEAR(sealed.ground[sealed.index(1, i, j)], top - gap, 1e-5f);  // two sheets
+      second.ground[sealed.index(1, i, j)] = top - 5e-5f;
+      second.ceiling[sealed.index(2, i, j)] = top - 5e-5f;
+    }
+  }
+  ASSERT_GT(inside.size(), 1000u);
+  for (const SnowMaps* maps : {&sealed, &second}) {
+    SCOPED_TRACE(maps == &sealed ? "sealed" : "second sheet");
+    const std::vector<float> cov = compute_coverage(scene, *maps, {}, plan::current_gl());
+    const std::vector<float> rays =
+        reference::compute_coverage(scene, *maps, fall_directions(CoverageSettings{}));
+    for (const glm::ivec2& c : inside) {
+      EXPECT_GT(cov[maps->index(0, c.x, c.y)], 0.99f);
+      EXPECT_EQ(cov[maps->index(1, c.x, c.y)], 0.0f) << "column " << c.x << ", " << c.y;
+      EXPECT_EQ(rays[maps->index(1, c.x, c.y)], 0.0f) << "column " << c.x << ", " << c.y;
+    }
+  }
+}
+
 // Where coverage along z (at x = 0, floor layer 0, z from the wall's face
 // outwards) first rises to 0.5, interpolated; metres from the wall's centre.
 float half_coverage_distance(const SnowMaps& maps, const std::vector<float>& cov, float start) {

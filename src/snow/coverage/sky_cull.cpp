@@ -351,30 +351,79 @@ std::vector<size_t> receiver_bands(const std::vector<glm::uvec4>& recv,
 // other receivers'. (One open after all would still be counted lit along
 // every direction.) These are tested instead for a triangle above that
 // shades them along every direction (shades_cone): the bottoms of solids,
-// such as a ground slab's underside.
-bool covered(const SnowMaps& maps, const glm::uvec4& packed, size_t k) {
+// such as a ground slab's underside. One with a surface above no higher
+// than that is a second sheet of it (reference::second_sheet): shaded too.
+enum class Above { Open, SecondSheet, Covered };
+Above above_of(const SnowMaps& maps, const glm::uvec4& packed, size_t k) {
   const size_t texels = maps.grid.texels();
-  if (k < texels) return false;  // layer 0
-  const float above = maps.ground[k - texels];
-  const float y = receiver_height(packed);
-  return !std::isnan(above) && above > y + 2.0f * reference::own_surface(y);
+  if (k < texels || std::isnan(maps.ground[k - texels])) return Above::Open;
+  return reference::second_sheet(maps, k, receiver_height(packed)) ? Above::SecondSheet
+                                                                   : Above::Covered;
+}
+
+// A receiver at height y in layer texel k is sealed under a thin cover
+// when its column and the 8 around it each hold a surface of the maps
+// higher than reference::own_surface(y) above it, the lowest of which lies
+// at most kSealedReach texels / tan_max above it: every line of fall of the
+// cone, which rises at least cot_max metres per metre sideways, meets that
+// cover within half a texel of the receiver, between the covers' texel
+// centres. The maps' surfaces are the scene at their resolution (as the
+// stabilizer sees it), so this needs no triangle: the shadow maps could not
+// tell such a cover, thinner than their bias and the receiver plane's rise
+// over a shadow texel, from the receiver's own surface, and would count
+// the snow that falls on the cover again on the receiver under it (the
+// inner sheet of a double-sheeted cushion).
+constexpr double kSealedReach = 0.5;  // texels sideways
+bool sealed(const SnowMaps& maps, size_t k, float y, double tan_max) {
+  const MapGrid& g = maps.grid;
+  const size_t texels = g.texels();
+  const int i = int(k % texels % size_t(g.width)), j = int(k % texels / size_t(g.width));
+  const double reach = tan_max > 0.0 ? kSealedReach * double(g.texel) / tan_max : kOpenSky;
+  const float above = y + reference::own_surface(y);
+  for (int nj = j - 1; nj <= j + 1; ++nj) {
+    for (int ni = i - 1; ni <= i + 1; ++ni) {
+      if (ni < 0 || nj < 0 || ni >= g.width || nj >= g.height) return false;
+      // Layers run from the top down: the last surface above is the lowest.
+      // Bridges are not covers: they are no triangles (the rays pass them),
+      // and the snow under them is masked off (mask_coverage).
+      const int bridge = maps.bridge.empty() ? -1 : maps.bridge[size_t(nj) * g.width + ni];
+      float cover = std::numeric_limits<float>::quiet_NaN();
+      for (int l = 0; l < maps.layers; ++l) {
+        const float ground = maps.ground[maps.index(l, ni, nj)];
+        if (!(ground > above)) break;
+        if (l != bridge) cover = ground;
+      }
+      if (!(double(cover) - double(y) <= reach)) return false;
+    }
+  }
+  return true;
 }
 
 // Receivers [r0, r1) (a band) that are covered: kShaded in `culled` where
-// a triangle above shades them along every direction. Returns the others.
+// they are second sheets or sealed under a thin cover, or a triangle above
+// shades them along every direction. Returns the others.
 std::vector<uint32_t> shade_covered(const CullInput& in, size_t r0, size_t r1,
                                     std::vector<uint8_t>& culled) {
   std::vector<uint32_t> order;
   order.reserve(r1 - r0);
   uint32_t shade = Bvh::kNone;
   for (size_t r = r0; r < r1; ++r) {
-    if (!covered(in.maps, in.recv[r], in.recv_index[r])) {
+    const Above above = above_of(in.maps, in.recv[r], in.recv_index[r]);
+    if (above == Above::Open) {
       order.push_back(uint32_t(r));
+      continue;
+    }
+    if (above == Above::SecondSheet) {
+      culled[r] = kShaded;
+      continue;
+    }
+    const glm::vec3 p = receiver_point(in.maps.grid, in.recv[r]);
+    if (sealed(in.maps, in.recv_index[r], p.y, in.tan_max)) {
+      culled[r] = kShaded;
       continue;
     }
     // The last receiver's triangle, else the first the vertical line
     // up meets (tested again only if it is another).
-    const glm::vec3 p = receiver_point(in.maps.grid, in.recv[r]);
     bool shaded = shades_cone(in.bvh, shade, p, in.tan_max);
     if (!shaded) {
       const uint32_t hit =

@@ -100,6 +100,7 @@ std::vector<float> compute_coverage(const Scene& scene, const SnowMaps& maps,
       const float s = snow_depth ? clean_depth((*snow_depth)[k]) : 0.0f;
       const glm::vec2 xz = grid.center(i, j);
       const glm::vec3 p(xz.x, maps.ground[k] + s, xz.y);
+      if (second_sheet(maps, k, p.y)) continue;
       coverage[k] = float(open_directions({&bvh}, p, directions)) / float(directions.size());
     }
   });
