@@ -1,6 +1,6 @@
 #version 450 core
 // Routing, receiver pass: a texel holding more than it can keep (ground +
-// depth above its kept height H) points at the neighbour that limits it (the
+// depth above its kept height H, by more than u_min_excess) points at the neighbour that limits it (the
 // one with the smallest H(landing) + distance * tan(repose) among those with
 // a lower H), or at the void when one neighbour is the void or that
 // neighbour sheds into the void; others point at themselves. H falls
@@ -15,6 +15,7 @@ layout(location = 0) out uint o_pointer;
 layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform writeonly iimage2D u_changed;
 uniform int u_pass;  // index stamped on tiles with a routed texel
 uniform int u_tile;  // texels per tile side
+uniform float u_min_excess;  // metres: less above the kept height is not routed
 
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
@@ -24,7 +25,7 @@ void main() {
   uint p = self_index;
   float s = texelFetch(u_depth, t, 0).r;
   float hs = texelFetch(u_stable, t, 0).r;
-  if ((int(cell.w) & kCellSurface) != 0 && cell.x + s > hs) {
+  if ((int(cell.w) & kCellSurface) != 0 && cell.x + s > hs + u_min_excess) {
     float he = free_top(cell, s);
     float best = hs;
     ivec3 receiver = t;

@@ -784,6 +784,10 @@ int CpuStabilizer::route(double* routed_volume, Routing kind) {
   const size_t count = cells_.size();
   const bool drain = kind == Routing::Drain;
   const int passes = erode(kind == Routing::Creep);
+  // Drains and creep routings leave loose snow less than min_move above its
+  // kept height, which the relaxation leaves too: routing it poured tens of
+  // thousands of piles of micrometres each, over and over.
+  const float min_excess = kind == Routing::Settle ? 0.0f : min_move_;
   // Receiver pass (shaders/stabilize_receiver.frag): a texel holding more
   // than it can keep sends the excess towards the neighbour that limits it
   // (the void when one neighbour is the void); H falls strictly along these
@@ -802,7 +806,7 @@ int CpuStabilizer::route(double* routed_volume, Routing kind) {
           const glm::vec4 cell = cells_[k];
           uint32_t p = uint32_t(k);
           const float hs = stable_[k];
-          if (cell.x + depth_[k] > hs) {
+          if (cell.x + depth_[k] > hs + min_excess) {
             const float he = free_top(cell, depth_[k]);
             float best = hs;
             for (int n = 0; n < 8; ++n) {

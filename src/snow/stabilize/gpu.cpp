@@ -708,12 +708,15 @@ int Stabilizer::Impl::route(Routing kind) {
   // hold no texel to route) and stamps those that hold a routed texel; the
   // later passes leave out the others, whose texels point at themselves.
   const int routed = erode_counter++;
+  const float min_excess = kind == Routing::Settle ? 0.0f : min_move_of(settings);
   if (tiled) {
     select_tiles(tile_erode, 0, first, false);
     receiver_tiled.set("u_pass", routed);
+    receiver_tiled.set("u_min_excess", min_excess);
     tiled_layers(receiver_tiled, *fbo_pointer[0]);
   } else {
     receiver.set("u_pass", routed);
+    receiver.set("u_min_excess", min_excess);
     per_layer(receiver, *fbo_pointer[0]);
   }
   glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT);
