@@ -301,7 +301,8 @@ bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule
 /// both stabilizers. `late` (asynchronous checks, whose last check read is
 /// the one before the pass just checked) takes the last check read instead
 /// of the one before, so both kinds of checks decide on the moves of the
-/// same pass.
+/// same pass. Drains and creep routings leave loose snow less than
+/// min_move (min_move_of) above its kept height, as the relaxation does.
 constexpr int kCreepRouteEvery = 32;
 bool creep_route_due(const StabilizeSettings& settings, StrideSchedule& schedule, bool late);
 /// The three routings: after snow is set or added (kept heights capped at
