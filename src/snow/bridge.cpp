@@ -20,13 +20,15 @@ struct Bridge {
 };
 
 // The first surface of column (i, j) with a height in (lo, hi) (m): its
-// layer, or -1 where there is none (or the column is off the map).
+// layer, or -1 where there is none (or the column is off the map). The
+// layers run from the top down, so the walk ends at the first one no
+// higher than lo.
 int surface_between(const SnowMaps& maps, int i, int j, float lo, float hi) {
   if (i < 0 || j < 0 || i >= maps.grid.width || j >= maps.grid.height) return -1;
   for (int l = 0; l < maps.layers; ++l) {
     const float g = maps.ground[maps.index(l, i, j)];
-    if (std::isnan(g)) return -1;
-    if (g > lo && g < hi) return l;
+    if (!(g > lo)) return -1;  // also where there is no surface (NaN)
+    if (g < hi) return l;
   }
   return -1;
 }
