@@ -279,6 +279,24 @@ TEST(Wind, TransportConservesMassAndRepeatsItself) {
   }
 }
 
+// On texels of a tenth of an attometre (a scene of that size, as tools/fuzz
+// made one) the lateral mixing's spread per slab overflowed an int (UB, which
+// the sanitized build stops at); the passes are capped first, and the storm
+// still conserves the snow.
+TEST(Wind, TinyTexelsMixWithinTheCap) {
+  SceneBuilder b;
+  b.add_plane("Field", 0.0f, {-1e-18f, -1e-18f}, {1e-18f, 1e-18f});
+  const SnowMaps maps = maps_of(b.build(), 1e-19f);
+  ASSERT_GT(maps.grid.width, 4);
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  for (size_t k = 0; k < depth.size(); ++k) depth[k] = std::isnan(maps.ground[k]) ? 0.0f : 0.3f;
+  const double before = snow_volume(maps, depth);
+  const DriftResult r =
+      drift_snow(maps, depth, 0.3f, drift_for_wind({8.0f, 3.0f}, SnowKind::Fresh, 0.3f));
+  for (float d : depth) ASSERT_TRUE(std::isfinite(d) && d >= 0.0f);
+  EXPECT_NEAR(snow_volume(maps, depth) + r.left, before + r.entered, 1e-5 * (before + r.entered));
+}
+
 // A snowfall in 8 steps, each drifted as it falls (the live preview, the
 // batch job's --steps), is scoured as one: no column of the field ends with
 // less than 1 - max_scour of what fell on it, as in one step.

@@ -255,7 +255,10 @@ void drift_part(const SnowMaps& maps, std::vector<float>& depth, const std::vect
   // Lateral mixing: the variance per slab in lanes^2, as passes of a <= 1/4.
   const double spread =
       double(s.mixing_length) * double(slabs.step) / (double(slabs.width) * double(slabs.width));
-  const int passes = std::min(kMaxMixPasses, int(std::ceil(spread / 0.5)));
+  // (Compared as doubles: on texels of a few nanometres the spread
+  // overflows an int.)
+  const double wanted = std::ceil(spread / 0.5);
+  const int passes = wanted > 0.0 ? int(std::min(double(kMaxMixPasses), wanted)) : 0;
   const double a = passes > 0 ? std::min(0.25, spread / (2.0 * passes)) : 0.0;
   std::vector<double> in(lanes), out(lanes, 0.0);
   std::vector<float> z(lanes), z_prev(lanes, kNoSurface), rise(lanes), ground(lanes);

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include <glm/gtc/quaternion.hpp>
@@ -328,10 +329,14 @@ std::vector<float> GltfLoader::motion_times(int node, const std::vector<int>& us
   double total = 1.0;
   for (size_t i = 0; i + 1 < keys.size(); ++i) total += steps(keys[i], keys[i + 1]);
   const uint64_t limit = settings_.limits.max_motion_samples;
-  if (double(set.samples) + total > double(limit))
-    fail(node_label(node) + ": its motion needs " + std::to_string(uint64_t(total)) +
+  if (double(set.samples) + total > double(limit)) {
+    // (Formatted as a double: a hostile animation's count overflows integers.)
+    char needed[32];
+    std::snprintf(needed, sizeof needed, total < 1e15 ? "%.0f" : "%.3g", total);
+    fail(node_label(node) + ": its motion needs " + needed +
          " samples, over LoadLimits::max_motion_samples (" + std::to_string(limit) +
          " for all nodes, " + std::to_string(set.samples) + " stored before)");
+  }
   std::vector<float> times;
   times.reserve(size_t(total));
   times.push_back(keys[0]);
