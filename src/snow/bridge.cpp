@@ -91,14 +91,13 @@ void highest_along(const SnowMaps& maps, int d, int reach, std::vector<float>& a
   });
 }
 
-// Direction d's bridge over column (i, j), if it lies in a gap no wider
-// than `width` along d, on a layer no lower than best's: the highest such
-// layer, replacing best where it is higher, or as high and the gap no wider.
-void find_bridge(const SnowMaps& maps, int i, int j, int d, float width, int reach, float ahead,
-                 float behind, Best& best) {
-  const float texel = maps.grid.texel;
-  const float drop = 0.5f * texel;
-  const float step = d < 2 ? texel : texel * std::sqrt(2.0f);
+// Direction d's bridge over column (i, j) (columns `step` metres apart
+// along d), if it lies in a gap no wider than `width` along d, on a layer
+// no lower than best's: the highest such layer, replacing best where it is
+// higher, or as high and the gap no wider.
+void find_bridge(const SnowMaps& maps, int i, int j, int d, float width, float step, int reach,
+                 float ahead, float behind, Best& best) {
+  const float drop = 0.5f * maps.grid.texel;
   for (int l = 0; l < maps.layers && l <= best.layer; ++l) {
     const size_t k = maps.index(l, i, j);
     const float g = maps.ground[k];
@@ -160,7 +159,7 @@ size_t bridge_gaps(SnowMaps& maps, float width) {
     parallel_for(size_t(maps.grid.height), [&](size_t j) {
       for (int i = 0; i < maps.grid.width; ++i) {
         const size_t c = j * size_t(maps.grid.width) + size_t(i);
-        find_bridge(maps, i, int(j), d, width, reach, ahead[c], behind[c], best[c]);
+        find_bridge(maps, i, int(j), d, width, step, reach, ahead[c], behind[c], best[c]);
       }
     });
   }

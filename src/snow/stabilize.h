@@ -301,8 +301,7 @@ bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule
 /// both stabilizers. `late` (asynchronous checks, whose last check read is
 /// the one before the pass just checked) takes the last check read instead
 /// of the one before, so both kinds of checks decide on the moves of the
-/// same pass. Drains and creep routings leave loose snow less than
-/// min_move (min_move_of) above its kept height, as the relaxation does.
+/// same pass.
 constexpr int kCreepRouteEvery = 32;
 bool creep_route_due(const StabilizeSettings& settings, StrideSchedule& schedule, bool late);
 /// The three routings: after snow is set or added (kept heights capped at
@@ -310,6 +309,14 @@ bool creep_route_due(const StabilizeSettings& settings, StrideSchedule& schedule
 /// ends in the void moves), and of creeping snow (creep_route_due: kept
 /// heights of the angle of repose alone).
 enum class Routing { Settle, Drain, Creep };
+/// Metres: a routing of `kind` routes the snow of a texel whose top lies
+/// more than this above its kept height. Drains and creep routings leave
+/// loose snow less than min_move above it, as the relaxation does (routing
+/// it poured tens of thousands of micrometre piles); the first routing
+/// routes any excess. Both backends.
+inline float routed_excess_of(const StabilizeSettings& settings, Routing kind) {
+  return kind == Routing::Settle ? 0.0f : min_move_of(settings);
+}
 /// Snow pressed above its ceilings is poured (snow::pour_pressed_snow) at a
 /// check where the snow creeps, still moves more than the tolerance, and no
 /// drain runs, at most once per kPressedEvery passes (the caller then calls

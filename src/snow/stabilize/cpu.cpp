@@ -784,10 +784,7 @@ int CpuStabilizer::route(double* routed_volume, Routing kind) {
   const size_t count = cells_.size();
   const bool drain = kind == Routing::Drain;
   const int passes = erode(kind == Routing::Creep);
-  // Drains and creep routings leave loose snow less than min_move above its
-  // kept height, which the relaxation leaves too: routing it poured tens of
-  // thousands of piles of micrometres each, over and over.
-  const float min_excess = kind == Routing::Settle ? 0.0f : min_move_;
+  const float min_excess = routed_excess_of(settings_, kind);
   // Receiver pass (shaders/stabilize_receiver.frag): a texel holding more
   // than it can keep sends the excess towards the neighbour that limits it
   // (the void when one neighbour is the void); H falls strictly along these

@@ -708,7 +708,7 @@ int Stabilizer::Impl::route(Routing kind) {
   // hold no texel to route) and stamps those that hold a routed texel; the
   // later passes leave out the others, whose texels point at themselves.
   const int routed = erode_counter++;
-  const float min_excess = kind == Routing::Settle ? 0.0f : min_move_of(settings);
+  const float min_excess = routed_excess_of(settings, kind);
   if (tiled) {
     select_tiles(tile_erode, 0, first, false);
     receiver_tiled.set("u_pass", routed);
