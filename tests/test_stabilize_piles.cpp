@@ -141,6 +141,8 @@ TEST(StabilizeReference, RoutedSnowUnderACeilingFillsTheGap) {
 // a phase on several threads: the same bits as on one thread, where the
 // bands' piles stay apart (poured in parallel) and where two of them meet
 // (the phase undone and poured again serially), and the volume is exact.
+// Every terminal is its own pile here (grouped, the two that meet would be
+// one pile, in one band).
 TEST(StabilizeReference, PilesPouredByBandsAreTheSameOnAnyThreads) {
   const int width = 24, height = 512;  // bands of 64 rows
   const float texel = 0.05f;
@@ -162,9 +164,9 @@ TEST(StabilizeReference, PilesPouredByBandsAreTheSameOnAnyThreads) {
       arrive[k] = p.metres;
       terminals.push_back(uint32_t(k));
     }
-    EXPECT_EQ(
-        deposit_piles(cells.data(), depth.data(), arrive.data(), terminals, grid, threads, &stats),
-        piles.size());
+    EXPECT_EQ(deposit_piles(cells.data(), depth.data(), arrive.data(), terminals, grid, threads,
+                            &stats, false),
+              piles.size());
     double added = 0.0;
     for (size_t k = 0; k < depth.size(); ++k) added += double(depth[k]) - double(lying[k]);
     double poured = 0.0;
@@ -195,6 +197,77 @@ TEST(StabilizeReference, PilesPouredByBandsAreTheSameOnAnyThreads) {
     EXPECT_EQ(many.piles_in_parallel, parallel ? piles.size() : 0u);
     ASSERT_EQ(serial.size(), banded.size());
     EXPECT_EQ(std::memcmp(serial.data(), banded.data(), serial.size() * sizeof(float)), 0);
+  }
+}
+
+// Terminals whose piles overlap (a line of them, as where snow slides off an
+// eave) are poured as one pile, the upper envelope of a cone at each: it
+// covers each texel about once, where the piles poured one by one spread
+// over each other again and again; the volume is exact, the pile at rest
+// (no neighbour above another by more than distance * tan(repose)), as
+// high as the piles poured one by one within 4 texels, and as long.
+TEST(StabilizeReference, OverlappingPilesArePouredAsOne) {
+  const float texel = 0.01f;
+  const int width = 160, height = 90;
+  const SnowMaps maps = make_maps(width, height, texel, 2, [](float, float) {
+    return std::vector<Surface>{{0.0f, kUp}};
+  });
+  StabilizeSettings settings = loose_settings();
+  settings.repose_jitter_deg = 0.0f;  // tan = 1
+  const std::vector<glm::vec4> cells = stabilize_cells(maps, settings);
+  const std::vector<float> lying = snow_on_top(maps, 0.05f);
+  const DepositGrid grid{width, height, 2, texel};
+  // 40 terminals 2 texels apart along the middle row, each with a lone cone
+  // about 13 texels in radius.
+  std::vector<float> arrive(lying.size(), 0.0f);
+  std::vector<uint32_t> terminals;
+  double poured = 0.0;
+  for (int t = 0; t < 40; ++t) {
+    const size_t k = maps.index(0, 40 + 2 * t, height / 2);
+    arrive[k] = 20.0f;
+    terminals.push_back(uint32_t(k));
+    poured += arrive[k];
+  }
+  struct Pile {
+    std::vector<float> depth;
+    DepositStats stats;
+    float peak = 0.0f;             // m over the lying snow
+    int first = width, last = -1;  // columns of the middle row the pile reaches
+  };
+  const auto pour = [&](bool group) {
+    Pile p;
+    p.depth = lying;
+    deposit_piles(cells.data(), p.depth.data(), arrive.data(), terminals, grid, 1, &p.stats, group);
+    double added = 0.0;
+    for (size_t k = 0; k < p.depth.size(); ++k) added += double(p.depth[k]) - double(lying[k]);
+    EXPECT_NEAR(added, poured, 1e-5 * poured);
+    for (int i = 0; i < width; ++i) {
+      const float d = p.depth[maps.index(0, i, height / 2)] - lying[maps.index(0, i, height / 2)];
+      p.peak = std::max(p.peak, d);
+      if (d > 0.0f) p.first = std::min(p.first, i), p.last = std::max(p.last, i);
+    }
+    return p;
+  };
+  const Pile one = pour(true), each = pour(false);
+  std::printf(
+      "one pile: %zu texels covered, %.3f m high, columns %d-%d; one by one: %zu, %.3f m, "
+      "%d-%d\n",
+      one.stats.covered, one.peak, one.first, one.last, each.stats.covered, each.peak, each.first,
+      each.last);
+  EXPECT_EQ(one.stats.groups, 1u);
+  EXPECT_EQ(each.stats.groups, 0u);
+  EXPECT_LT(one.stats.covered * 5, each.stats.covered);
+  EXPECT_NEAR(one.peak, each.peak, 4 * texel);
+  // One by one, the later piles spread over the earlier ones and the ridge
+  // leans towards the last; as one, it lies even about the line (whose
+  // middle is column 79), as long within 15 %.
+  EXPECT_NEAR(one.first + one.last, 2 * 79, 2);
+  EXPECT_NEAR(one.last - one.first, each.last - each.first, 0.15 * (each.last - each.first));
+  for (int j = 0; j < height; ++j) {
+    for (int i = 0; i + 1 < width; ++i) {
+      const size_t a = maps.index(0, i, j), b = maps.index(0, i + 1, j);
+      EXPECT_LE(std::abs(one.depth[a] - one.depth[b]), texel + 1e-5f) << i << ", " << j;
+    }
   }
 }
 

@@ -23,6 +23,17 @@
 // the maps' layer texels (the terminals after that keep their snow, as before).
 // Mass is exact: what the cone does not place stays on the terminal.
 //
+// Terminals under the open sky whose piles would overlap, each at least 8
+// texels in radius, are poured as one pile (a line of them where snow slides
+// off an eave, or fills a hollow): the upper envelope of a cone at each,
+// apexes where each terminal's own cone would peak on flat ground, all raised
+// by one height until the pile holds their snow together, grown from all of
+// them at once. Poured one by one, each pile spreads over the others again:
+// the growths cover the same texels tens of times, a cost that grows with
+// the cube of the map's side where the grouped pile's grows with its square.
+// Narrower piles are poured one by one as before (cheap, and they then come
+// to the same rest whether the snow arrives at once or frame by frame).
+//
 // Both stabilizers run this on the CPU after their routing (the GPU reads
 // the depth and the scattered sums back and uploads the result), in the
 // same order of the terminals, so they agree bit for bit. The order is the
@@ -49,20 +60,23 @@ struct DepositGrid {
 /// a pile around each terminal k, in the order above, adding to depth. `cells`
 /// are those of stabilize_cells (texels without a surface may be all zero),
 /// all three arrays have grid.layers * width * height entries in the maps'
-/// layout. Returns the number of piles poured.
+/// layout. Returns the number of terminals poured.
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
                      const DepositGrid& grid);
 struct DepositStats {
-  size_t piles_in_parallel = 0;  // piles poured by bands on several threads
+  size_t piles_in_parallel = 0;  // terminals poured by bands on several threads
+  size_t groups = 0;             // piles poured over several terminals (grouped)
+  size_t covered = 0;            // texels covered by all growths, each growth counting its own
 };
 
 /// The same with the terminals given (the texels where arrive > 0, in any
 /// order), as the routing that filled arrive knows them. `threads`: the
 /// most threads to pour on (0 = default_threads()); the result does not
-/// depend on it.
+/// depend on it. `group`: pour overlapping piles as one (above; false:
+/// every terminal its own pile, to compare).
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
                      std::vector<uint32_t> terminals, const DepositGrid& grid, unsigned threads = 0,
-                     DepositStats* stats = nullptr);
+                     DepositStats* stats = nullptr, bool group = true);
 
 /// Snow pressed above its ceiling: where snow lies more than `min_over`
 /// metres above kCeilingClearance under its ceiling, the excess is taken

@@ -12,6 +12,8 @@
 #include <utility>
 #include <vector>
 
+#include <glm/gtc/constants.hpp>
+
 #include "core/parallel.h"
 #include "core/zeroed.h"
 #include "snow/column.h"
@@ -149,6 +151,12 @@ class Pourer {
   }
 
   void pour(uint32_t p, float volume);
+  /// Pours the snow of `count` terminals (arrive[t] each, all under the
+  /// open sky) as one pile: the upper envelope of a cone at each terminal,
+  /// apex `apex[t]` (m) raised by a common height until the pile holds their
+  /// volumes together. What does not fit stays on the terminal of the
+  /// highest apex; a terminal that sheds keeps its own snow, as in pour().
+  void pour_group(const uint32_t* terminals, const float* apex, size_t count, const float* arrive);
   /// Texels covered by all growths so far.
   size_t covered() const { return covered_total_; }
 
@@ -164,10 +172,23 @@ class Pourer {
   }
 
  private:
-  /// Grows the pile of `volume` at terminal p into covered_ (texel, path
+  /// A terminal a growth starts from, and its path cost there (m): how far
+  /// its apex lies under the pile's highest.
+  struct Seed {
+    uint32_t k;
+    float offset;
+  };
+  /// Grows the pile of `volume` from the seeds into covered_ (texel, path
   /// cost), spreading from a covered texel at the larger of its snow top
-  /// and apex - its path cost; returns the height of the cone's apex.
-  double grow(uint32_t p, float volume, double apex);
+  /// and apex - its path cost; returns the height of the pile's apex (that
+  /// of a seed of offset 0).
+  double grow(const std::vector<Seed>& seeds, double volume, double apex);
+  /// Lays the pile of apex `cone` over covered_ (each texel up to cone - its
+  /// path cost, capped); `anchor`, a seed of offset 0, takes what the others
+  /// do not, so the volume is exact. Sums in Sum: a single pile in float, as
+  /// it always has; a group in double, as its volume sums many terminals'.
+  template <class Sum>
+  void place(uint32_t anchor, Sum volume, double cone);
   /// Whether growing again at the cone of apex `apex` would repeat the last
   /// growth, which spread at the snow tops: at every texel it covered, the
   /// cone's surface lies in the same gap of each neighbour column as the
@@ -282,6 +303,7 @@ class Pourer {
   ZeroedArray<float> void_under_;    // per column: void_under() in that pour
   size_t covered_total_ = 0;
   std::vector<std::pair<uint32_t, float>> covered_;  // texel, path cost
+  std::vector<Seed> seeds_;                          // of the pile being poured
   // grow()'s frontier (entries: key bits << 32 | texel) and saturations
   // (apex height, texel), kept between piles.
   MinHeap<uint64_t> frontier_;
@@ -315,21 +337,53 @@ void Pourer::pour(uint32_t p, float volume) {
   // The cone spreads over the gaps its surface lies in, which depends on
   // its height: grown once at the snow tops as they are, then again at the
   // cone heights the first growth found.
-  const double first = grow(p, volume, -kOpenSky);
-  const double cone = grows_alike(first) ? first : grow(p, volume, first);
-  if (aborted()) return;
-  // Each covered texel rises to the cone; the terminal keeps the rest, so
-  // the volume is exact.
-  float placed = 0.0f;
-  for (const auto& [k, dist] : covered_) {
-    if (k == p) continue;
-    const float add = float(std::min(cone - double(dist), cap(k))) - top(k);
-    if (add > 0.0f && placed + add <= volume) {
-      add_depth(k, add);
-      placed += add;
+  seeds_.assign(1, Seed{p, 0.0f});
+  const double first = grow(seeds_, volume, -kOpenSky);
+  const double cone = grows_alike(first) ? first : grow(seeds_, volume, first);
+  if (!aborted()) place(p, volume, cone);
+}
+
+void Pourer::pour_group(const uint32_t* terminals, const float* apex, size_t count,
+                        const float* arrive) {
+  ++pours_;
+  seeds_.clear();
+  double volume = 0.0;
+  float highest = -std::numeric_limits<float>::infinity();
+  uint32_t anchor = 0;
+  for (size_t t = 0; t < count; ++t) {
+    const uint32_t p = terminals[t];
+    const int pi = int((p % per_layer_) % size_t(g_.width));
+    const int pj = int((p % per_layer_) / size_t(g_.width));
+    if (sheds(p, pi, pj)) {
+      if (!aborted()) add_depth(p, arrive[p]);
+      continue;
+    }
+    volume += double(arrive[p]);
+    seeds_.push_back(Seed{p, apex[t]});
+    if (apex[t] > highest) {
+      highest = apex[t];
+      anchor = p;
     }
   }
-  add_depth(p, volume - placed);
+  if (seeds_.empty() || aborted()) return;
+  for (Seed& seed : seeds_) seed.offset = highest - seed.offset;
+  const double first = grow(seeds_, volume, -kOpenSky);
+  const double cone = grows_alike(first) ? first : grow(seeds_, volume, first);
+  if (!aborted()) place(anchor, volume, cone);
+}
+
+template <class Sum>
+void Pourer::place(uint32_t anchor, Sum volume, double cone) {
+  Sum placed = 0;
+  for (const auto& [k, dist] : covered_) {
+    if (k == anchor) continue;
+    const float add = float(std::min(cone - double(dist), cap(k))) - top(k);
+    if (add > 0.0f && placed + Sum(add) <= volume) {
+      add_depth(k, add);
+      placed += Sum(add);
+    }
+  }
+  add_depth(anchor, float(volume - placed));
 }
 
 bool Pourer::grows_alike(double apex) const {
@@ -349,7 +403,7 @@ bool Pourer::grows_alike(double apex) const {
   return true;
 }
 
-double Pourer::grow(uint32_t p, float volume, double apex) {
+double Pourer::grow(const std::vector<Seed>& seeds, double volume, double apex) {
   ++growths_;
   const uint32_t reached = 2 * growths_, done = 2 * growths_ + 1;
   // Frontier by the height at which the rising cone covers a texel: its
@@ -374,9 +428,12 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
     std::memcpy(&key, &bits, sizeof key);
     return key;
   };
-  frontier.push(entry(top(p), p));
-  seen_[p] = reached;
-  dist_[p] = 0.0f;
+  for (const Seed& seed : seeds) {
+    if (seen_[seed.k] == reached && dist_[seed.k] <= seed.offset) continue;
+    frontier.push(entry(top(seed.k) + seed.offset, seed.k));
+    seen_[seed.k] = reached;
+    dist_[seed.k] = seed.offset;
+  }
   covered_.clear();
   // A covered texel takes snow from the apex height at which the cone
   // reaches it (its key: top + path cost) up to the one at which the cone
@@ -418,7 +475,10 @@ double Pourer::grow(uint32_t p, float volume, double apex) {
     const float dist = dist_[k];
     const int i = int((k % per_layer_) % size_t(g_.width));
     const int j = int((k % per_layer_) / size_t(g_.width));
-    if (k != p && sheds(k, i, j)) continue;
+    // A single pile's terminal is not looked at again (pour() did, before
+    // it kept what fits under a ceiling there); a group's terminals, under
+    // the open sky, do not shed (pour_group looked).
+    if ((seeds.size() > 1 || k != seeds[0].k) && sheds(k, i, j)) continue;
     covered_.emplace_back(k, dist);
     ++covered_total_;
     const double room = cap(k) - double(top(k));
@@ -460,6 +520,112 @@ std::vector<uint32_t> select_in_order(size_t count, Keep keep, Value value) {
   return out;
 }
 
+/// Terminals are grouped on a grid of cells this many texels wide: two
+/// terminals whose lone cones (PourUnits) reach a common cell are close
+/// enough to share a pile.
+constexpr int kGroupCellTexels = 8;
+/// Only piles whose lone cones are at least this many texels in radius are
+/// grouped: narrower ones cost little to pour one by one, and pour alike
+/// whether the snow arrives at once or bit by bit (the live preview's
+/// frames against the batch job).
+constexpr float kGroupMinRadiusTexels = 8.0f;
+/// A lone cone reaches this many cells from its terminal at most (a pile
+/// covers kMaxPileTexels at most, a disc of about 580 texels' radius).
+constexpr float kMaxGroupReachCells = 80.0f;
+
+/// The pours of deposit_piles: its terminals, in its order, cut into units.
+/// A unit of one terminal is poured as its own cone (Pourer::pour); a unit
+/// of several, terminals under the open sky whose piles would overlap, as
+/// one pile over all of them (Pourer::pour_group). Poured one by one, each
+/// of those piles would spread over the others again: a line of terminals
+/// at the foot of a slope covered its texels tens of times over, a cost
+/// that grows with the cube of the map's side.
+struct PourUnits {
+  std::vector<uint32_t> terminals;  // in pour order, the terminals of a unit together
+  std::vector<float> apex;          // per terminal: the apex height (m) of its lone cone
+  std::vector<size_t> begin;        // unit u: terminals[begin[u], begin[u + 1])
+  size_t units() const { return begin.size() - 1; }
+};
+
+/// Cuts `ordered` (deposit_piles' order) into units. Each terminal under
+/// the open sky has a lone cone: the cone at its repose angle on flat
+/// ground that holds what arrives, h = cbrt(3 V tan^2 / pi) high, h / tan
+/// wide. Two of them are in one unit where their cones' discs meet (both
+/// reach a cell of kGroupCellTexels; the check is coarse, a pile is a warm
+/// start) and their heights overlap (tops closer than h + h'), or through a
+/// chain of such; a unit takes the place of its first terminal in the order.
+PourUnits plan_pour_units(const glm::vec4* cells, const float* depth, const float* arrive,
+                          const std::vector<uint32_t>& ordered, const DepositGrid& grid,
+                          bool group) {
+  const size_t n = ordered.size();
+  const size_t per_layer = size_t(grid.width) * size_t(grid.height);
+  std::vector<float> top(n), rise(n), apex(n);
+  std::vector<uint32_t> parent(n);
+  std::iota(parent.begin(), parent.end(), 0u);
+  const auto root = [&](uint32_t t) {
+    while (parent[t] != t) t = parent[t] = parent[parent[t]];
+    return t;
+  };
+  const int cells_x = (grid.width + kGroupCellTexels - 1) / kGroupCellTexels;
+  const int cells_y = (grid.height + kGroupCellTexels - 1) / kGroupCellTexels;
+  std::vector<uint32_t> painted(size_t(cells_x) * size_t(cells_y), UINT32_MAX);
+  const double area = double(grid.texel) * double(grid.texel);
+  for (size_t t = 0; t < n; ++t) {
+    const uint32_t p = ordered[t];
+    const glm::vec4 cell = cells[p];
+    top[t] = cell.x + depth[p];
+    const float tan = cell.z;
+    const double volume = double(arrive[p]) * area;  // m^3
+    rise[t] = float(std::cbrt(3.0 * volume * double(tan) * double(tan) / glm::pi<double>()));
+    apex[t] = top[t] + rise[t];
+    const float radius = rise[t] / tan / grid.texel;  // texels
+    if (!group || cell.y < kCellOpenSky || !(radius >= kGroupMinRadiusTexels)) continue;
+    const float ci = (float((p % per_layer) % size_t(grid.width)) + 0.5f) / kGroupCellTexels;
+    const float cj = (float((p % per_layer) / size_t(grid.width)) + 0.5f) / kGroupCellTexels;
+    const float reach = std::min(radius / float(kGroupCellTexels) + 1.0f, kMaxGroupReachCells);
+    const int y0 = std::max(0, int(std::floor(cj - reach)));
+    const int y1 = std::min(cells_y - 1, int(std::ceil(cj + reach)));
+    const int x0 = std::max(0, int(std::floor(ci - reach)));
+    const int x1 = std::min(cells_x - 1, int(std::ceil(ci + reach)));
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const float dx = float(x) + 0.5f - ci, dy = float(y) + 0.5f - cj;
+        if (dx * dx + dy * dy > reach * reach) continue;
+        uint32_t& other = painted[size_t(y) * size_t(cells_x) + size_t(x)];
+        if (other != UINT32_MAX && std::abs(top[t] - top[other]) <= rise[t] + rise[other]) {
+          const uint32_t a = root(uint32_t(t)), b = root(other);
+          parent[std::max(a, b)] = std::min(a, b);  // the first terminal is the root
+        }
+        other = uint32_t(t);
+      }
+    }
+  }
+  // Units in the order of their first terminals (their roots).
+  std::vector<uint32_t> unit(n, UINT32_MAX);
+  std::vector<size_t> size;
+  for (size_t t = 0; t < n; ++t) {
+    const uint32_t r = root(uint32_t(t));
+    if (unit[r] == UINT32_MAX) {
+      unit[r] = uint32_t(size.size());
+      size.push_back(0);
+    }
+    unit[t] = unit[r];
+    ++size[unit[t]];
+  }
+  PourUnits units;
+  units.begin.assign(size.size() + 1, 0);
+  for (size_t u = 0; u < size.size(); ++u) units.begin[u + 1] = units.begin[u] + size[u];
+  units.terminals.resize(n);
+  units.apex.resize(n);
+  std::vector<size_t> next(units.begin.begin(), units.begin.end() - 1);
+  for (size_t t = 0; t < n; ++t) {
+    const size_t at = next[unit[t]]++;
+    units.terminals[at] = ordered[t];
+    units.apex[at] = apex[t];
+  }
+  return units;
+}
+
 /// The layer texels with a surface under a ceiling, in texel order: the only
 /// ones pour_pressed_snow pours from.
 std::vector<uint32_t> texels_under_ceilings(const glm::vec4* cells, const DepositGrid& grid) {
@@ -474,7 +640,7 @@ std::vector<uint32_t> texels_under_ceilings(const glm::vec4* cells, const Deposi
 
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
                      std::vector<uint32_t> terminals, const DepositGrid& grid, unsigned threads,
-                     DepositStats* stats) {
+                     DepositStats* stats, bool group) {
   if (stats) *stats = DepositStats{};
   if (terminals.empty()) return 0;
   const size_t per_layer = size_t(grid.width) * size_t(grid.height);
@@ -496,18 +662,30 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
     std::sort(keys.begin(), keys.end());
     for (size_t t = 0; t < keys.size(); ++t) terminals[t] = uint32_t(keys[t]);
   }
+  const PourUnits units = plan_pour_units(cells, depth, arrive, terminals, grid, group);
+  const auto first_of = [&](size_t u) { return units.terminals[units.begin[u]]; };
+  const auto pour_unit = [&](Pourer& pourer, size_t u) {
+    const size_t b = units.begin[u], n = units.begin[u + 1] - b;
+    if (n == 1) {
+      pourer.pour(units.terminals[b], arrive[units.terminals[b]]);
+    } else {
+      pourer.pour_group(&units.terminals[b], &units.apex[b], n, arrive);
+    }
+  };
   const size_t budget = kPouredPerLayerTexel * count;
   size_t covered = 0;  // texels covered by all growths so far
   Pourer serial(cells, depth, grid);
-  const auto pour_serially = [&](size_t t0, size_t t1) {
-    for (size_t t = t0; t < t1; ++t) {
-      const uint32_t p = terminals[t];
+  const auto pour_serially = [&](size_t u0, size_t u1) {
+    for (size_t u = u0; u < u1; ++u) {
       if (covered < budget) {
         const size_t before = serial.covered();
-        serial.pour(p, arrive[p]);
+        pour_unit(serial, u);
         covered += serial.covered() - before;
       } else {
-        depth[p] = depth[p] + arrive[p];
+        for (size_t t = units.begin[u]; t < units.begin[u + 1]; ++t) {
+          const uint32_t p = units.terminals[t];
+          depth[p] = depth[p] + arrive[p];
+        }
       }
     }
   };
@@ -537,8 +715,8 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
             for (size_t b = next++; b < bands.size() && !claims->aborted(); b = next++) {
               pourer.pour_as(claims.get(), first_id + uint32_t(b), &undo[b]);
               const size_t before = pourer.covered();
-              for (size_t t = bands[b].first; t < bands[b].second && !claims->aborted(); ++t) {
-                pourer.pour(terminals[t], arrive[terminals[t]]);
+              for (size_t u = bands[b].first; u < bands[b].second && !claims->aborted(); ++u) {
+                pour_unit(pourer, u);
               }
               band_covered[b] = pourer.covered() - before;
             }
@@ -562,24 +740,30 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
     return false;
   };
   bool parallel = workers > 1;
-  for (size_t t0 = 0, t1 = 0; t0 < terminals.size(); t0 = t1) {
-    // The phase [t0, t1): bands of one parity.
+  for (size_t u0 = 0, u1 = 0; u0 < units.units(); u0 = u1) {
+    // The phase [u0, u1): bands of one parity (a unit's band: its first
+    // terminal's).
     std::vector<std::pair<size_t, size_t>> bands;
-    const uint32_t parity = band_of(terminals[t0]) & 1u;
-    while (t1 < terminals.size() && (band_of(terminals[t1]) & 1u) == parity) {
-      size_t end = t1 + 1;
-      while (end < terminals.size() && band_of(terminals[end]) == band_of(terminals[t1])) ++end;
-      bands.emplace_back(t1, end);
-      t1 = end;
+    const uint32_t parity = band_of(first_of(u0)) & 1u;
+    while (u1 < units.units() && (band_of(first_of(u1)) & 1u) == parity) {
+      size_t end = u1 + 1;
+      while (end < units.units() && band_of(first_of(end)) == band_of(first_of(u1))) ++end;
+      bands.emplace_back(u1, end);
+      u1 = end;
     }
     if (parallel && bands.size() > 1) {
       if (pour_in_parallel(bands)) {
-        if (stats) stats->piles_in_parallel += t1 - t0;
+        if (stats) stats->piles_in_parallel += units.begin[u1] - units.begin[u0];
         continue;
       }
       parallel = false;  // the next phase's piles are likely to meet as well
     }
-    pour_serially(t0, t1);
+    pour_serially(u0, u1);
+  }
+  if (stats) {
+    stats->covered = covered;
+    for (size_t u = 0; u < units.units(); ++u)
+      stats->groups += units.begin[u + 1] - units.begin[u] > 1;
   }
   return terminals.size();
 }
