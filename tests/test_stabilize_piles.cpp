@@ -111,10 +111,10 @@ TEST(StabilizeReference, RoutedSnowIsPouredAsAConeAtRest) {
   EXPECT_LT(with.iterations, without.iterations);
 }
 
-// Under a ceiling, what fits stays on the terminal; what would be pressed
-// above the ceiling is poured as a pile that fills the gap up to the
-// ceiling around it (snow sliding off a tree's tiers into the low gap under
-// them: metres of depth on one texel, squeezed out over a thousand passes).
+// Under a low ceiling, routed snow is poured as a pile that fills the gap up
+// to the ceiling around its terminal (snow sliding off a tree's tiers into
+// the low gap under them: metres of depth on one texel, squeezed out over a
+// thousand passes).
 TEST(StabilizeReference, RoutedSnowUnderACeilingFillsTheGap) {
   const SnowMaps maps = shelf_maps();  // 0.1 m gap under the shelf
   const std::vector<glm::vec4> cells = stabilize_cells(maps, loose_settings());
@@ -135,6 +135,54 @@ TEST(StabilizeReference, RoutedSnowUnderACeilingFillsTheGap) {
   EXPECT_NEAR(sum, 2.0, 1e-5);
   EXPECT_GE(covered, 20);  // 2 m of depth in a 0.1 m gap
   EXPECT_NEAR(depth[under], 0.1f - kCeilingClearance, 1e-6f);
+}
+
+// Under a high ceiling (a roof 0.95 m over the floor, 1 cm texels), routed
+// snow is poured as a cone, not left on its terminal as a spike that the
+// relaxation would take as many passes to spread as it is texels high (snow
+// creeping under an eave into a hollow there).
+TEST(StabilizeReference, RoutedSnowUnderAHighCeilingIsPouredAsACone) {
+  const float texel = 0.01f;
+  const SnowMaps maps = make_maps(64, 64, texel, 4, [](float x, float z) {
+    std::vector<Surface> s;
+    if (x > 0.1f && x < 0.54f && z > 0.1f && z < 0.54f) {
+      s.push_back({1.0f, kUp});
+      s.push_back({0.95f, kDown});
+    }
+    s.push_back({0.0f, kUp});
+    return s;
+  });
+  StabilizeSettings settings = loose_settings();
+  settings.repose_jitter_deg = 0.0f;  // tan = 1
+  const std::vector<glm::vec4> cells = stabilize_cells(maps, settings);
+  const size_t under = maps.index(2, 32, 32);  // the floor under the roof's middle
+  ASSERT_TRUE(maps.has_surface(2, 32, 32));
+  ASSERT_NEAR(maps.ceiling[under], 0.95f, 1e-6f);
+  // Cones 0.036 and 0.098 m high (V = pi h^3 / 3 on 1 cm texels).
+  for (const auto& [metres, apex] : {std::make_pair(0.5f, 0.036f), std::make_pair(10.0f, 0.098f)}) {
+    SCOPED_TRACE(metres);
+    std::vector<float> depth(cells.size(), 0.0f), arrive(cells.size(), 0.0f);
+    arrive[under] = metres;
+    deposit_piles(cells.data(), depth.data(), arrive.data(), DepositGrid{64, 64, 4, texel});
+    double sum = 0.0;
+    int covered = 0;
+    for (size_t k = 0; k < depth.size(); ++k) {
+      sum += depth[k];
+      covered += depth[k] > 0.0f;
+    }
+    std::printf("under the roof: %.3f m on the terminal, %d texels covered\n", depth[under],
+                covered);
+    EXPECT_NEAR(sum, metres, 1e-5 * metres);
+    EXPECT_NEAR(depth[under], apex, 2 * texel);
+    EXPECT_GT(covered, 3 * int(apex / texel) * int(apex / texel));
+    for (int j = 0; j < 64; ++j) {
+      for (int i = 0; i + 1 < 64; ++i) {
+        const size_t a = maps.index(2, i, j), b = maps.index(2, i + 1, j);
+        if (!maps.has_surface(2, i, j) || !maps.has_surface(2, i + 1, j)) continue;
+        EXPECT_LE(std::abs(depth[a] - depth[b]), texel + 1e-5f) << i << ", " << j;
+      }
+    }
+  }
 }
 
 // Maps of 512 rows and more pour their piles by bands of rows, the bands of
@@ -403,21 +451,32 @@ TEST(StabilizeReference, TableEdgesRoundOff) {
   for (int i = edge; i < 32; ++i) {
     EXPECT_LE(top_of(i), (float(i - edge) + 0.5f) * texel * std::tan(48.0f * kDeg) + 2e-4f) << i;
   }
-  // Under the table: nothing from the top. The floor snow round the table
-  // slumps in at the repose angle from the shadow's edge (0.3 m of snow: at
-  // most 0.3 / tan(42 deg) + 1 texel), the rest stays bare.
-  const float reach = 0.3f / std::tan(42.0f * kDeg) + texel;
+  // The snow shed by the top piles up on the floor at the table's edge (the
+  // texels either side of it), above the 0.3 m that fell there. Under the
+  // table, the floor snow slumps in at the repose angle from the pile at the
+  // nearest edge (at most its height / tan(42 deg) + 1 texel in); the rest
+  // stays bare.
+  const int last = 41;  // the table's texels are 22..41 across
+  ASSERT_TRUE(maps.ground[maps.index(0, last, j)] > 0.5f);
+  ASSERT_FALSE(maps.ground[maps.index(0, last + 1, j)] > 0.5f);
+  // The pile at the edge nearest to the floor texel (i, jj) under the table.
+  const auto edge_pile = [&](int i, int jj) {
+    const bool across = std::abs(i - 31.5f) >= std::abs(jj - 31.5f);
+    const int at = across ? i : jj, in = at < 32 ? edge : last, out = at < 32 ? edge - 1 : last + 1;
+    return across ? std::max(depth[maps.index(2, in, jj)], depth[maps.index(0, out, jj)])
+                  : std::max(depth[maps.index(2, i, in)], depth[maps.index(0, i, out)]);
+  };
+  EXPECT_GT(edge_pile(edge, j), 0.3f);
   double under = 0.0;
-  for (int jj = 0; jj < 64; ++jj) {
-    for (int i = 0; i < 64; ++i) {
-      if (!maps.has_surface(2, i, jj)) continue;
-      const glm::vec2 c = maps.grid.center(i, jj);
-      const float inside = 0.5f - std::max(std::abs(c.x - 1.6f), std::abs(c.y - 1.6f));
-      if (inside > reach) under += depth[maps.index(2, i, jj)];
+  for (int jj = edge; jj <= last; ++jj) {
+    for (int i = edge; i <= last; ++i) {
+      ASSERT_TRUE(maps.has_surface(2, i, jj));
+      const int in = std::min({i - edge, last - i, jj - edge, last - jj});  // texels
+      const float reach = edge_pile(i, jj) / std::tan(42.0f * kDeg) + texel;
+      if ((float(in) + 0.5f) * texel > reach) under += depth[maps.index(2, i, jj)];
     }
   }
   EXPECT_EQ(under, 0.0);
-  EXPECT_GT(depth[maps.index(0, edge - 1, j)], 0.3f);
   EXPECT_NEAR(top_of(edge - 6), 0.3f, 0.02f);  // the floor further out is untouched
 }
 
@@ -761,16 +820,44 @@ TEST(StabilizeScenes, TableSnowRoundsOffOntoTheFloor) {
   auto near_table = [&](glm::vec2 c) {  // outside and under its edges
     return std::max(std::abs(c.x), std::abs(c.y)) < 0.5f + 0.6f;
   };
-  auto under_table = [&](glm::vec2 c) {  // beyond the slump of the floor snow
-    return std::max(std::abs(c.x), std::abs(c.y)) < 0.5f - 0.3f / std::tan(42.0f * kDeg) - texel;
+  // The snow shed by the top piles up on the floor along its edges: per row
+  // of texels, the deepest floor snow within a texel of the edges x = -0.5
+  // and x = 0.5 m, and per column those of z = -0.5 and 0.5 m.
+  const int w = maps.grid.width, h = maps.grid.height;
+  std::vector<float> row_pile(2 * size_t(h), 0.0f), column_pile(2 * size_t(w), 0.0f);
+  for (int j = 0; j < h; ++j) {
+    for (int i = 0; i < w; ++i) {
+      const glm::vec2 c = maps.grid.center(i, j);
+      for (int l = 0; l < maps.layers && maps.has_surface(l, i, j); ++l) {
+        const float d = depth[maps.index(l, i, j)];
+        if (maps.object[maps.index(l, i, j)] != floor) continue;
+        if (std::abs(std::abs(c.x) - 0.5f) < texel && std::abs(c.y) < 0.5f) {
+          float& pile = row_pile[2 * size_t(j) + (c.x > 0.0f)];
+          pile = std::max(pile, d);
+        }
+        if (std::abs(std::abs(c.y) - 0.5f) < texel && std::abs(c.x) < 0.5f) {
+          float& pile = column_pile[2 * size_t(i) + (c.y > 0.0f)];
+          pile = std::max(pile, d);
+        }
+      }
+    }
+  }
+  // Under the table, beyond the slump of the floor snow at the repose angle
+  // from the pile at the nearest edge (its height / tan(42 deg) + 1 texel).
+  auto under_table = [&](glm::vec2 c) {
+    const int i = std::clamp(int((c.x - maps.grid.origin.x) / texel), 0, w - 1);
+    const int j = std::clamp(int((c.y - maps.grid.origin.y) / texel), 0, h - 1);
+    const float pile = std::abs(c.x) >= std::abs(c.y) ? row_pile[2 * size_t(j) + (c.x > 0.0f)]
+                                                      : column_pile[2 * size_t(i) + (c.y > 0.0f)];
+    return std::max(std::abs(c.x), std::abs(c.y)) < 0.5f - pile / std::tan(42.0f * kDeg) - texel;
   };
   const double top_lost = object_volume(maps, before, top) - object_volume(maps, depth, top);
   const double floor_gain = object_volume(maps, depth, floor, near_table) -
                             object_volume(maps, before, floor, near_table);
   const double under = object_volume(maps, depth, floor, under_table);
   float deepest_under = 0.0f;
-  for (int j = 0; j < maps.grid.height; ++j) {
-    for (int i = 0; i < maps.grid.width; ++i) {
+  for (int j = 0; j < h; ++j) {
+    for (int i = 0; i < w; ++i) {
       for (int l = 1; l < maps.layers && maps.has_surface(l, i, j); ++l) {
         const size_t k = maps.index(l, i, j);
         if (maps.object[k] == floor && under_table(maps.grid.center(i, j))) {
@@ -779,15 +866,16 @@ TEST(StabilizeScenes, TableSnowRoundsOffOntoTheFloor) {
       }
     }
   }
+  const float highest_pile = std::max(*std::max_element(row_pile.begin(), row_pile.end()),
+                                      *std::max_element(column_pile.begin(), column_pile.end()));
   std::printf(
       "table: %d passes (+%d routing), top gives %.4f m^3, floor next to it gains %.4f "
-      "m^3, under %.5f m^3 (at most %.4f m deep)\n",
-      r.iterations, r.route_passes, top_lost, floor_gain, under, deepest_under);
+      "m^3, under %.5f m^3 (at most %.4f m deep); edge piles up to %.3f m\n",
+      r.iterations, r.route_passes, top_lost, floor_gain, under, deepest_under, highest_pile);
   EXPECT_GT(top_lost, 0.0);
   EXPECT_GT(floor_gain, 0.9 * top_lost);
-  // Beyond the slump of the floor snow, the floor under the table stays all
-  // but bare: the snow shed by the top piles up at the edge and spreads in
-  // at the repose angle too, a few centimetres further at the corners.
+  EXPECT_GT(highest_pile, 0.3f);
+  // Beyond the slump, the floor under the table stays all but bare.
   EXPECT_LT(deepest_under, 0.05f);
   EXPECT_LT(under, 0.01 * top_lost);
   // The top keeps its snow in the middle, and the edges are rounded.

@@ -14,14 +14,14 @@
 // first covers a texel, twice: at the snow tops, then at the cone heights the
 // first growth found (which gaps the surface lies in depends on its height).
 // Under a ceiling (a table, an eave, a tree's tiers) a texel takes snow only up
-// to kCeilingClearance under it: the cone fills the gap there and spreads on. A
-// terminal under a ceiling keeps what fits under it, as before, for the
-// relaxation to spread; only what would be pressed above the ceiling is poured
-// (snow sliding off a tree's tiers lands in the low gap under them, metres deep
-// on one texel). Texels that snow would slide off into the void take none, a
-// pile covers at most 2^20 texels, and the piles of one call at most 8 times
-// the maps' layer texels (the terminals after that keep their snow, as before).
-// Mass is exact: what the cone does not place stays on the terminal.
+// to kCeilingClearance under it: the cone fills the gap there and spreads on
+// (snow sliding off a tree's tiers lands in the low gap under them; snow
+// creeping under an eave collects in a hollow there, a spike a metre high on
+// one texel, which the relaxation would spread a texel per pass). Texels that
+// snow would slide off into the void take none, a pile covers at most 2^20
+// texels, and the piles of one call at most 8 times the maps' layer texels
+// (the terminals after that keep their snow, as before). Mass is exact: what
+// the cone does not place stays on the terminal.
 //
 // Terminals under the open sky whose piles would overlap, each at least 8
 // texels in radius, are poured as one pile (a line of them where snow slides

@@ -32,6 +32,21 @@ constexpr size_t kMaxPileTexels = size_t(1) << 20;
 /// saves.
 constexpr size_t kPouredPerLayerTexel = 8;
 
+/// Piles under the open sky whose lone cones (lone_cone_rise) are at least
+/// this many texels in radius are grouped where they overlap (PourUnits);
+/// narrower ones are poured one by one (cheap, and they come to the same
+/// rest whether the snow arrives at once or frame by frame, as in the live
+/// preview).
+constexpr float kWidePileTexels = 8.0f;
+
+/// The height (m) of the lone cone of `volume` metres of depth on one texel
+/// `texel` metres wide: the cone at the repose angle (tan) on flat ground
+/// that holds it, V = pi h^3 / (3 tan^2); its radius is h / tan.
+float lone_cone_rise(float volume, float tan, float texel) {
+  const double v = double(volume) * double(texel) * double(texel);  // m^3
+  return float(std::cbrt(3.0 * v * double(tan) * double(tan) / glm::pi<double>()));
+}
+
 /// A min-heap of T in a 4-ary tree (half a binary heap's depth; a pop
 /// compares four children a level, in one cache line), its storage kept
 /// between piles. Its top is always the least element, so the piles take
@@ -321,19 +336,6 @@ void Pourer::pour(uint32_t p, float volume) {
     if (!aborted()) add_depth(p, volume);
     return;
   }
-  if (cells_[p].y < kCellOpenSky) {
-    // Under a ceiling, what fits stays on the terminal as before (the
-    // relaxation spreads it); only what would be pressed above the ceiling
-    // is poured.
-    const float fits = float(std::max(0.0, cap(p) - double(top(p))));
-    if (aborted()) return;
-    if (volume <= fits) {
-      add_depth(p, volume);
-      return;
-    }
-    add_depth(p, fits);
-    volume -= fits;
-  }
   // The cone spreads over the gaps its surface lies in, which depends on
   // its height: grown once at the snow tops as they are, then again at the
   // cone heights the first growth found.
@@ -475,10 +477,7 @@ double Pourer::grow(const std::vector<Seed>& seeds, double volume, double apex) 
     const float dist = dist_[k];
     const int i = int((k % per_layer_) % size_t(g_.width));
     const int j = int((k % per_layer_) / size_t(g_.width));
-    // A single pile's terminal is not looked at again (pour() did, before
-    // it kept what fits under a ceiling there); a group's terminals, under
-    // the open sky, do not shed (pour_group looked).
-    if ((seeds.size() > 1 || k != seeds[0].k) && sheds(k, i, j)) continue;
+    if (sheds(k, i, j)) continue;  // (never a seed: pour() and pour_group() looked)
     covered_.emplace_back(k, dist);
     ++covered_total_;
     const double room = cap(k) - double(top(k));
@@ -521,14 +520,9 @@ std::vector<uint32_t> select_in_order(size_t count, Keep keep, Value value) {
 }
 
 /// Terminals are grouped on a grid of cells this many texels wide: two
-/// terminals whose lone cones (PourUnits) reach a common cell are close
+/// terminals whose lone cones (lone_cone_rise) reach a common cell are close
 /// enough to share a pile.
 constexpr int kGroupCellTexels = 8;
-/// Only piles whose lone cones are at least this many texels in radius are
-/// grouped: narrower ones cost little to pour one by one, and pour alike
-/// whether the snow arrives at once or bit by bit (the live preview's
-/// frames against the batch job).
-constexpr float kGroupMinRadiusTexels = 8.0f;
 /// A lone cone reaches this many cells from its terminal at most (a pile
 /// covers kMaxPileTexels at most, a disc of about 580 texels' radius).
 constexpr float kMaxGroupReachCells = 80.0f;
@@ -547,10 +541,9 @@ struct PourUnits {
   size_t units() const { return begin.size() - 1; }
 };
 
-/// Cuts `ordered` (deposit_piles' order) into units. Each terminal under
-/// the open sky has a lone cone: the cone at its repose angle on flat
-/// ground that holds what arrives, h = cbrt(3 V tan^2 / pi) high, h / tan
-/// wide. Two of them are in one unit where their cones' discs meet (both
+/// Cuts `ordered` (deposit_piles' order) into units. Two terminals under
+/// the open sky whose piles are wide (kWidePileTexels) are in one unit
+/// where their lone cones' discs meet (both
 /// reach a cell of kGroupCellTexels; the check is coarse, a pile is a warm
 /// start) and their heights overlap (tops closer than h + h'), or through a
 /// chain of such; a unit takes the place of its first terminal in the order.
@@ -569,17 +562,15 @@ PourUnits plan_pour_units(const glm::vec4* cells, const float* depth, const floa
   const int cells_x = (grid.width + kGroupCellTexels - 1) / kGroupCellTexels;
   const int cells_y = (grid.height + kGroupCellTexels - 1) / kGroupCellTexels;
   std::vector<uint32_t> painted(size_t(cells_x) * size_t(cells_y), UINT32_MAX);
-  const double area = double(grid.texel) * double(grid.texel);
   for (size_t t = 0; t < n; ++t) {
     const uint32_t p = ordered[t];
     const glm::vec4 cell = cells[p];
     top[t] = cell.x + depth[p];
     const float tan = cell.z;
-    const double volume = double(arrive[p]) * area;  // m^3
-    rise[t] = float(std::cbrt(3.0 * volume * double(tan) * double(tan) / glm::pi<double>()));
+    rise[t] = lone_cone_rise(arrive[p], tan, grid.texel);
     apex[t] = top[t] + rise[t];
     const float radius = rise[t] / tan / grid.texel;  // texels
-    if (!group || cell.y < kCellOpenSky || !(radius >= kGroupMinRadiusTexels)) continue;
+    if (!group || cell.y < kCellOpenSky || !(radius >= kWidePileTexels)) continue;
     const float ci = (float((p % per_layer) % size_t(grid.width)) + 0.5f) / kGroupCellTexels;
     const float cj = (float((p % per_layer) / size_t(grid.width)) + 0.5f) / kGroupCellTexels;
     const float reach = std::min(radius / float(kGroupCellTexels) + 1.0f, kMaxGroupReachCells);
