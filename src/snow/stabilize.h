@@ -41,10 +41,10 @@
 //    to slide off a slab's edge would stand as a wall behind it, and the
 //    relaxation would drain it for hundreds of passes). So snow on a support
 //    steeper than the repose angle leaves at once, and the edges of a table
-//    or an eave round off at once. What arrives at a terminal under the open
-//    sky is then poured there as a cone at the repose angle
-//    (snow/deposit.h), not left as a spike metres deep on one texel, so the
-//    relaxation only finishes the piles. Routing runs at the start of each
+//    or an eave round off at once. What arrives at a terminal is then
+//    poured there as a cone at the repose angle (snow/deposit.h; under a
+//    ceiling it fills the gap and spreads on), not left as a spike metres
+//    deep on one texel, so the relaxation only finishes the piles. Routing runs at the start of each
 //    stabilize call and after snow is added. At the convergence checks it
 //    runs again where the snow creeps (creep_route_due): loose snow that
 //    slid trickles a texel per pass over the steps of held snow and along
