@@ -19,6 +19,7 @@
 //                  (CpuStabilizer, snow/stabilize_cpu.h; CPU only)
 //   deposit.cpp    the piles poured where routed snow comes to rest
 //                  (snow/deposit.h; CPU only)
+//   pour_units.cpp which terminals pour as one pile (pour_units.h)
 //
 // Two kinds of passes, on the GPU as fragment passes over the layer texture
 // arrays and on the CPU in snow::CpuStabilizer with the same float math:
