@@ -35,7 +35,8 @@ float lone_cone_rise(float volume, float tan, float texel) {
 /// enough to share a pile.
 constexpr int kGroupCellTexels = 8;
 /// A lone cone reaches this many cells from its terminal at most (a pile
-/// covers kMaxPileTexels at most, a disc of about 580 texels' radius).
+/// covers 2^20 texels at most, snow/deposit.h: a disc of about 580 texels'
+/// radius).
 constexpr float kMaxGroupReachCells = 80.0f;
 
 }  // namespace
