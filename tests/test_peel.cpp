@@ -197,6 +197,7 @@ TEST(MemoryGuard, HundredKilometresAtOneMillimetreThrowsBeforeAllocating) {
     const std::string what = e.what();
     EXPECT_NE(what.find("over the 4 GiB budget"), std::string::npos) << what;
     EXPECT_NE(what.find("--texel"), std::string::npos) << what;
+    EXPECT_NE(what.find("--memory-budget"), std::string::npos) << what;
     EXPECT_EQ(what.find('\n'), std::string::npos);
   }
   // peel_layers checks before touching GL or allocating maps (no context needed).

@@ -173,7 +173,7 @@ void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings
                    " texels x " + std::to_string(layers) + " layers need " +
                    format_gib(double(need)) + ", over the " + format_gib(double(budget)) +
                    " budget; use a coarser texel size, e.g. --texel " +
-                   peel::format_metres(suggest));
+                   peel::format_metres(suggest) + ", or raise --memory-budget");
 }
 
 }  // namespace snow
