@@ -69,10 +69,9 @@ plan::SceneStats scene_stats(const Scene& scene, const PeelSettings& settings,
 uint64_t estimate_memory(const MapGrid& grid, int layers, const CoverageSettings& coverage,
                          float scene_height = 0.0f, uint64_t triangles = 0);
 
-/// Throws InputError("maps of W x H texels x L layers need 37.2 GiB, over
-/// the 4 GiB budget; use a coarser texel size, e.g. --texel 0.05, or raise
-/// --memory-budget") when
-/// estimate_memory(...) > budget. Allocates nothing.
+/// Throws InputError when estimate_memory(...) > budget: one line naming the
+/// maps' size, what they need and the budget, a coarser --texel that fits,
+/// and --memory-budget to raise it. Allocates nothing.
 void check_memory_budget(const MapGrid& grid, int layers, const CoverageSettings& coverage,
                          uint64_t budget, float scene_height = 0.0f, uint64_t triangles = 0);
 

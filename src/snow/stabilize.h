@@ -33,30 +33,30 @@
 //    and arrives at another bit for bit). Snow that goes off the map or into
 //    the void below the lowest surface is lost and counted.
 //  - routing: snow that cannot stay where it lies is sent in one go down a
-//    chain of receivers (pointer jumping) to the first texel where it can
-//    rest, as hydrology routes water over a terrain. What a texel can keep
-//    comes from erosion passes (a distance transform): the highest surface
-//    no more than distance * tan(repose) above what its downhill neighbours
-//    keep, nothing where a neighbour is the void; where snow lands is decided
-//    on those kept heights, as if what will leave had left (else snow about
-//    to slide off a slab's edge would stand as a wall behind it, and the
-//    relaxation would drain it for hundreds of passes). So snow on a support
-//    steeper than the repose angle leaves at once, and the edges of a table
-//    or an eave round off at once. What arrives at a terminal is then
-//    poured there as a cone at the repose angle (snow/deposit.h; under a
-//    ceiling it fills the gap and spreads on), not left as a spike metres
-//    deep on one texel, so the relaxation only finishes the piles. Routing runs at the start of each
-//    stabilize call and after snow is added. At the convergence checks it
-//    runs again where the snow creeps (creep_route_due): loose snow that
-//    slid trickles a texel per pass over the steps of held snow and along
-//    slopes near the repose angle, in passes that grow with the distance in
-//    texels; routed again on the kept heights of the repose angle alone (the
-//    rule the relaxation moves loose snow by), it goes down its whole path at
-//    once. Between those, a check drains (drain_due): where much of what
-//    moves goes into the void, the excess whose path ends there leaves at
-//    once. A path also ends in the void at a receiver beside it (one that
-//    sheds into the void at its own free top), since the next relaxation
-//    pass sends all that arrives there off the edge.
+//    chain of receivers (pointer jumping) to the first texel where it can rest,
+//    as hydrology routes water over a terrain. What a texel can keep comes from
+//    erosion passes (a distance transform): the highest surface no more than
+//    distance * tan(repose) above what its downhill neighbours keep, nothing
+//    where a neighbour is the void; where snow lands is decided on those kept
+//    heights, as if what will leave had left (else snow about to slide off a
+//    slab's edge would stand as a wall behind it, and the relaxation would
+//    drain it for hundreds of passes). So snow on a support steeper than the
+//    repose angle leaves at once, and the edges of a table or an eave round off
+//    at once. What arrives at a terminal is then poured there as a cone at the
+//    repose angle (snow/deposit.h; under a ceiling it fills the gap and spreads
+//    on), not left as a spike metres deep on one texel, so the relaxation only
+//    finishes the piles. Routing runs at the start of each stabilize call and
+//    after snow is added. At the convergence checks it runs again where the
+//    snow creeps (creep_route_due): loose snow that slid trickles a texel per
+//    pass over the steps of held snow and along slopes near the repose angle,
+//    in passes that grow with the distance in texels; routed again on the kept
+//    heights of the repose angle alone (the rule the relaxation moves loose
+//    snow by), it goes down its whole path at once. Between those, a check
+//    drains (drain_due): where much of what moves goes into the void, the
+//    excess whose path ends there leaves at once. A path also ends in the void
+//    at a receiver beside it (one that sheds into the void at its own free
+//    top), since the next relaxation pass sends all that arrives there off the
+//    edge.
 // Relaxation passes cycle through strides up to max_stride, ..., 2, 1
 // (multi-scale, see StrideSchedule), so creeping piles spread in few passes.
 // A strided pass moves only snow that a single step would move (the stride-1

@@ -177,17 +177,18 @@ class Pourer {
     uint32_t k;
     float offset;
   };
-  /// Grows the pile of `volume` from the seeds into covered_ (texel, path
-  /// cost), spreading from a covered texel at the larger of its snow top
-  /// and apex - its path cost; returns the height of the pile's apex (that
-  /// of a seed of offset 0).
-  double grow(const std::vector<Seed>& seeds, double volume, double apex);
-  /// Lays the pile of apex `cone` over covered_ (each texel up to cone - its
-  /// path cost, capped); `anchor`, a seed of offset 0, takes what the others
-  /// do not, so the volume is exact. Sums in Sum: a single pile in float, as
-  /// it always has; a group in double, as its volume sums many terminals'.
+  /// Grows the pile of `volume` from seeds_ (distinct texels) into covered_
+  /// (texel, path cost), spreading from a covered texel at the larger of its
+  /// snow top and apex - its path cost; returns the height of the pile's
+  /// apex (that of a seed of offset 0).
+  double grow(double volume, double apex);
+  /// Pours the pile of `volume` from seeds_ and lays it over covered_ (each
+  /// texel up to the apex - its path cost, capped); `anchor`, a seed of
+  /// offset 0, takes what the others do not, so the volume is exact. Sums in
+  /// Sum: a single pile in float, as it always has; a group in double, as its
+  /// volume sums many terminals'.
   template <class Sum>
-  void place(uint32_t anchor, Sum volume, double cone);
+  void pour_seeds(uint32_t anchor, Sum volume);
   /// Whether growing again at the cone of apex `apex` would repeat the last
   /// growth, which spread at the snow tops: at every texel it covered, the
   /// cone's surface lies in the same gap of each neighbour column as the
@@ -250,6 +251,10 @@ class Pourer {
       if (!on_map(ni, nj) || h < void_under(ni, nj)) return true;
     }
     return false;
+  }
+  bool sheds(size_t k) {
+    const size_t c = column_of(k);
+    return sheds(k, int(c % size_t(g_.width)), int(c / size_t(g_.width)));
   }
   // The heights h at which land_in_column gives kLandVoid in column (i, j)
   // are those under this one: it walks past every layer (h under its ground,
@@ -314,19 +319,12 @@ class Pourer {
 
 void Pourer::pour(uint32_t p, float volume) {
   ++pours_;
-  const int pi = int((p % per_layer_) % size_t(g_.width));
-  const int pj = int((p % per_layer_) / size_t(g_.width));
-  if (sheds(p, pi, pj)) {  // as before: on the terminal
+  if (sheds(p)) {  // as before: on the terminal
     if (!aborted()) add_depth(p, volume);
     return;
   }
-  // The cone spreads over the gaps its surface lies in, which depends on
-  // its height: grown once at the snow tops as they are, then again at the
-  // cone heights the first growth found.
   seeds_.assign(1, Seed{p, 0.0f});
-  const double first = grow(seeds_, volume, -kOpenSky);
-  const double cone = grows_alike(first) ? first : grow(seeds_, volume, first);
-  if (!aborted()) place(p, volume, cone);
+  pour_seeds(p, volume);
 }
 
 void Pourer::pour_group(const uint32_t* terminals, const float* apex, size_t count,
@@ -338,9 +336,7 @@ void Pourer::pour_group(const uint32_t* terminals, const float* apex, size_t cou
   uint32_t anchor = 0;
   for (size_t t = 0; t < count; ++t) {
     const uint32_t p = terminals[t];
-    const int pi = int((p % per_layer_) % size_t(g_.width));
-    const int pj = int((p % per_layer_) / size_t(g_.width));
-    if (sheds(p, pi, pj)) {
+    if (sheds(p)) {
       if (!aborted()) add_depth(p, arrive[p]);
       continue;
     }
@@ -353,13 +349,17 @@ void Pourer::pour_group(const uint32_t* terminals, const float* apex, size_t cou
   }
   if (seeds_.empty() || aborted()) return;
   for (Seed& seed : seeds_) seed.offset = highest - seed.offset;
-  const double first = grow(seeds_, volume, -kOpenSky);
-  const double cone = grows_alike(first) ? first : grow(seeds_, volume, first);
-  if (!aborted()) place(anchor, volume, cone);
+  pour_seeds(anchor, volume);
 }
 
 template <class Sum>
-void Pourer::place(uint32_t anchor, Sum volume, double cone) {
+void Pourer::pour_seeds(uint32_t anchor, Sum volume) {
+  // The pile spreads over the gaps its surface lies in, which depends on its
+  // height: grown once at the snow tops as they are, then again at the
+  // heights the first growth found.
+  const double first = grow(double(volume), -kOpenSky);
+  const double cone = grows_alike(first) ? first : grow(double(volume), first);
+  if (aborted()) return;
   Sum placed = 0;
   for (const auto& [k, dist] : covered_) {
     if (k == anchor) continue;
@@ -389,7 +389,7 @@ bool Pourer::grows_alike(double apex) const {
   return true;
 }
 
-double Pourer::grow(const std::vector<Seed>& seeds, double volume, double apex) {
+double Pourer::grow(double volume, double apex) {
   ++growths_;
   const uint32_t reached = 2 * growths_, done = 2 * growths_ + 1;
   // Frontier by the height at which the rising cone covers a texel: its
@@ -414,8 +414,7 @@ double Pourer::grow(const std::vector<Seed>& seeds, double volume, double apex) 
     std::memcpy(&key, &bits, sizeof key);
     return key;
   };
-  for (const Seed& seed : seeds) {
-    if (seen_[seed.k] == reached && dist_[seed.k] <= seed.offset) continue;
+  for (const Seed& seed : seeds_) {
     frontier.push(entry(top(seed.k) + seed.offset, seed.k));
     seen_[seed.k] = reached;
     dist_[seed.k] = seed.offset;

@@ -50,7 +50,7 @@ PourUnits plan_pour_units(const glm::vec4* cells, const float* depth, const floa
                           bool group) {
   const size_t n = ordered.size();
   const size_t per_layer = size_t(grid.width) * size_t(grid.height);
-  std::vector<float> top(n), rise(n), apex(n);
+  std::vector<float> top(n), rise(n);  // m: snow top, lone cone's height
   std::vector<uint32_t> parent(n);
   std::iota(parent.begin(), parent.end(), 0u);
   const auto root = [&](uint32_t t) {
@@ -59,14 +59,13 @@ PourUnits plan_pour_units(const glm::vec4* cells, const float* depth, const floa
   };
   const int cells_x = (grid.width + kGroupCellTexels - 1) / kGroupCellTexels;
   const int cells_y = (grid.height + kGroupCellTexels - 1) / kGroupCellTexels;
-  std::vector<uint32_t> painted(size_t(cells_x) * size_t(cells_y), UINT32_MAX);
+  std::vector<uint32_t> painted(group ? size_t(cells_x) * size_t(cells_y) : 0, UINT32_MAX);
   for (size_t t = 0; t < n; ++t) {
     const uint32_t p = ordered[t];
     const glm::vec4 cell = cells[p];
     top[t] = cell.x + depth[p];
     const float tan = cell.z;
     rise[t] = lone_cone_rise(arrive[p], tan, grid.texel);
-    apex[t] = top[t] + rise[t];
     const float radius = rise[t] / tan / grid.texel;  // texels
     if (!group || cell.y < kCellOpenSky || !(radius >= kWidePileTexels)) continue;
     const float ci = (float((p % per_layer) % size_t(grid.width)) + 0.5f) / kGroupCellTexels;
@@ -110,7 +109,7 @@ PourUnits plan_pour_units(const glm::vec4* cells, const float* depth, const floa
   for (size_t t = 0; t < n; ++t) {
     const size_t at = next[unit[t]]++;
     units.terminals[at] = ordered[t];
-    units.apex[at] = apex[t];
+    units.apex[at] = top[t] + rise[t];
   }
   return units;
 }
