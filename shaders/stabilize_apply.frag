@@ -1,7 +1,6 @@
 #version 450 core
 // Routing, apply: routed texels give up their excess (to the void: lost),
-// terminals receive the scattered sums; when draining, only the texels whose
-// path ends in the void give it up. Mirrors CpuStabilizer::route.
+// terminals receive the scattered sums. Mirrors CpuStabilizer::route.
 #include "bindings.h"
 #include "column.glsl"
 
@@ -13,7 +12,6 @@ uniform int u_since;  // stamp of the receiver pass
 layout(binding = SNOW_STABILIZE_OUT_A) uniform sampler2DArray u_arrive;  // r: scattered sums
 // 0: the terminals' sums are poured as piles afterwards (snow/deposit.h).
 uniform int u_add_arrive;
-uniform int u_drain;  // 1: only the excess on its way into the void leaves (snow::drain_due)
 
 layout(location = 0) out vec2 o_depth;
 // Active tiles: the tile of a texel that changed is stamped with u_pass.
@@ -32,7 +30,7 @@ void main() {
   vec2 d = texelFetch(u_depth, t, 0).rg;
   float s = d.r;
   float lost = d.g;
-  if (p != self_index && (u_drain == 0 || p == kPointerVoid)) {
+  if (p != self_index) {
     float e = min((cell.x + s) - texelFetch(u_stable, t, 0).r, s);  // never more than the snow
     if (p == kPointerVoid) lost = lost + e;
     s = s - e;

@@ -370,7 +370,62 @@ TEST(StabilizeReference, SnowCreepingOffAnEdgeIsDrained) {
   on.drain_edges = true;
   const auto [r0, r1] = creep_off_a_box(off, on);
   EXPECT_EQ(r0.drains, 0);
-  EXPECT_GE(r1.drains, 1);  // 426 passes against 82 when written
+  EXPECT_GE(r1.drains, 1);
+  // The whole excess runs off in one drain, filling the room on its way.
+  EXPECT_LE(r1.drains, 2);
+}
+
+// A drain's fill and spill (spill_excess) down a channel 1 cm wide: walls
+// on both sides and uphill, the ground falling 5 mm per 1 cm texel (a
+// slope of 0.5 under a repose slope of 1) to the void past its last texel,
+// 10 cm of loose snow on its first texel, none elsewhere. That texel keeps
+// 1 cm over its downhill neighbour's ground; the excess runs down, fills
+// each texel on its way by 5 mm (up to its downhill neighbour's top plus
+// one texel of repose slope), none on the last (snow there slides into the
+// void), and the rest is lost there, mass exact. With a wall at the
+// channel's end instead of the void, the path ends in a hollow: nothing
+// moves (the relaxation spreads that snow).
+TEST(StabilizeReference, DrainFillsTheRoomOnItsWayAndSpillsTheRest) {
+  const int width = 9, height = 3;  // column 0 and rows 0 and 2 are walls
+  const float texel = 0.01f, fall = 0.005f, snow = 0.1f;
+  for (const bool open_end : {true, false}) {
+    std::vector<glm::vec4> cells(size_t(width * height));
+    std::vector<float> depth(cells.size(), 0.0f), lost(cells.size(), 0.0f), stable(cells.size());
+    const int last = open_end ? width - 1 : width - 2;  // the channel's last texel
+    for (int j = 0; j < height; ++j) {
+      for (int i = 0; i < width; ++i) {
+        const bool wall = j != 1 || i == 0 || i > last;
+        const float ground = wall ? 1.0f : float(width - i) * fall;
+        const size_t k = size_t(j * width + i);
+        cells[k] = glm::vec4(ground, kCellOpenSky, 1.0f, float(kCellSurface));
+        stable[k] = ground;  // bare texels keep their ground
+      }
+    }
+    const size_t source = size_t(width + 1);
+    depth[source] = snow;
+    stable[source] = cells[source + 1].x + texel;  // the repose slope over its neighbour
+    const std::vector<float> before = depth;
+    const std::vector<uint32_t> changed =
+        spill_excess(cells.data(), stable.data(), depth.data(), lost.data(),
+                     DepositGrid{width, height, 1, texel}, 0.0f);
+    double total = 0.0, lost_total = 0.0;
+    for (size_t k = 0; k < depth.size(); ++k) {
+      total += depth[k];
+      lost_total += lost[k];
+    }
+    SCOPED_TRACE(open_end);
+    EXPECT_NEAR(total + lost_total, snow, 1e-7);
+    if (!open_end) {
+      EXPECT_TRUE(changed.empty());
+      EXPECT_EQ(depth, before);
+      continue;
+    }
+    EXPECT_EQ(changed.size(), size_t(last - 1));  // the source and the texels it filled
+    EXPECT_NEAR(depth[source], stable[source] - cells[source].x, 1e-6);
+    for (int i = 2; i < last; ++i) EXPECT_NEAR(depth[size_t(width + i)], fall, 1e-6) << i;
+    EXPECT_EQ(depth[size_t(width + last)], 0.0f);
+    EXPECT_NEAR(lost[size_t(width + last)], snow - texel + fall - float(last - 2) * fall, 1e-6);
+  }
 }
 
 // Creeping snow routed again (StabilizeSettings::route_creep) rests as the

@@ -99,4 +99,18 @@ size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid
 size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid& grid,
                          float min_over, const std::vector<uint32_t>& under);
 
+/// The drain's routing (drain_due, snow/stabilize.h), after the erosion's
+/// kept heights `stable`: the excess of every texel more than `min_excess`
+/// (m) over its kept height runs down its path (the routing's receivers,
+/// the neighbour that limits each texel's kept height), filling on the way
+/// each texel's room (how far its free top may rise before that neighbour's
+/// kept height plus the repose slope, or its ceiling, stops it), as a
+/// stream fills the hollows on its way. What reaches the void is added to
+/// `lost` at the texel it leaves from; what is left where a path ends
+/// stays there. The same sums on every run (the paths are taken
+/// sequentially, in order), so both stabilizers get the same depth bit for
+/// bit. Returns the layer texels whose depth changed.
+std::vector<uint32_t> spill_excess(const glm::vec4* cells, const float* stable, float* depth,
+                                   float* lost, const DepositGrid& grid, float min_excess);
+
 }  // namespace snow

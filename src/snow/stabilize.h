@@ -20,6 +20,7 @@
 //   deposit.cpp    the piles poured where routed snow comes to rest
 //                  (snow/deposit.h; CPU only)
 //   pour_units.cpp which terminals pour as one pile (pour_units.h)
+//   spill.cpp      the drains' fill and spill (snow/deposit.h; CPU only)
 //
 // Two kinds of passes, on the GPU as fragment passes over the layer texture
 // arrays and on the CPU in snow::CpuStabilizer with the same float math:
@@ -53,10 +54,12 @@
 //    heights of the repose angle alone (the rule the relaxation moves loose
 //    snow by), it goes down its whole path at once. Between those, a check
 //    drains (drain_due): where much of what moves goes into the void, the
-//    excess whose path ends there leaves at once. A path also ends in the void
-//    at a receiver beside it (one that sheds into the void at its own free
-//    top), since the next relaxation pass sends all that arrives there off the
-//    edge.
+//    excess (over the kept heights of the repose angle) whose path ends there
+//    runs down it at once, filling on its way the room each texel has under
+//    its neighbours' kept heights plus the repose slope (snow::spill_excess),
+//    and the rest leaves: snow creeping over a ledge of held snow to an edge
+//    then leaves in one drain, where draining only what lies on a path to
+//    the edge left the snow behind to creep on, drain after drain.
 // Relaxation passes cycle through strides up to max_stride, ..., 2, 1
 // (multi-scale, see StrideSchedule), so creeping piles spread in few passes.
 // A strided pass moves only snow that a single step would move (the stride-1
@@ -306,9 +309,11 @@ bool drain_due(const StabilizeSettings& settings, const StrideSchedule& schedule
 constexpr int kCreepRouteEvery = 32;
 bool creep_route_due(const StabilizeSettings& settings, StrideSchedule& schedule, bool late);
 /// The three routings: after snow is set or added (kept heights capped at
-/// the holding depth), draining (drain_due: only the excess whose path
-/// ends in the void moves), and of creeping snow (creep_route_due: kept
-/// heights of the angle of repose alone).
+/// the holding depth), draining (drain_due: the excess whose path ends in
+/// the void runs down it, filling the room on its way, snow::spill_excess),
+/// and of creeping snow (creep_route_due). Drains and creep routings keep
+/// heights of the angle of repose alone, the rule the relaxation moves
+/// loose snow by.
 enum class Routing { Settle, Drain, Creep };
 /// Metres: a routing of `kind` routes the snow of a texel whose top lies
 /// more than this above its kept height. Drains and creep routings leave

@@ -82,8 +82,8 @@ class CpuStabilizer {
   /// Routing (erosion until stable, receiver, jumps until every pointer
   /// reaches a terminal, scatter, apply); returns the erosion rounds plus
   /// jump passes run. Adds the routed volume (m^3) to *routed_volume. With
-  /// Routing::Drain (drain_due; routed_volume unused), only the texels whose
-  /// path ends in the void give up their excess; with Routing::Creep
+  /// Routing::Drain (drain_due; routed_volume unused), the excess fills and
+  /// spills down its paths after the erosion (spill_excess); with Routing::Creep
   /// (creep_route_due) the kept heights start at the free tops.
   int route(double* routed_volume, Routing kind = Routing::Settle);
   /// route() of `kind` (not Drain) adding its passes, routed volume and wall

@@ -783,8 +783,23 @@ int CpuStabilizer::erode(bool repose_only) {
 int CpuStabilizer::route(double* routed_volume, Routing kind) {
   const size_t count = cells_.size();
   const bool drain = kind == Routing::Drain;
-  const int passes = erode(kind == Routing::Creep);
+  const int passes = erode(kind != Routing::Settle);
   const float min_excess = routed_excess_of(settings_, kind);
+  if (drain) {
+    // The excess fills and spills down its paths (snow/deposit.h); the
+    // tiles it changed are computed again, and the gates around them read
+    // again.
+    for (const uint32_t k :
+         spill_excess(cells_.data(), stable_.data(), depth_.data(), lost_.data(),
+                      DepositGrid{width_, height_, layers_, texel_}, min_excess)) {
+      const size_t column = k % (size_t(width_) * size_t(height_));
+      column_changed_[column] = pass_id_;
+      const int i = int(column % size_t(width_)), j = int(column / size_t(width_));
+      touch((j / kTile) * tiles_x_ + i / kTile);
+    }
+    stable_ = ZeroedArray<float>();
+    return passes;
+  }
   // Receiver pass (shaders/stabilize_receiver.frag): a texel holding more
   // than it can keep sends the excess towards the neighbour that limits it
   // (the void when one neighbour is the void); H falls strictly along these
@@ -874,23 +889,6 @@ int CpuStabilizer::route(double* routed_volume, Routing kind) {
   const auto excess = [&](uint32_t k) {
     return std::min((cells_[k].x + depth_[k]) - stable_[k], depth_[k]);
   };
-  if (drain) {
-    // Only the excess on its way into the void leaves (stabilize_apply.frag
-    // with u_drain); the tiles it left are computed again, and the gates
-    // around it read again.
-    for (uint32_t k : routed) {
-      if (pointer[k] != kPointerVoid) continue;
-      const float e = excess(k);
-      lost_[k] = lost_[k] + e;
-      depth_[k] = depth_[k] - e;
-      const size_t column = k % (size_t(width_) * size_t(height_));
-      column_changed_[column] = pass_id_;
-      const int i = int(column % size_t(width_)), j = int(column / size_t(width_));
-      touch((j / kTile) * tiles_x_ + i / kTile);
-    }
-    stable_ = ZeroedArray<float>();
-    return passes + jumps;
-  }
   // Scatter (shaders/stabilize_scatter.*: one point per routed texel, added
   // in texel order into its terminal) and apply (stabilize_apply.frag).
   // Terminals are never routed, so the excess is read before any change.

@@ -127,9 +127,9 @@ struct Stabilizer::Impl {
   // depth += scale * amount (an R32F or RGBA32F array, amount in r).
   void add_pass(const gl::Texture& amount, float scale);
   gl::Texture kept_amount;  // set_snow_amount's R32F array (none until then)
-  // The routing (snow/stabilize.h, Routing); draining, only the excess on
-  // its way into the void leaves (drain_due). Returns the erosion plus jump
-  // passes run.
+  // The routing (snow/stabilize.h, Routing); draining, the excess fills and
+  // spills down its paths (spill_excess, on the CPU). Returns the erosion
+  // plus jump passes run.
   int route(Routing kind = Routing::Settle);
   // route() of `kind` (not Drain) adding its passes, routed volume (what the
   // scatter summed plus what went into the void since `lost_before`, m^3)
@@ -246,8 +246,8 @@ void Stabilizer::Impl::upload_cells(const SnowMaps& maps) {
   hold_data = stabilize_holds(maps, settings);
   holds = gl::create_texture_2d_array(GL_RG32F, width, height, layers, "stabilize holds");
   upload_holds(nullptr);
-  if (settings.route_steep && settings.deposit_piles) {
-    // Rows on all cores.
+  if (settings.route_steep) {
+    // For the piles and the drains' spill, on the CPU; rows on all cores.
     pour_cells = ZeroedArray<glm::vec4>(cell_data.size());
     parallel_for(size_t(layers) * size_t(height), [&](size_t row) {
       for (size_t k = row * size_t(width); k < (row + 1) * size_t(width); ++k) {
@@ -650,7 +650,7 @@ void Stabilizer::Impl::scatter_routed(int routed) {
 
 int Stabilizer::Impl::route(Routing kind) {
   const bool drain = kind == Routing::Drain;
-  const int repose_only = kind == Routing::Creep ? 1 : 0;
+  const int repose_only = kind != Routing::Settle ? 1 : 0;
   bind(SNOW_STABILIZE_CELLS, cells);
   bind(SNOW_STABILIZE_HOLD, holds);
   bind(SNOW_STABILIZE_DEPTH, depth[cur]);
@@ -699,6 +699,28 @@ int Stabilizer::Impl::route(Routing kind) {
     if (passes > 4 * (width + height) * layers + 16) {
       throw GLError("stabilize: routing erosion did not settle");
     }
+  }
+  if (drain) {
+    // The excess fills and spills down its paths, on the CPU (snow/deposit.h,
+    // as CpuStabilizer does) from the kept heights and the depth read back.
+    std::vector<float> stable(size_t(width) * size_t(height) * size_t(layers));
+    glGetTextureImage(stable_tex[e]->id(), 0, GL_RED, GL_FLOAT,
+                      GLsizei(stable.size() * sizeof(float)), stable.data());
+    gl::check_error("stabilize: kept heights readback");
+    std::vector<glm::vec2> data = read_depth();
+    std::vector<float> s(data.size()), lost(data.size());
+    for (size_t k = 0; k < data.size(); ++k) {
+      s[k] = data[k].x;
+      lost[k] = data[k].y;
+    }
+    const float min_excess = routed_excess_of(settings, kind);
+    if (!spill_excess(pour_cells.data(), stable.data(), s.data(), lost.data(),
+                      DepositGrid{width, height, layers, grid.texel}, min_excess)
+             .empty()) {
+      for (size_t k = 0; k < data.size(); ++k) data[k] = glm::vec2(s[k], lost[k]);
+      write_depth(data);
+    }
+    return passes;
   }
   bind(SNOW_STABILIZE_STABLE, *stable_tex[e]);
   const gl::Texture* pointer[2] = {e == 0 ? &code : &out_b_uint, &out_a_uint};
@@ -749,16 +771,15 @@ int Stabilizer::Impl::route(Routing kind) {
   // from out_a, which the scatter now clears and sums the routed snow into;
   // then apply.
   bind(SNOW_STABILIZE_POINTER, *pointer[0]);
-  if (!drain) scatter_routed(routed);  // draining: nothing arrives but in the void
+  scatter_routed(routed);
   bind(SNOW_STABILIZE_OUT_A, out_a);
   bind_changed(tile_relax);
   apply.set("u_pass", pass_counter - 1);  // as a change of the last relaxation pass
   apply.set("u_since", routed);
-  apply.set("u_add_arrive", drain || settings.deposit_piles ? 0 : 1);
-  apply.set("u_drain", drain ? 1 : 0);
+  apply.set("u_add_arrive", settings.deposit_piles ? 0 : 1);
   per_layer(apply, fbo_depth[1 - cur]);
   cur = 1 - cur;
-  if (!drain && settings.deposit_piles) {
+  if (settings.deposit_piles) {
     // The piles are poured on the CPU (snow/deposit.h), from the depth and
     // the scattered sums, as CpuStabilizer does; their tiles are computed
     // again by the first relaxation pass after the routing.
