@@ -33,6 +33,10 @@
 // the cube of the map's side where the grouped pile's grows with its square.
 // Narrower piles are poured one by one as before (cheap, and they then come
 // to the same rest whether the snow arrives at once or frame by frame).
+// Snow pressed above its ceilings (pour_pressed_snow) is poured as one pile
+// per full gap (the pressed texels in neighbouring columns under one
+// continuous ceiling), all apexes at one height. What a group's pile does
+// not place goes back to its terminals, each its share.
 //
 // Both stabilizers run this on the CPU after their routing (the GPU reads
 // the depth and the scattered sums back and uploads the result), in the
@@ -63,6 +67,13 @@ struct DepositGrid {
 /// layout. Returns the number of terminals poured.
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
                      const DepositGrid& grid);
+/// Which terminals of a deposit_piles call are poured as one pile.
+enum class PileGrouping {
+  Lone,     // every terminal its own pile (to compare)
+  Wide,     // terminals under the open sky whose wide piles overlap (above)
+  Pressed,  // terminals in neighbouring columns under one continuous ceiling
+            // (pour_pressed_snow: the snow pressed out of one full gap)
+};
 struct DepositStats {
   size_t piles_in_parallel = 0;  // terminals poured by bands on several threads
   size_t groups = 0;             // piles poured over several terminals (grouped)
@@ -72,11 +83,10 @@ struct DepositStats {
 /// The same with the terminals given (the texels where arrive > 0, in any
 /// order), as the routing that filled arrive knows them. `threads`: the
 /// most threads to pour on (0 = default_threads()); the result does not
-/// depend on it. `group`: pour overlapping piles as one (above; false:
-/// every terminal its own pile, to compare).
+/// depend on it. `grouping`: which terminals pour as one pile.
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
                      std::vector<uint32_t> terminals, const DepositGrid& grid, unsigned threads = 0,
-                     DepositStats* stats = nullptr, bool group = true);
+                     DepositStats* stats = nullptr, PileGrouping grouping = PileGrouping::Wide);
 
 /// Snow pressed above its ceiling: where snow lies more than `min_over`
 /// metres above kCeilingClearance under its ceiling, the excess is taken

@@ -150,11 +150,11 @@ class Pourer {
   }
 
   void pour(uint32_t p, float volume);
-  /// Pours the snow of `count` terminals (arrive[t] each, all under the
-  /// open sky) as one pile: the upper envelope of a cone at each terminal,
-  /// apex `apex[t]` (m) raised by a common height until the pile holds their
-  /// volumes together. What does not fit stays on the terminal of the
-  /// highest apex; a terminal that sheds keeps its own snow, as in pour().
+  /// Pours the snow of `count` terminals (arrive[t] each) as one pile: the
+  /// upper envelope of a cone at each terminal, apex `apex[t]` (m) raised
+  /// by a common height until the pile holds their volumes together. What
+  /// does not fit goes back to the terminals, each its share; a terminal
+  /// that sheds keeps its own snow, as in pour().
   void pour_group(const uint32_t* terminals, const float* apex, size_t count, const float* arrive);
   /// Texels covered by all growths so far.
   size_t covered() const { return covered_total_; }
@@ -176,6 +176,7 @@ class Pourer {
   struct Seed {
     uint32_t k;
     float offset;
+    float volume;  // metres of depth it brings
   };
   /// Grows the pile of `volume` from seeds_ (distinct texels) into covered_
   /// (texel, path cost), spreading from a covered texel at the larger of its
@@ -323,7 +324,7 @@ void Pourer::pour(uint32_t p, float volume) {
     if (!aborted()) add_depth(p, volume);
     return;
   }
-  seeds_.assign(1, Seed{p, 0.0f});
+  seeds_.assign(1, Seed{p, 0.0f, volume});
   pour_seeds(p, volume);
 }
 
@@ -341,7 +342,7 @@ void Pourer::pour_group(const uint32_t* terminals, const float* apex, size_t cou
       continue;
     }
     volume += double(arrive[p]);
-    seeds_.push_back(Seed{p, apex[t]});
+    seeds_.push_back(Seed{p, apex[t], arrive[p]});
     if (apex[t] > highest) {
       highest = apex[t];
       anchor = p;
@@ -369,7 +370,21 @@ void Pourer::pour_seeds(uint32_t anchor, Sum volume) {
       placed += Sum(add);
     }
   }
-  add_depth(anchor, float(volume - placed));
+  Sum left = volume - placed;
+  if (seeds_.size() > 1 && std::isinf(cone)) {
+    // No room in reach for all of it (every covered texel filled to its
+    // ceiling): the anchor fills to its own, and what is left goes back to
+    // the seeds, each its share of what it brought.
+    const Sum own = std::min(left, Sum(std::max(cap(anchor) - double(top(anchor)), 0.0)));
+    const double back = double(left - own) / double(volume);
+    for (const Seed& seed : seeds_) {
+      const float add = float(double(seed.volume) * back);
+      if (seed.k == anchor || !(add > 0.0f) || Sum(add) > left - own) continue;
+      add_depth(seed.k, add);
+      left -= Sum(add);
+    }
+  }
+  add_depth(anchor, float(left));
 }
 
 bool Pourer::grows_alike(double apex) const {
@@ -516,7 +531,7 @@ std::vector<uint32_t> texels_under_ceilings(const glm::vec4* cells, const Deposi
 
 size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
                      std::vector<uint32_t> terminals, const DepositGrid& grid, unsigned threads,
-                     DepositStats* stats, bool group) {
+                     DepositStats* stats, PileGrouping grouping) {
   if (stats) *stats = DepositStats{};
   if (terminals.empty()) return 0;
   const size_t per_layer = size_t(grid.width) * size_t(grid.height);
@@ -538,7 +553,7 @@ size_t deposit_piles(const glm::vec4* cells, float* depth, const float* arrive,
     std::sort(keys.begin(), keys.end());
     for (size_t t = 0; t < keys.size(); ++t) terminals[t] = uint32_t(keys[t]);
   }
-  const PourUnits units = plan_pour_units(cells, depth, arrive, terminals, grid, group);
+  const PourUnits units = plan_pour_units(cells, depth, arrive, terminals, grid, grouping);
   const auto first_of = [&](size_t u) { return units.terminals[units.begin[u]]; };
   const auto pour_unit = [&](Pourer& pourer, size_t u) {
     const size_t b = units.begin[u], n = units.begin[u + 1] - b;
@@ -667,7 +682,8 @@ size_t pour_pressed_snow(const glm::vec4* cells, float* depth, const DepositGrid
     depth[k] = kept;
   }
   const std::vector<uint32_t> pressed = terminals;
-  deposit_piles(cells, depth, arrive.data(), std::move(terminals), grid);
+  deposit_piles(cells, depth, arrive.data(), std::move(terminals), grid, 0, nullptr,
+                PileGrouping::Pressed);
   // A pile with no room anywhere leaves its snow where it was: that texel
   // stays as it was, and does not count.
   size_t moved = 0;

@@ -10,7 +10,9 @@
 
 #include <glm/gtc/constants.hpp>
 
+#include "snow/column.h"
 #include "snow/stabilize.h"
+#include "snow/stabilize_cpu.h"
 
 namespace snow {
 namespace {
@@ -47,7 +49,8 @@ constexpr float kMaxGroupReachCells = 80.0f;
 // overlap (tops closer than h + h'), or through a chain of such.
 PourUnits plan_pour_units(const glm::vec4* cells, const float* depth, const float* arrive,
                           const std::vector<uint32_t>& ordered, const DepositGrid& grid,
-                          bool group) {
+                          PileGrouping grouping) {
+  const bool group = grouping == PileGrouping::Wide;
   const size_t n = ordered.size();
   const size_t per_layer = size_t(grid.width) * size_t(grid.height);
   std::vector<float> top(n), rise(n);  // m: snow top, lone cone's height
@@ -86,6 +89,27 @@ PourUnits plan_pour_units(const glm::vec4* cells, const float* depth, const floa
         }
         other = uint32_t(t);
       }
+    }
+  }
+  if (grouping == PileGrouping::Pressed) {
+    // Per column, the last terminal seen there (+1; 0: none).
+    std::vector<uint32_t> at(per_layer, 0u);
+    const float continuity = kSurfaceContinuityTexels * grid.texel;  // m
+    for (size_t t = 0; t < n; ++t) {
+      const uint32_t p = ordered[t];
+      const size_t c = p % per_layer;
+      const int i = int(c % size_t(grid.width)), j = int(c / size_t(grid.width));
+      for (int n8 = 0; n8 < 8; ++n8) {
+        const int ni = i + kDirI[n8], nj = j + kDirJ[n8];
+        if (ni < 0 || nj < 0 || ni >= grid.width || nj >= grid.height) continue;
+        const uint32_t other = at[size_t(nj) * size_t(grid.width) + size_t(ni)];
+        if (other == 0u || !(std::abs(cells[ordered[other - 1]].y - cells[p].y) < continuity))
+          continue;
+        const uint32_t a = root(uint32_t(t)), b = root(other - 1);
+        parent[std::max(a, b)] = std::min(a, b);
+      }
+      at[c] = uint32_t(t) + 1u;
+      top[t] = rise[t] = 0.0f;  // one apex for all
     }
   }
   // Units in the order of their first terminals (their roots).

@@ -26,14 +26,19 @@ struct PourUnits {
   size_t units() const { return begin.size() - 1; }
 };
 
-/// Cuts `ordered` (deposit_piles' order) into units: terminals under the
-/// open sky whose lone cones (the cone at the repose angle on flat ground
-/// that holds what arrived) are 8 texels wide or more and would overlap,
-/// in plan and in height, share a unit, directly or through a chain; each
-/// unit takes the place of its first terminal in the order. `group` false:
-/// every terminal a unit of its own.
+/// Cuts `ordered` (deposit_piles' order) into units, each taking the place
+/// of its first terminal in the order. PileGrouping::Wide: terminals under
+/// the open sky whose lone cones (the cone at the repose angle on flat
+/// ground that holds what arrived) are 8 texels wide or more and would
+/// overlap, in plan and in height, share a unit, directly or through a
+/// chain. PileGrouping::Pressed: terminals in neighbouring columns whose
+/// ceilings continue (differ by less than the surface continuity's rise,
+/// snow/column.h) share a unit, through chains, all with the same apex: the
+/// pile spreads from the whole full gap at once, where poured one by one
+/// each texel's pile crossed the gap again. PileGrouping::Lone: every
+/// terminal a unit of its own.
 PourUnits plan_pour_units(const glm::vec4* cells, const float* depth, const float* arrive,
                           const std::vector<uint32_t>& ordered, const DepositGrid& grid,
-                          bool group);
+                          PileGrouping grouping);
 
 }  // namespace snow
