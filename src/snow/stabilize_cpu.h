@@ -28,6 +28,10 @@
 
 #include <glm/glm.hpp>
 
+#include <algorithm>
+
+#include <glm/glm.hpp>
+
 #include "core/zeroed.h"
 #include "snow/maps.h"
 #include "snow/stabilize.h"
@@ -38,6 +42,30 @@ namespace snow {
 /// the edge neighbours (distance texel), 4..7 the diagonal ones (texel*sqrt2).
 constexpr int kDirI[8] = {1, -1, 0, 0, 1, -1, 1, -1};
 constexpr int kDirJ[8] = {0, 0, 1, -1, 1, 1, -1, -1};
+
+/// The snow surface of a layer texel with cell `cell` and depth s (m) as far
+/// as it is free to move: ground + depth, kept kCeilingClearance under the
+/// ceiling (column.glsl free_top).
+inline float free_top(const glm::vec4& cell, float s) {
+  return std::max(cell.x, std::min(cell.x + s, cell.y - kCeilingClearance));
+}
+
+/// A column (i, j) of the stabilizer's cells (maps' layout, `per_layer`
+/// texels a layer) for land_in_column (snow/column.h), its snow tops
+/// top(k) of layer texel k: the depth's, or the routing's kept heights.
+template <class Top>
+struct CellColumn {
+  const glm::vec4* cells;
+  size_t per_layer, column;  // column: j * width + i
+  Top top_of;
+  size_t k(int l) const { return size_t(l) * per_layer + column; }
+  bool has(int l) const { return (int(cells[k(l)].w) & kCellSurface) != 0; }
+  float ground(int l) const { return cells[k(l)].x; }
+  float ceiling(int l) const { return cells[k(l)].y; }
+  float top(int l) const { return top_of(k(l)); }
+  bool solid(int l) const { return (int(cells[k(l)].w) & kCellSolid) != 0; }
+  bool faces_down(int l) const { return (int(cells[k(l)].w) & kCellDown) != 0; }
+};
 
 /// The CPU twin of snow::Stabilizer: same contract, same passes, same float
 /// math.

@@ -40,12 +40,6 @@ constexpr uint32_t kPointerVoid = 0xffffffffu;
 
 int cell_flags(const glm::vec4& cell) { return int(cell.w); }
 
-// The snow surface as far as it is free to move: ground + depth, kept
-// kCeilingClearance under the ceiling (column.glsl free_top).
-float free_top(const glm::vec4& cell, float s) {
-  return std::max(cell.x, std::min(cell.x + s, cell.y - kCeilingClearance));
-}
-
 // The snow of a texel that cohesion holds in place (snow/cohesion.h): its
 // depth s up to `cap`, what of the snow that fell there cohesion can hold
 // (held_cap_), and never above its free top (snow pressed out from under a

@@ -199,17 +199,12 @@ class Pourer {
   /// scenes).
   bool grows_alike(double apex) const;
 
-  struct Column {
-    const Pourer& s;
-    int i, j;
-    const glm::vec4& cell(int l) const { return s.cells_[s.index(l, i, j)]; }
-    bool has(int l) const { return (int(cell(l).w) & kCellSurface) != 0; }
-    float ground(int l) const { return cell(l).x; }
-    float ceiling(int l) const { return cell(l).y; }
-    float top(int l) const { return s.top(s.index(l, i, j)); }
-    bool solid(int l) const { return (int(cell(l).w) & kCellSolid) != 0; }
-    bool faces_down(int l) const { return (int(cell(l).w) & kCellDown) != 0; }
-  };
+  // Column (i, j) with the snow tops top(k).
+  auto column(int i, int j) const {
+    const auto top_of = [this](size_t k) { return top(k); };
+    return CellColumn<decltype(top_of)>{cells_, per_layer_,
+                                        size_t(j) * size_t(g_.width) + size_t(i), top_of};
+  }
   size_t index(int l, int i, int j) const {
     return size_t(l) * per_layer_ + size_t(j) * size_t(g_.width) + size_t(i);
   }
@@ -266,7 +261,7 @@ class Pourer {
   float void_under(int i, int j) {
     const size_t c = size_t(j) * size_t(g_.width) + size_t(i);
     if (void_pour_[c] == pours_) return void_under_[c];
-    const Column col{*this, i, j};
+    const auto col = column(i, j);
     int count = 0;
     float under = std::numeric_limits<float>::infinity();
     for (; count < g_.layers && col.has(count); ++count) {
@@ -283,7 +278,7 @@ class Pourer {
   // inside of a solid): where a pile rising at h spreads to.
   int gap_at(int i, int j, float h) const {
     if (!on_map(i, j)) return -1;
-    const Column col{*this, i, j};
+    const auto col = column(i, j);
     for (int l = 0; l < g_.layers && col.has(l); ++l) {
       if (h >= col.ceiling(l)) return -1;
       if (h >= col.ground(l)) return col.solid(l) ? -1 : l;

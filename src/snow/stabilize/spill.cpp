@@ -6,7 +6,6 @@
 #include "core/zeroed.h"
 #include "snow/column.h"
 #include "snow/deposit.h"
-#include "snow/stabilize.h"
 #include "snow/stabilize_cpu.h"
 
 namespace snow {
@@ -16,21 +15,6 @@ namespace {
 constexpr uint32_t kNowhere = 0xffffffffu;   // a path's end: what arrives stays
 constexpr uint32_t kIntoVoid = 0xfffffffeu;  // what passes on leaves the scene
 
-// A column of the cells with the kept heights as its snow tops (the
-// routing's landing rule, CpuStabilizer::land with `kept`).
-struct KeptColumn {
-  const glm::vec4* cells;
-  const float* stable;
-  size_t per_layer, column;
-  size_t k(int l) const { return size_t(l) * per_layer + column; }
-  bool has(int l) const { return (int(cells[k(l)].w) & kCellSurface) != 0; }
-  float ground(int l) const { return cells[k(l)].x; }
-  float ceiling(int l) const { return cells[k(l)].y; }
-  float top(int l) const { return stable[k(l)]; }
-  bool solid(int l) const { return (int(cells[k(l)].w) & kCellSolid) != 0; }
-  bool faces_down(int l) const { return (int(cells[k(l)].w) & kCellDown) != 0; }
-};
-
 }  // namespace
 
 std::vector<uint32_t> spill_excess(const glm::vec4* cells, const float* stable, float* depth,
@@ -39,10 +23,7 @@ std::vector<uint32_t> spill_excess(const glm::vec4* cells, const float* stable, 
   const size_t count = per_layer * size_t(grid.layers);
   const float rise = kSurfaceContinuityTexels * grid.texel;
   const float diagonal = float(double(grid.texel) * 1.4142135623730951);
-  const auto free_top = [&](size_t k) {
-    const glm::vec4& c = cells[k];
-    return std::max(c.x, std::min(c.x + depth[k], c.y - kCeilingClearance));
-  };
+  const auto kept = [stable](size_t k) { return stable[k]; };
   // The sources, in texel order, and what each gives up (m).
   ZeroedArray<float> flow(count);
   std::vector<std::vector<uint32_t>> source_rows(size_t(grid.layers) * size_t(grid.height));
@@ -66,15 +47,15 @@ std::vector<uint32_t> spill_excess(const glm::vec4* cells, const float* stable, 
     const size_t column = k % per_layer;
     const int i = int(column % size_t(grid.width)), j = int(column / size_t(grid.width));
     const glm::vec4 cell = cells[k];
-    const float he = free_top(k);
+    const float he = free_top(cell, depth[k]);
     uint32_t p = kNowhere;
     float bound = cell.y - kCeilingClearance, best = 0.0f;
     for (int n = 0; n < 8; ++n) {
       const int ni = i + kDirI[n], nj = j + kDirJ[n];
       int land_l = kLandVoid;
       if (ni >= 0 && nj >= 0 && ni < grid.width && nj < grid.height) {
-        const KeptColumn col{cells, stable, per_layer,
-                             size_t(nj) * size_t(grid.width) + size_t(ni)};
+        const CellColumn<decltype(kept)> col{cells, per_layer,
+                                             size_t(nj) * size_t(grid.width) + size_t(ni), kept};
         land_l = land_in_column(col, grid.layers, he, cell.x, rise);
       }
       if (land_l == kLandVoid) {
@@ -99,19 +80,14 @@ std::vector<uint32_t> spill_excess(const glm::vec4* cells, const float* stable, 
   std::vector<uint32_t> reached;
   ZeroedArray<uint32_t> arrivals(count), next(count);
   ZeroedArray<float> room(count);
-  ZeroedArray<uint8_t> seen(count);
+  ZeroedArray<uint8_t> seen(count);  // 1: on a path; 2: on a path that ends in the void
   for (const std::vector<uint32_t>& row : source_rows) {
     for (const uint32_t source : row) {
       for (uint32_t q = source; q != kNowhere && q != kIntoVoid;) {
-        const bool first = !seen[q];
-        if (first) {
-          seen[q] = 1;
-          reached.push_back(q);
-          float r = 0.0f;
-          next[q] = follow(q, &r);
-          room[q] = r;
-        }
-        if (!first) break;  // (its path was walked, and counted, before)
+        if (seen[q]) break;  // its path was walked, and counted, before
+        seen[q] = 1;
+        reached.push_back(q);
+        next[q] = follow(q, &room[q]);
         const uint32_t p = next[q];
         if (p != kNowhere && p != kIntoVoid) ++arrivals[p];
         q = p;
