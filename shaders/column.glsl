@@ -37,6 +37,10 @@ const float kCeilingClearance = 1e-4;  // metres, snow::kCeilingClearance
 
 const uint kCodeNone = 254u;
 const uint kCodeVoid = 255u;
+// Set on the landing layer of snow squeezed into a gap that is already full
+// (stabilize_outflow.frag): it lands as the layer's, but is no move that
+// the convergence test sees (CpuStabilizer::outflow_texel's *hidden).
+const uint kCodeFull = 64u;
 const uint kPointerVoid = 0xffffffffu;
 
 const ivec2 kDir[8] = ivec2[8](ivec2(1, 0), ivec2(-1, 0), ivec2(0, 1), ivec2(0, -1), ivec2(1, 1),

@@ -9,7 +9,8 @@
 // Writes the new depth with imageStore and stamps the tiles that changed
 // (active tiles, src/snow/stabilize/gpu.cpp). On convergence checks it also
 // keeps, per tile, the largest move (sum of a texel's 8 amounts, summed in
-// direction order as the CPU does) and the largest sum sent into the void.
+// direction order as the CPU does, but for those into full gaps) and the
+// largest sum sent into the void.
 #include "bindings.h"
 #include "column.glsl"
 
@@ -55,15 +56,11 @@ void main() {
     }
     changed = changed || any(notEqual(a, vec4(0.0))) || any(notEqual(b, vec4(0.0)));
     if (u_measure != 0) {
-      float move = 0.0;
-      move += a.x;
-      move += a.y;
-      move += a.z;
-      move += a.w;
-      move += b.x;
-      move += b.y;
-      move += b.z;
-      move += b.w;
+      float move = 0.0;  // summed in direction order, leaving out kCodeFull
+      for (int n = 0; n < 8; ++n) {
+        uint code = code_of(own, n);
+        if (code >= kCodeNone || (code & kCodeFull) == 0u) move += n < 4 ? a[n] : b[n - 4];
+      }
       largest = max(largest, move);
       float to_void = 0.0;
       for (int n = 0; n < 8; ++n) {
@@ -80,6 +77,7 @@ void main() {
     for (int lm = 0; lm < from; ++lm) {
       ivec3 t = ivec3(m, lm);
       uint code = code_of(texelFetch(u_code, t, 0).rg, n);
+      if (code < kCodeNone) code &= ~kCodeFull;
       if (code < uint(surfaces)) {
         s[code] += n < 4 ? texelFetch(u_out_a, t, 0)[n] : texelFetch(u_out_b, t, 0)[n - 4];
       }

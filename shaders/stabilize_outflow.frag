@@ -120,7 +120,8 @@ void main() {
       for (int n = 0; n < 8; ++n) amount[n] = total * divide(w[n], wsum);
     } else if (over > 0.0 && u_stride == 1) {
       // Snow deeper than its gap with nowhere downhill to go is squeezed out
-      // sideways into the neighbouring columns' gaps at that height.
+      // sideways into the neighbouring columns' gaps at that height; into a
+      // full one it is not a move the convergence test sees (kCodeFull).
       precise float p[8];  // no fused or reassociated arithmetic, as the CPU
       precise float psum = 0.0;
       for (int n = 0; n < 8; ++n) {
@@ -137,6 +138,7 @@ void main() {
           precise float room =
               (tc.y - kCeilingClearance) - (tc.x + texelFetch(u_depth, ivec3(nc, gap), 0).r);
           p[n] = min(max(0.5 * (over + room), 0.0), over);
+          if (!(room > 0.0)) code[n] |= kCodeFull;  // it stays at its ceiling
         }
         psum += p[n];
       }

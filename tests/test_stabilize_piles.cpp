@@ -483,6 +483,57 @@ TEST(StabilizeReference, PressedSnowIsPouredOut) {
   EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-5 * before);
 }
 
+// A closed cavity: a slab 0.1 m over the floor, walled in on all sides, its
+// gap exactly full (snow up to the ceiling's clearance) and 2 cm more on one
+// texel in its middle, with no room anywhere.
+SnowMaps closed_cavity_maps(int side, float texel) {
+  return make_maps(side, side, texel, 3, [=](float x, float z) {
+    const float edge = 1.5f * texel;  // one column of wall around
+    if (x < edge || z < edge || x > side * texel - edge || z > side * texel - edge) {
+      return std::vector<Surface>{{1.0f, kUp}};
+    }
+    return std::vector<Surface>{{0.15f, kUp}, {0.1f, kDown}, {0.0f, kUp}};
+  });
+}
+
+std::vector<float> full_cavity_snow(const SnowMaps& maps, size_t pressed) {
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  for (size_t k = 0; k < depth.size(); ++k) {
+    if (!std::isnan(maps.ground[k]) && maps.ground[k] == 0.0f) {
+      depth[k] = maps.ceiling[k] - kCeilingClearance;
+    }
+  }
+  depth[pressed] += 0.02f;
+  return depth;
+}
+
+// The relaxation squeezes the pressed snow into the full gaps around it,
+// which press it back: no snow surface changes (every texel stays at its
+// ceiling), so the stabilizer rests at its first check. Before, those
+// squeezes counted as moves and the snow rocked between full neighbours for
+// as many passes as it was given (1000 here; a toy car's underside at forced
+// map sides).
+TEST(StabilizeReference, PressedSnowInAClosedFullGapComesToRest) {
+  const int side = 24;
+  const SnowMaps maps = closed_cavity_maps(side, 0.05f);
+  const size_t middle = maps.index(2, side / 2, side / 2);  // (layer 2: the floor)
+  ASSERT_EQ(maps.ceiling[middle], 0.1f);
+  std::vector<float> depth = full_cavity_snow(maps, middle);
+  const std::vector<float> start = depth;
+  StabilizeSettings settings = loose_settings();
+  settings.max_iterations = 1000;
+  const StabilizeResult r = stabilize_cpu(maps, depth, settings);
+  EXPECT_TRUE(r.converged);
+  EXPECT_LT(r.iterations, 100);
+  EXPECT_EQ(r.lost_volume, 0.0);
+  EXPECT_NEAR(snow_volume(maps, depth), snow_volume(maps, start), 1e-6 * snow_volume(maps, start));
+  for (size_t k = 0; k < depth.size(); ++k) {  // every surface as it was
+    if (std::isnan(maps.ground[k]) || maps.ground[k] != 0.0f) continue;
+    const float top = maps.ceiling[k] - kCeilingClearance;
+    EXPECT_FLOAT_EQ(std::min(depth[k], top), std::min(start[k], top)) << k;
+  }
+}
+
 // The snow pressed out of the cellar's full gap (its over, 2 cm on each of
 // 1024 texels) poured by pour_pressed_snow's grouping, one pile from the
 // whole gap, and one pile per texel: both hold the volume exactly, the one
@@ -744,6 +795,20 @@ TEST(StabilizeGpu, CreepRoutingMatchesReference) {
   EXPECT_EQ(rg.creep_routes, rc.creep_routes);
   EXPECT_EQ(rg.iterations, rc.iterations);
   EXPECT_NEAR(rg.routed_volume, rc.routed_volume, 1e-3 * rc.routed_volume + 1e-9);
+  expect_agree(maps, gpu, cpu);
+}
+
+TEST(StabilizeGpu, PressedSnowInAClosedFullGapComesToRest) {
+  REQUIRE_GL();
+  const int side = 24;
+  const SnowMaps maps = closed_cavity_maps(side, 0.05f);
+  std::vector<float> cpu = full_cavity_snow(maps, maps.index(2, side / 2, side / 2)), gpu = cpu;
+  StabilizeSettings settings = loose_settings();
+  settings.max_iterations = 1000;
+  const StabilizeResult rc = stabilize_cpu(maps, cpu, settings);
+  const StabilizeResult rg = stabilize(maps, gpu, settings);
+  EXPECT_TRUE(rg.converged);
+  EXPECT_EQ(rg.iterations, rc.iterations);
   expect_agree(maps, gpu, cpu);
 }
 

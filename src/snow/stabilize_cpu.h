@@ -102,7 +102,8 @@ class CpuStabilizer {
   };
   /// Outflow: amount (8 per layer texel, metres) and code (8 per layer
   /// texel: landing layer, kCodeNone or kCodeVoid; kCodeNone where nothing
-  /// moves) from the current depth; residual_ = the largest move.
+  /// moves) from the current depth; residual_ = the largest move the
+  /// convergence test sees.
   void outflow_pass(int stride);
   /// Gather: depth -= own outflow, += neighbours' outflow landing here; lost
   /// += own outflow to kCodeVoid. `stride` is the last outflow's.
@@ -129,10 +130,13 @@ class CpuStabilizer {
   bool single_step_moves(int i, int j, const glm::vec4& cell, float movable, float he,
                          float over) const;
   /// Outflow of one layer texel into out[8] and code[8]; returns the sum of
-  /// its amounts, and the sum of those into the void in *to_void.
+  /// its amounts, adds the sum of those into the void to *to_void and of
+  /// those squeezed into full gaps (unseen by the convergence test) to
+  /// *hidden.
   /// kStrided: stride > 1 (compiled apart: single steps are most passes).
   template <bool kStrided>
-  float outflow_texel(int l, int i, int j, int stride, float* to_void, float* out, uint8_t* code);
+  float outflow_texel(int l, int i, int j, int stride, float* to_void, float* out, uint8_t* code,
+                      float* hidden);
   /// Gather of the layer texels of one column; true when a depth changed.
   bool gather_column(int i, int j, int stride);
   /// Erosion of one layer texel: its next kept height from stable_.
@@ -257,7 +261,7 @@ class CpuStabilizer {
   std::vector<uint8_t> changed_;     // per tile: its last erosion pass changed it
   std::vector<Tile> changed_box_;    // per tile: the columns its last gather changed
   std::vector<int> work_;            // the tiles a pass computes
-  std::vector<glm::vec2> slot_max_;  // per tile of work_: largest move, largest into the void
+  std::vector<glm::vec3> slot_max_;  // per tile of work_: largest move, into the void, seen
   double tile_work_ = 0.0;           // tiles computed by the relaxation passes (count_tiles)
 };
 

@@ -358,7 +358,7 @@ bool CpuStabilizer::single_step_moves(int i, int j, const glm::vec4& cell, float
 // Mirrors shaders/stabilize_outflow.frag.
 template <bool kStrided>
 float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_void, float* out,
-                                   uint8_t* code) {
+                                   uint8_t* code, float* hidden) {
   const size_t k = index(l, i, j);
   for (int n = 0; n < 8; ++n) {
     out[n] = 0.0f;
@@ -465,8 +465,13 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   } else if (over > 0.0f && !kStrided) {
     // Snow deeper than its gap with nowhere downhill to go is squeezed
     // out sideways into the gaps of the neighbouring columns at that
-    // height, as far as they have room (the void takes everything).
+    // height, as far as they have room (the void takes everything). What
+    // goes into a gap that is already full changes no snow surface (it
+    // stays at its ceiling) and is not a move the convergence test sees
+    // (*hidden): pressure passed back and forth in a closed full gap would
+    // otherwise keep the stabilizer from ever resting.
     float p[8];
+    bool full[8] = {};  // a neighbour gap with no room: it stays at its ceiling
     float psum = 0.0f;
     for (int n = 0; n < 8; ++n) {
       p[n] = 0.0f;
@@ -481,12 +486,16 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
         const size_t kt = index(gap, ni, nj);
         const float room = (cells_[kt].y - kCeilingClearance) - (cells_[kt].x + depth_[kt]);
         p[n] = std::min(std::max(0.5f * (over + room), 0.0f), over);
+        full[n] = !(room > 0.0f);
       }
       psum += p[n];
     }
     if (psum > 0.0f) {
       const float scale = std::min(1.0f, over / psum);
-      for (int n = 0; n < 8; ++n) out[n] = p[n] * scale;
+      for (int n = 0; n < 8; ++n) {
+        out[n] = p[n] * scale;
+        if (full[n]) *hidden += out[n];
+      }
     }
   }
   // A direction that moves nothing has no landing code.
@@ -516,23 +525,25 @@ void CpuStabilizer::outflow_pass(int stride) {
   work_ = active ? dirty.list : surface_tiles_;
   const std::vector<int>& tiles = work_;
   tile_work_ += double(tiles.size());
-  slot_max_.assign(tiles.size(), glm::vec2(0.0f));
+  slot_max_.assign(tiles.size(), glm::vec3(0.0f));
   for_tiles(tiles, [&](int t, size_t slot) {
     const Tile b = tile(t);
-    float largest = 0.0f, largest_void = 0.0f;
+    float largest = 0.0f, largest_void = 0.0f, visible = 0.0f;
     for (int j = b.j0; j < b.j1; ++j) {
       for (int i = b.i0; i < b.i1; ++i) {
         const size_t c = size_t(j) * width_ + i;
         const int col_layers = column_layers_[c];
-        float column_largest = 0.0f;
+        float column_largest = 0.0f, column_visible = 0.0f;
         float out[8 * 64];
         uint8_t code[8 * 64];
         for (int l = 0; l < col_layers; ++l) {
-          float to_void = 0.0f;
-          const float sent =
-              stride > 1 ? outflow_texel<true>(l, i, j, stride, &to_void, &out[8 * l], &code[8 * l])
-                         : outflow_texel<false>(l, i, j, 1, &to_void, &out[8 * l], &code[8 * l]);
+          float to_void = 0.0f, hidden = 0.0f;
+          const float sent = stride > 1 ? outflow_texel<true>(l, i, j, stride, &to_void,
+                                                              &out[8 * l], &code[8 * l], &hidden)
+                                        : outflow_texel<false>(l, i, j, 1, &to_void, &out[8 * l],
+                                                               &code[8 * l], &hidden);
           column_largest = std::max(column_largest, sent);
+          column_visible = std::max(column_visible, sent - hidden);
           largest_void = std::max(largest_void, to_void);
         }
         // Only the amounts of a column that sends snow are read (by the
@@ -546,9 +557,10 @@ void CpuStabilizer::outflow_pass(int stride) {
           }
         }
         largest = std::max(largest, column_largest);
+        visible = std::max(visible, column_visible);
       }
     }
-    slot_max_[slot] = glm::vec2(largest, largest_void);
+    slot_max_[slot] = glm::vec3(largest, largest_void, visible);
   });
   residual_ = 0.0f;
   residual_void_ = 0.0f;
@@ -556,7 +568,7 @@ void CpuStabilizer::outflow_pass(int stride) {
   if (active) dirty.list.clear();
   for (size_t slot = 0; slot < tiles.size(); ++slot) {
     const int t = tiles[slot];
-    residual_ = std::max(residual_, slot_max_[slot].x);
+    residual_ = std::max(residual_, slot_max_[slot].z);
     residual_void_ = std::max(residual_void_, slot_max_[slot].y);
     if (slot_max_[slot].x > 0.0f) {
       sent_.add(t);
