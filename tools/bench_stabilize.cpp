@@ -25,6 +25,11 @@
 // With --trace, --probe I,J,R also prints after each chunk the layer texels
 // of the columns within R of column (I, J): ground, ceiling, normal's y and
 // depth, top down.
+// It also prints a pass against the memory-bandwidth bound (issue 52): the
+// least a pass must move is every layer texel's depth read and written and
+// its ground and ceiling read (kBoundBytesPerTexel), at the rate the device
+// copies memory (a GL buffer copy for the GPU backend, memcpy for the CPU
+// one); time full passes with --passes P --tiles off.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -39,6 +44,7 @@
 #include "core/heap.h"
 #include "core/log.h"
 #include "gl/context.h"
+#include "gl/objects.h"
 #include "scene/builder.h"
 #include "scene/load_gltf.h"
 #include "snow/coverage.h"
@@ -50,6 +56,43 @@ namespace {
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// Bytes a stabilizer pass moves at least per layer texel: depth read and
+/// written (2 x 4 B), ground and ceiling read (2 x 4 B).
+constexpr double kBoundBytesPerTexel = 16.0;
+/// Bytes copied to measure the copy rate, and the copies (the best is kept).
+constexpr size_t kCopyBytes = size_t(256) << 20;
+constexpr int kCopies = 5;
+
+/// Bytes per second the device moves copying kCopyBytes (read + write
+/// counted), the best of kCopies: a GL buffer copy (gpu) or memcpy (cpu).
+double copy_rate(bool gl) {
+  double best = 0.0;
+  if (gl) {
+    snow::gl::Buffer from = snow::gl::create_buffer(), to = snow::gl::create_buffer();
+    glNamedBufferData(from.id(), GLsizeiptr(kCopyBytes), nullptr, GL_STATIC_DRAW);
+    glNamedBufferData(to.id(), GLsizeiptr(kCopyBytes), nullptr, GL_STATIC_DRAW);
+    const GLuint zero = 0;
+    glClearNamedBufferData(from.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+    glClearNamedBufferData(to.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+    glFinish();
+    for (int c = 0; c < kCopies; ++c) {
+      const auto t0 = std::chrono::steady_clock::now();
+      glCopyNamedBufferSubData(from.id(), to.id(), 0, 0, GLsizeiptr(kCopyBytes));
+      glFinish();
+      best = std::max(best, 2.0 * double(kCopyBytes) / seconds_since(t0));
+    }
+  } else {
+    std::vector<char> from(kCopyBytes, 1), to(kCopyBytes, 0);
+    for (int c = 0; c < kCopies; ++c) {
+      const auto t0 = std::chrono::steady_clock::now();
+      std::memcpy(to.data(), from.data(), kCopyBytes);
+      best = std::max(best, 2.0 * double(kCopyBytes) / seconds_since(t0));
+    }
+    if (to[kCopyBytes / 2] != 1) std::abort();  // the copies are kept
+  }
+  return best;
 }
 
 }  // namespace
@@ -250,6 +293,14 @@ int main(int argc, char** argv) {
         r.converged ? "yes" : "no", r.residual, total_s,
         1000.0 * total_s / std::max(1, r.iterations), route_s + total_s, 100.0 * r.tile_share,
         r.volume, route.lost_volume + r.lost_volume);
+    const double bytes = kBoundBytesPerTexel * double(maps.layers) * double(maps.grid.texels());
+    const double rate = copy_rate(o.backend == "gpu");
+    const double pass_s = total_s / std::max(1, r.iterations), bound_s = bytes / rate;
+    std::printf(
+        "memory bound: %.0f MB a pass at %.1f GB/s (%s) = %.2f ms; a pass %.2f ms = %.1fx the "
+        "bound\n",
+        bytes / 1e6, rate / 1e9, o.backend == "gpu" ? "GL buffer copy" : "memcpy", 1000.0 * bound_s,
+        1000.0 * pass_s, pass_s / bound_s);
   } catch (const Error& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return e.exit_code();
