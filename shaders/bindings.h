@@ -53,6 +53,9 @@
 #define SNOW_STABILIZE_TILE_ROUTED 3
 // uimage2D R32UI per tile: the largest sum a texel sent into the void in a checked pass.
 #define SNOW_STABILIZE_TILE_VOID 4
+// uimage2D R32UI per tile: the largest move the convergence test sees (all but the snow
+// squeezed into full gaps) in a checked pass.
+#define SNOW_STABILIZE_TILE_SEEN 6
 // SSBO: per layer and for the column passes a draw-indirect command (uint[4]),
 // then per layer and for the column passes its tiles.
 #define SNOW_STABILIZE_TILE_LIST 0

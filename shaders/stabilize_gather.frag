@@ -9,8 +9,8 @@
 // Writes the new depth with imageStore and stamps the tiles that changed
 // (active tiles, src/snow/stabilize/gpu.cpp). On convergence checks it also
 // keeps, per tile, the largest move (sum of a texel's 8 amounts, summed in
-// direction order as the CPU does, but for those into full gaps) and the
-// largest sum sent into the void.
+// direction order as the CPU does), the largest sum sent into the void and
+// the largest move less what went into full gaps (kCodeFull).
 #include "bindings.h"
 #include "column.glsl"
 
@@ -25,6 +25,7 @@ layout(binding = SNOW_STABILIZE_TILE_CHANGED, r32i) uniform writeonly iimage2D u
 // Per tile, the largest move (float bits; moves are >= 0), with u_measure.
 layout(binding = SNOW_STABILIZE_TILE_MOVES, r32ui) uniform uimage2D u_moves;
 layout(binding = SNOW_STABILIZE_TILE_VOID, r32ui) uniform uimage2D u_void_moves;
+layout(binding = SNOW_STABILIZE_TILE_SEEN, r32ui) uniform uimage2D u_seen_moves;
 uniform int u_pass;     // index stamped on changed tiles
 uniform int u_tile;     // texels per tile side
 uniform int u_measure;  // 1: keep the largest move in u_moves
@@ -40,7 +41,7 @@ void main() {
   float s[kMaxLayers], lost[kMaxLayers];
   vec2 before[kMaxLayers];
   bool changed = false;
-  float largest = 0.0, largest_void = 0.0;
+  float largest = 0.0, largest_void = 0.0, largest_seen = 0.0;
   for (int l = 0; l < surfaces; ++l) {
     ivec3 t = ivec3(c, l);
     before[l] = texelFetch(u_depth, t, 0).rg;
@@ -56,12 +57,15 @@ void main() {
     }
     changed = changed || any(notEqual(a, vec4(0.0))) || any(notEqual(b, vec4(0.0)));
     if (u_measure != 0) {
-      float move = 0.0;  // summed in direction order, leaving out kCodeFull
+      float move = 0.0, hidden = 0.0;  // summed in direction order
       for (int n = 0; n < 8; ++n) {
+        float amount = n < 4 ? a[n] : b[n - 4];
+        move += amount;
         uint code = code_of(own, n);
-        if (code >= kCodeNone || (code & kCodeFull) == 0u) move += n < 4 ? a[n] : b[n - 4];
+        if (code < kCodeNone && (code & kCodeFull) != 0u) hidden += amount;
       }
       largest = max(largest, move);
+      largest_seen = max(largest_seen, move - hidden);
       float to_void = 0.0;
       for (int n = 0; n < 8; ++n) {
         if (code_of(own, n) == kCodeVoid) to_void += n < 4 ? a[n] : b[n - 4];
@@ -91,4 +95,5 @@ void main() {
   if (changed) imageStore(u_changed, c / u_tile, ivec4(u_pass));
   if (largest > 0.0) imageAtomicMax(u_moves, c / u_tile, floatBitsToUint(largest));
   if (largest_void > 0.0) imageAtomicMax(u_void_moves, c / u_tile, floatBitsToUint(largest_void));
+  if (largest_seen > 0.0) imageAtomicMax(u_seen_moves, c / u_tile, floatBitsToUint(largest_seen));
 }

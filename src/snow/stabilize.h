@@ -149,7 +149,8 @@ inline Cohesion loose_snow() {
 
 struct StabilizeResult {
   int iterations = 0;          // relaxation passes run (outflow + gather pairs), count
-  float residual = 0.0f;       // metres, largest move (snow leaving one texel) in the last pass
+  float residual = 0.0f;       // metres, largest move (snow leaving one texel) in the last
+                               // checked pass, less what went into full gaps (no surface moves)
   bool converged = false;      // residual < tolerance was seen at a check after a single step
   int route_passes = 0;        // erosion passes (CPU: rounds) plus pointer-jumping passes of
                                // the routing, count

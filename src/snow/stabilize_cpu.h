@@ -102,8 +102,8 @@ class CpuStabilizer {
   };
   /// Outflow: amount (8 per layer texel, metres) and code (8 per layer
   /// texel: landing layer, kCodeNone or kCodeVoid; kCodeNone where nothing
-  /// moves) from the current depth; residual_ = the largest move the
-  /// convergence test sees.
+  /// moves) from the current depth; residual_ = the largest move,
+  /// residual_seen_ = the largest the convergence test sees.
   void outflow_pass(int stride);
   /// Gather: depth -= own outflow, += neighbours' outflow landing here; lost
   /// += own outflow to kCodeVoid. `stride` is the last outflow's.
@@ -236,6 +236,7 @@ class CpuStabilizer {
   uint32_t gates_from_ = 1;     // gates of earlier passes are stale (depth set, routed or poured)
   float residual_ = 0.0f;       // largest move of the last outflow pass
   float residual_void_ = 0.0f;  // and the largest into the void
+  float residual_seen_ = 0.0f;  // and the largest the convergence test sees
   bool route_pending_ = false;
   bool volume_sums_ = true;
   bool populated_ = false;          // add_snow faulted in the pages of its snow (once)

@@ -564,12 +564,14 @@ void CpuStabilizer::outflow_pass(int stride) {
   });
   residual_ = 0.0f;
   residual_void_ = 0.0f;
+  residual_seen_ = 0.0f;
   sent_.clear();
   if (active) dirty.list.clear();
   for (size_t slot = 0; slot < tiles.size(); ++slot) {
     const int t = tiles[slot];
-    residual_ = std::max(residual_, slot_max_[slot].z);
+    residual_ = std::max(residual_, slot_max_[slot].x);
     residual_void_ = std::max(residual_void_, slot_max_[slot].y);
+    residual_seen_ = std::max(residual_seen_, slot_max_[slot].z);
     if (slot_max_[slot].x > 0.0f) {
       sent_.add(t);
       if (active) dirty.list.push_back(t);  // it moves snow: computed again next time
@@ -951,21 +953,21 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
     ++result.iterations;
     if ((stride == 1 && pass - last_check >= settings_.check_every) || pass == passes) {
       last_check = pass;
-      result.residual = residual_;
-      schedule_.checked(stride, result.residual);
+      result.residual = residual_seen_;
+      schedule_.checked(stride, residual_);
       // A strided pass's largest move says nothing of single steps (its
       // paths may be blocked where single steps still move snow).
-      if (stride == 1 && result.residual < settings_.tolerance) {
+      if (stride == 1 && residual_seen_ < settings_.tolerance) {
         result.converged = true;
         break;
       }
       if (creep_route_due(settings_, schedule_, false)) {
         route_into(Routing::Creep, result);
         ++result.creep_routes;
-      } else if (drain_due(settings_, schedule_, result.residual, residual_void_)) {
+      } else if (drain_due(settings_, schedule_, residual_, residual_void_)) {
         result.route_passes += route(nullptr, Routing::Drain);
         ++result.drains;
-      } else if (pressed_snow_due(settings_, schedule_, result.residual)) {
+      } else if (pressed_snow_due(settings_, schedule_, residual_)) {
         schedule_.pressed_looked_for();
         if (pour_pressed() > 0) {
           ++result.pours;

@@ -31,6 +31,8 @@ namespace {
 
 constexpr int kReduceBlock = 16;  // columns per side of a block of the snow sums
 constexpr int kTile = 4;          // columns per side of an active tile (all layers)
+constexpr int kMoves =
+    3;  // largest moves per check: all, into the void, seen (stabilize_moves.comp)
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -67,6 +69,7 @@ struct Stabilizer::Impl {
   gl::Texture code_float, out_a_uint, out_b_uint;
   gl::Texture tile_moves;  // R32UI per tile: largest move of a checked pass (float bits)
   gl::Texture tile_void;   // R32UI per tile: and the largest into the void
+  gl::Texture tile_seen;   // R32UI per tile: and the largest the convergence test sees
   std::vector<gl::Framebuffer> fbo_outflow, fbo_depth[2];
   std::vector<gl::Framebuffer> fbo_out_b, fbo_code_float, fbo_code, fbo_out_a_uint, fbo_out_b_uint;
   std::vector<gl::Framebuffer> fbo_stable_both;  // code_float and out_b: the first erosion pass
@@ -154,24 +157,24 @@ struct Stabilizer::Impl {
   // snow after routing); metres.
   glm::dvec3 sum_blocks();
   // The largest move (m) of the last relaxation pass, which must have been
-  // measured, and the largest into the void.
-  glm::vec2 largest_move() const;
+  // measured, the largest into the void and the largest seen.
+  glm::vec3 largest_move() const;
   // Asynchronous checks (set_async_checks): the largest moves of a checked
   // pass reduced on the GPU (stabilize_moves.comp) and copied into a slot
   // of a persistently mapped buffer behind a fence, read a check later.
   gl::Buffer moves, moves_read;
-  const GLuint* moves_mapped = nullptr;  // 2 slots of 2 uints
+  const GLuint* moves_mapped = nullptr;  // 2 slots of kMoves uints
   GLsync moves_fence[2] = {nullptr, nullptr};
   int pending_slot = -1;   // the slot of the check not read yet, -1: none
   int pending_stride = 1;  // its pass's stride
   gl::Program moves_reduce;
   void request_moves(int slot);
-  glm::vec2 read_moves(int slot);
+  glm::vec3 read_moves(int slot);
   void drop_pending();
   // The largest moves a check decides by, and the stride of their pass:
   // this check's, or with async_checks the one before (none at the first
   // check after a reset).
-  std::optional<glm::vec2> checked_moves(int stride, int& measured_stride);
+  std::optional<glm::vec3> checked_moves(int stride, int& measured_stride);
   std::vector<glm::vec2> read_depth() const;
   // pour_pressed_snow on the depth read back; uploads it when snow was poured.
   bool pour_pressed();
@@ -277,6 +280,7 @@ void Stabilizer::Impl::create_textures() {
   tile_erode = gl::create_texture_2d(GL_R32I, tiles_x, tiles_y, "stabilize tile stamps");
   tile_moves = gl::create_texture_2d(GL_R32UI, tiles_x, tiles_y, "stabilize tile moves");
   tile_void = gl::create_texture_2d(GL_R32UI, tiles_x, tiles_y, "stabilize tile void moves");
+  tile_seen = gl::create_texture_2d(GL_R32UI, tiles_x, tiles_y, "stabilize tile seen moves");
   const GLint never = -1;
   glClearTexImage(tile_relax.id(), 0, GL_RED_INTEGER, GL_INT, &never);
   glClearTexImage(tile_erode.id(), 0, GL_RED_INTEGER, GL_INT, &never);
@@ -832,9 +836,12 @@ void Stabilizer::Impl::relax_pass(int stride, bool measure) {
     const GLuint zero = 0;
     glClearTexImage(tile_moves.id(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
     glClearTexImage(tile_void.id(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+    glClearTexImage(tile_seen.id(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
     glBindImageTexture(SNOW_STABILIZE_TILE_MOVES, tile_moves.id(), 0, GL_FALSE, 0, GL_READ_WRITE,
                        GL_R32UI);
     glBindImageTexture(SNOW_STABILIZE_TILE_VOID, tile_void.id(), 0, GL_FALSE, 0, GL_READ_WRITE,
+                       GL_R32UI);
+    glBindImageTexture(SNOW_STABILIZE_TILE_SEEN, tile_seen.id(), 0, GL_FALSE, 0, GL_READ_WRITE,
                        GL_R32UI);
   }
   if (tiled) {
@@ -865,12 +872,12 @@ void Stabilizer::Impl::relax_pass(int stride, bool measure) {
 void Stabilizer::Impl::request_moves(int slot) {
   if (!moves) {
     moves = gl::create_buffer();
-    glNamedBufferStorage(moves.id(), 2 * sizeof(GLuint), nullptr, GL_DYNAMIC_STORAGE_BIT);
+    glNamedBufferStorage(moves.id(), kMoves * sizeof(GLuint), nullptr, GL_DYNAMIC_STORAGE_BIT);
     moves_read = gl::create_buffer();
     const GLbitfield flags = GL_MAP_READ_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
-    glNamedBufferStorage(moves_read.id(), 4 * sizeof(GLuint), nullptr, flags);
+    glNamedBufferStorage(moves_read.id(), 2 * kMoves * sizeof(GLuint), nullptr, flags);
     moves_mapped = static_cast<const GLuint*>(
-        glMapNamedBufferRange(moves_read.id(), 0, 4 * sizeof(GLuint), flags));
+        glMapNamedBufferRange(moves_read.id(), 0, 2 * kMoves * sizeof(GLuint), flags));
     gl::check_error("stabilize: the moves' readback buffer");
     if (!moves_mapped) throw GLError("stabilize: cannot map the moves' readback buffer");
   }
@@ -880,38 +887,39 @@ void Stabilizer::Impl::request_moves(int slot) {
                      GL_R32UI);
   glBindImageTexture(SNOW_STABILIZE_TILE_VOID, tile_void.id(), 0, GL_FALSE, 0, GL_READ_ONLY,
                      GL_R32UI);
+  glBindImageTexture(SNOW_STABILIZE_TILE_SEEN, tile_seen.id(), 0, GL_FALSE, 0, GL_READ_ONLY,
+                     GL_R32UI);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SNOW_STABILIZE_MOVES, moves.id());
   moves_reduce.use();
   glDispatchCompute(GLuint((tiles_x + 7) / 8), GLuint((tiles_y + 7) / 8), 1);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
-  glCopyNamedBufferSubData(moves.id(), moves_read.id(), 0, GLintptr(slot) * 2 * sizeof(GLuint),
-                           2 * sizeof(GLuint));
+  glCopyNamedBufferSubData(moves.id(), moves_read.id(), 0, GLintptr(slot) * kMoves * sizeof(GLuint),
+                           kMoves * sizeof(GLuint));
   if (moves_fence[slot]) glDeleteSync(moves_fence[slot]);
   moves_fence[slot] = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
   glFlush();
   gl::check_error("stabilize: asking for the largest moves");
 }
 
-glm::vec2 Stabilizer::Impl::read_moves(int slot) {
+glm::vec3 Stabilizer::Impl::read_moves(int slot) {
   while (glClientWaitSync(moves_fence[slot], GL_SYNC_FLUSH_COMMANDS_BIT, 1000000000) ==
          GL_TIMEOUT_EXPIRED) {
   }
   glDeleteSync(moves_fence[slot]);
   moves_fence[slot] = nullptr;
-  glm::vec2 result;
-  std::memcpy(&result[0], &moves_mapped[2 * slot], sizeof(float));
-  std::memcpy(&result[1], &moves_mapped[2 * slot + 1], sizeof(float));
+  glm::vec3 result;
+  std::memcpy(&result[0], &moves_mapped[kMoves * slot], kMoves * sizeof(float));
   return result;
 }
 
 void Stabilizer::Impl::drop_pending() { pending_slot = -1; }
 
-std::optional<glm::vec2> Stabilizer::Impl::checked_moves(int stride, int& measured_stride) {
+std::optional<glm::vec3> Stabilizer::Impl::checked_moves(int stride, int& measured_stride) {
   measured_stride = stride;
   if (!async_checks) return largest_move();
   const int slot = pending_slot == 0 ? 1 : 0;
   request_moves(slot);
-  std::optional<glm::vec2> before;
+  std::optional<glm::vec3> before;
   if (pending_slot >= 0) {
     measured_stride = pending_stride;
     before = read_moves(pending_slot);
@@ -939,12 +947,13 @@ glm::dvec3 Stabilizer::Impl::sum_blocks() {
   return r;
 }
 
-glm::vec2 Stabilizer::Impl::largest_move() const {
-  glm::vec2 result;
+glm::vec3 Stabilizer::Impl::largest_move() const {
+  glm::vec3 result;
   std::vector<GLuint> moves(size_t(tiles_x) * size_t(tiles_y));
-  for (int which = 0; which < 2; ++which) {
-    glGetTextureImage((which == 0 ? tile_moves : tile_void).id(), 0, GL_RED_INTEGER,
-                      GL_UNSIGNED_INT, GLsizei(moves.size() * sizeof(GLuint)), moves.data());
+  const gl::Texture* tiles[kMoves] = {&tile_moves, &tile_void, &tile_seen};
+  for (int which = 0; which < kMoves; ++which) {
+    glGetTextureImage(tiles[which]->id(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT,
+                      GLsizei(moves.size() * sizeof(GLuint)), moves.data());
     gl::check_error("stabilize: largest move");
     GLuint largest = 0;  // the bits of non-negative floats order as the floats
     for (GLuint m : moves) largest = std::max(largest, m);
@@ -1002,14 +1011,14 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
     if (check) {
       last_check = pass;
       int measured_stride = stride;
-      const std::optional<glm::vec2> measured = checked_moves(stride, measured_stride);
+      const std::optional<glm::vec3> measured = checked_moves(stride, measured_stride);
       if (!measured) continue;  // the first asynchronous check: nothing known yet
-      const glm::vec2 moves = *measured;
-      result.residual = moves.x;
-      schedule.checked(measured_stride, result.residual);
+      const glm::vec3 moves = *measured;
+      result.residual = moves.z;
+      schedule.checked(measured_stride, moves.x);
       // A strided pass's largest move says nothing of single steps (its
       // paths may be blocked where single steps still move snow).
-      if (measured_stride == 1 && result.residual < settings.tolerance) {
+      if (measured_stride == 1 && moves.z < settings.tolerance) {
         result.converged = true;
         break;
       }
