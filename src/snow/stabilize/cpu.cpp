@@ -528,12 +528,12 @@ void CpuStabilizer::outflow_pass(int stride) {
   slot_max_.assign(tiles.size(), glm::vec3(0.0f));
   for_tiles(tiles, [&](int t, size_t slot) {
     const Tile b = tile(t);
-    float largest = 0.0f, largest_void = 0.0f, visible = 0.0f;
+    float largest = 0.0f, largest_void = 0.0f, largest_seen = 0.0f;
     for (int j = b.j0; j < b.j1; ++j) {
       for (int i = b.i0; i < b.i1; ++i) {
         const size_t c = size_t(j) * width_ + i;
         const int col_layers = column_layers_[c];
-        float column_largest = 0.0f, column_visible = 0.0f;
+        float column_largest = 0.0f, column_seen = 0.0f;
         float out[8 * 64];
         uint8_t code[8 * 64];
         for (int l = 0; l < col_layers; ++l) {
@@ -543,7 +543,7 @@ void CpuStabilizer::outflow_pass(int stride) {
                                         : outflow_texel<false>(l, i, j, 1, &to_void, &out[8 * l],
                                                                &code[8 * l], &hidden);
           column_largest = std::max(column_largest, sent);
-          column_visible = std::max(column_visible, sent - hidden);
+          column_seen = std::max(column_seen, sent - hidden);
           largest_void = std::max(largest_void, to_void);
         }
         // Only the amounts of a column that sends snow are read (by the
@@ -557,10 +557,10 @@ void CpuStabilizer::outflow_pass(int stride) {
           }
         }
         largest = std::max(largest, column_largest);
-        visible = std::max(visible, column_visible);
+        largest_seen = std::max(largest_seen, column_seen);
       }
     }
-    slot_max_[slot] = glm::vec3(largest, largest_void, visible);
+    slot_max_[slot] = glm::vec3(largest, largest_void, largest_seen);
   });
   residual_ = 0.0f;
   residual_void_ = 0.0f;

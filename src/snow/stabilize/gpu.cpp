@@ -31,8 +31,8 @@ namespace {
 
 constexpr int kReduceBlock = 16;  // columns per side of a block of the snow sums
 constexpr int kTile = 4;          // columns per side of an active tile (all layers)
-constexpr int kMoves =
-    3;  // largest moves per check: all, into the void, seen (stabilize_moves.comp)
+// Largest moves per check: all, into the void, seen (stabilize_moves.comp).
+constexpr int kMoves = 3;
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
