@@ -57,19 +57,16 @@ void main() {
     }
     changed = changed || any(notEqual(a, vec4(0.0))) || any(notEqual(b, vec4(0.0)));
     if (u_measure != 0) {
-      float move = 0.0, hidden = 0.0;  // summed in direction order
+      float move = 0.0, hidden = 0.0, to_void = 0.0;  // summed in direction order
       for (int n = 0; n < 8; ++n) {
         float amount = n < 4 ? a[n] : b[n - 4];
         move += amount;
         uint code = code_of(own, n);
+        if (code == kCodeVoid) to_void += amount;
         if (code < kCodeNone && (code & kCodeFull) != 0u) hidden += amount;
       }
       largest = max(largest, move);
       largest_seen = max(largest_seen, move - hidden);
-      float to_void = 0.0;
-      for (int n = 0; n < 8; ++n) {
-        if (code_of(own, n) == kCodeVoid) to_void += n < 4 ? a[n] : b[n - 4];
-      }
       largest_void = max(largest_void, to_void);
     }
   }

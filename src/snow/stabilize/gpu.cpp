@@ -126,6 +126,7 @@ struct Stabilizer::Impl {
   // as it fell (min(depth, standing height, holding depth); null: none).
   void upload_holds(const std::vector<float>* depth);
   void write_depth(const std::vector<glm::vec2>& data);  // depth and lost snow, every texel
+  void write_depth(const std::vector<float>& s, const std::vector<float>& lost);  // the same
   void add_snow(const std::vector<float>& add);
   // depth += scale * amount (an R32F or RGBA32F array, amount in r).
   void add_pass(const gl::Texture& amount, float scale);
@@ -550,6 +551,12 @@ void Stabilizer::Impl::write_depth(const std::vector<glm::vec2>& data) {
   gl::check_error("stabilize: depth upload");
 }
 
+void Stabilizer::Impl::write_depth(const std::vector<float>& s, const std::vector<float>& lost) {
+  std::vector<glm::vec2> data(s.size());
+  for (size_t k = 0; k < data.size(); ++k) data[k] = glm::vec2(s[k], lost[k]);
+  write_depth(data);
+}
+
 void Stabilizer::Impl::add_snow(const std::vector<float>& amount) {
   // The amount goes through out_a (scratch between passes) in r.
   glTextureSubImage3D(out_a.id(), 0, 0, 0, 0, width, height, layers, GL_RED, GL_FLOAT,
@@ -711,18 +718,12 @@ int Stabilizer::Impl::route(Routing kind) {
     glGetTextureImage(stable_tex[e]->id(), 0, GL_RED, GL_FLOAT,
                       GLsizei(stable.size() * sizeof(float)), stable.data());
     gl::check_error("stabilize: kept heights readback");
-    std::vector<glm::vec2> data = read_depth();
-    std::vector<float> s(data.size()), lost(data.size());
-    for (size_t k = 0; k < data.size(); ++k) {
-      s[k] = data[k].x;
-      lost[k] = data[k].y;
-    }
+    std::vector<float> s = read_channel(GL_RED), lost = read_channel(GL_GREEN);
     const float min_excess = routed_excess_of(settings, kind);
     if (!spill_excess(pour_cells.data(), stable.data(), s.data(), lost.data(),
                       DepositGrid{width, height, layers, grid.texel}, min_excess)
              .empty()) {
-      for (size_t k = 0; k < data.size(); ++k) data[k] = glm::vec2(s[k], lost[k]);
-      write_depth(data);
+      write_depth(s, lost);
     }
     return passes;
   }
@@ -811,10 +812,7 @@ bool Stabilizer::Impl::pour_pressed() {
                         settings.tolerance) == 0) {
     return false;
   }
-  const std::vector<float> lost = read_channel(GL_GREEN);
-  std::vector<glm::vec2> data(s.size());
-  for (size_t k = 0; k < data.size(); ++k) data[k] = glm::vec2(s[k], lost[k]);
-  write_depth(data);
+  write_depth(s, read_channel(GL_GREEN));
   return true;
 }
 
