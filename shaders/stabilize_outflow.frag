@@ -120,10 +120,12 @@ void main() {
       for (int n = 0; n < 8; ++n) amount[n] = total * divide(w[n], wsum);
     } else if (over > 0.0 && u_stride == 1) {
       // Snow deeper than its gap with nowhere downhill to go is squeezed out
-      // sideways into the neighbouring columns' gaps at that height; into a
-      // full one it is not a move the convergence test sees (kCodeFull).
+      // sideways into the neighbouring columns' gaps at that height, each
+      // gap of n taking 1/n of half the difference of over and its room;
+      // into a full one it is not a move the convergence test sees
+      // (kCodeFull).
       precise float p[8];  // no fused or reassociated arithmetic, as the CPU
-      precise float psum = 0.0;
+      int takers = 0;
       for (int n = 0; n < 8; ++n) {
         p[n] = 0.0;
         code[n] = kCodeNone;
@@ -140,12 +142,9 @@ void main() {
           p[n] = min(max(0.5 * (over + room), 0.0), over);
           if (!(room > 0.0)) code[n] |= kCodeFull;  // it stays at its ceiling
         }
-        psum += p[n];
+        takers += p[n] > 0.0 ? 1 : 0;
       }
-      if (psum > 0.0) {
-        float scale = min(1.0, divide(over, psum));
-        for (int n = 0; n < 8; ++n) amount[n] = p[n] * scale;
-      }
+      for (int n = 0; n < 8; ++n) amount[n] = divide(p[n], float(max(takers, 1)));
     }
     // A direction that moves nothing has no landing: the gather adds only
     // what moves, and a texel at rest writes what a skipped one holds.

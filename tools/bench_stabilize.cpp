@@ -177,7 +177,7 @@ void print_probe(const Options& o, const snow::SnowMaps& maps, const std::vector
       for (int l = 0; l < maps.layers; ++l) {
         const size_t k = maps.index(l, ii, jj);
         if (std::isnan(maps.ground[k])) break;
-        std::fprintf(stderr, " [%d g%.3f c%.3f n%.2f d%.4f]", l, maps.ground[k], maps.ceiling[k],
+        std::fprintf(stderr, " [%d g%.6g c%.6g n%.2f d%.6g]", l, maps.ground[k], maps.ceiling[k],
                      maps.normal[k].y, depth[k]);
       }
       std::fprintf(stderr, "\n");

@@ -465,14 +465,20 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   } else if (over > 0.0f && !kStrided) {
     // Snow deeper than its gap with nowhere downhill to go is squeezed
     // out sideways into the gaps of the neighbouring columns at that
-    // height, as far as they have room (the void takes everything). What
-    // goes into a gap that is already full changes no snow surface (it
-    // stays at its ceiling) and is not a move the convergence test sees
-    // (*hidden): pressure passed back and forth in a closed full gap would
-    // otherwise keep the stabilizer from ever resting.
+    // height. Each is offered half the difference of this texel's over and
+    // its room (a full gap's room is minus its own over; the void's room is
+    // the over), where the two would end level were it the only one, and
+    // of n gaps taking, each gets 1/n of its offer: the texel never gives
+    // more than the mean offer. (Given all its over at once, split by the
+    // offers, a texel pressed among full gaps handed its over around and
+    // got it back the next pass, for ever.) What goes into a gap that is
+    // already full changes no snow surface (it stays at its ceiling) and
+    // is not a move the convergence test sees (*hidden): pressure passed
+    // around in a closed full gap would otherwise keep the stabilizer from
+    // ever resting.
     float p[8];
     bool full[8] = {};  // a neighbour gap with no room: it stays at its ceiling
-    float psum = 0.0f;
+    int takers = 0;
     for (int n = 0; n < 8; ++n) {
       p[n] = 0.0f;
       code[n] = kCodeNone;
@@ -488,14 +494,11 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
         p[n] = std::min(std::max(0.5f * (over + room), 0.0f), over);
         full[n] = !(room > 0.0f);
       }
-      psum += p[n];
+      takers += p[n] > 0.0f;
     }
-    if (psum > 0.0f) {
-      const float scale = std::min(1.0f, over / psum);
-      for (int n = 0; n < 8; ++n) {
-        out[n] = p[n] * scale;
-        if (full[n]) *hidden += out[n];
-      }
+    for (int n = 0; n < 8; ++n) {
+      out[n] = p[n] / float(std::max(takers, 1));
+      if (full[n]) *hidden += out[n];
     }
   }
   // A direction that moves nothing has no landing code.
