@@ -120,31 +120,67 @@ void main() {
       for (int n = 0; n < 8; ++n) amount[n] = total * divide(w[n], wsum);
     } else if (over > 0.0 && u_stride == 1) {
       // Snow deeper than its gap with nowhere downhill to go is squeezed out
-      // sideways into the neighbouring columns' gaps at that height, each
-      // gap of n taking 1/n of half the difference of over and its room;
-      // into a full one it is not a move the convergence test sees
-      // (kCodeFull).
-      precise float p[8];  // no fused or reassociated arithmetic, as the CPU
-      int takers = 0;
+      // sideways into the neighbouring columns' gaps at that height: all of
+      // it into the void where there is one, else until this texel and the
+      // gaps taking end level (CpuStabilizer::outflow_texel); into a full
+      // gap it is not a move the convergence test sees (kCodeFull).
+      precise float room[8];  // no fused or reassociated arithmetic, as the CPU
+      bool taking[8];
+      int edges = 0;
       for (int n = 0; n < 8; ++n) {
-        p[n] = 0.0;
+        room[n] = 0.0;
+        taking[n] = false;
         code[n] = kCodeNone;
         ivec2 nc = c + kDir[n];
         int gap = gap_at(nc, he);
         if (gap == kLandVoid) {
           code[n] = kCodeVoid;
-          p[n] = over;
+          ++edges;
         } else if (gap >= 0) {
           code[n] = uint(gap);
           vec4 tc = texelFetch(u_cells, ivec3(nc, gap), 0);
-          precise float room =
-              (tc.y - kCeilingClearance) - (tc.x + texelFetch(u_depth, ivec3(nc, gap), 0).r);
-          p[n] = min(max(0.5 * (over + room), 0.0), over);
-          if (!(room > 0.0)) code[n] |= kCodeFull;  // it stays at its ceiling
+          room[n] = min((tc.y - kCeilingClearance) - (tc.x + texelFetch(u_depth, ivec3(nc, gap), 0).r),
+                        over);  // room past the over takes no more
+          taking[n] = true;
+          if (!(room[n] > 0.0)) code[n] |= kCodeFull;  // it stays at its ceiling
         }
-        takers += p[n] > 0.0 ? 1 : 0;
       }
-      for (int n = 0; n < 8; ++n) amount[n] = divide(p[n], float(max(takers, 1)));
+      if (edges > 0) {
+        float share = divide(over, float(edges));
+        float left = over;
+        int seen = 0;
+        for (int n = 0; n < 8; ++n) {
+          if (code[n] != kCodeVoid) continue;
+          ++seen;
+          amount[n] = seen == edges ? left : share;
+          left -= share;
+        }
+      } else {
+        precise float level = 0.0;
+        for (bool dropped = true; dropped;) {
+          precise float rooms = 0.0;
+          int count = 0;
+          for (int n = 0; n < 8; ++n) {
+            if (!taking[n]) continue;
+            rooms += room[n];
+            ++count;
+          }
+          level = divide(over - rooms, float(count + 1));
+          dropped = false;
+          for (int n = 0; n < 8; ++n) {
+            if (taking[n] && !(level + room[n] > 0.0)) {
+              taking[n] = false;
+              dropped = true;
+            }
+          }
+        }
+        precise float free = 0.0;
+        for (int n = 0; n < 8; ++n) free += taking[n] ? max(room[n], 0.0) : 0.0;
+        for (int n = 0; n < 8; ++n) {
+          if (!taking[n]) continue;
+          amount[n] = level > 0.0 ? level + room[n] : over * divide(max(room[n], 0.0), free);
+        }
+      }
     }
     // A direction that moves nothing has no landing: the gather adds only
     // what moves, and a texel at rest writes what a skipped one holds.

@@ -325,10 +325,12 @@ inline float routed_excess_of(const StabilizeSettings& settings, Routing kind) {
   return kind == Routing::Settle ? 0.0f : min_move_of(settings);
 }
 /// Snow pressed above its ceilings is poured (snow::pour_pressed_snow) at a
-/// check where the snow creeps, still moves more than the tolerance, and no
-/// drain runs, at most once per kPressedEvery passes (the caller then calls
-/// schedule.pressed_looked_for()); where none lies more than the tolerance
-/// above its ceiling's clearance, nothing changes. Looking scans every layer
+/// check where the snow creeps and still moves more than the tolerance, at
+/// most once per kPressedEvery passes (the caller then calls
+/// schedule.pressed_looked_for()), before a drain, which runs at that check
+/// only if nothing was poured (pressed snow squeezed into the void at an
+/// edge keeps drains due, which move none of it); where none lies more than
+/// the tolerance above its ceiling's clearance, nothing changes. Looking scans every layer
 /// texel, after a full readback on the GPU, hence not at every check. Shared
 /// by both stabilizers.
 constexpr int kPressedEvery = 16;

@@ -465,40 +465,77 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   } else if (over > 0.0f && !kStrided) {
     // Snow deeper than its gap with nowhere downhill to go is squeezed
     // out sideways into the gaps of the neighbouring columns at that
-    // height. Each is offered half the difference of this texel's over and
-    // its room (a full gap's room is minus its own over; the void's room is
-    // the over), where the two would end level were it the only one, and
-    // of n gaps taking, each gets 1/n of its offer: the texel never gives
-    // more than the mean offer. (Given all its over at once, split by the
-    // offers, a texel pressed among full gaps handed its over around and
-    // got it back the next pass, for ever.) What goes into a gap that is
-    // already full changes no snow surface (it stays at its ceiling) and
-    // is not a move the convergence test sees (*hidden): pressure passed
-    // around in a closed full gap would otherwise keep the stabilizer from
-    // ever resting.
-    float p[8];
-    bool full[8] = {};  // a neighbour gap with no room: it stays at its ceiling
-    int takers = 0;
+    // height; the void, where there is one, takes all of it. Otherwise it
+    // goes out until this texel and the gaps taking end level: each gap of
+    // room r (minus its own over where it is full) takes L + r, where L >=
+    // 0, this texel's over left, solves over - L = sum of (L + r) over the
+    // gaps with L + r > 0 (with one gap, half the difference of over and
+    // r). Where the rooms hold it all (L would be negative), it fills them
+    // in proportion to their room. (Given all its over whenever the offers
+    // of half the difference summed past it, a texel pressed among nearly
+    // full gaps handed its over around and got it back the next pass, for
+    // ever.) What goes into a gap that is already full changes no snow
+    // surface (it stays at its ceiling) and is not a move the convergence
+    // test sees (*hidden): pressure passed around in a closed full gap
+    // would otherwise keep the stabilizer from ever resting.
+    float room[8];
+    bool taking[8] = {};
+    int edges = 0;
     for (int n = 0; n < 8; ++n) {
-      p[n] = 0.0f;
+      room[n] = 0.0f;
       code[n] = kCodeNone;
       const int ni = i + kDirI[n], nj = j + kDirJ[n];
       const int gap = gap_at(ni, nj, he);
       if (gap == kLandVoid) {
         code[n] = kCodeVoid;
-        p[n] = over;
+        ++edges;
       } else if (gap >= 0) {
         code[n] = uint8_t(gap);
         const size_t kt = index(gap, ni, nj);
-        const float room = (cells_[kt].y - kCeilingClearance) - (cells_[kt].x + depth_[kt]);
-        p[n] = std::min(std::max(0.5f * (over + room), 0.0f), over);
-        full[n] = !(room > 0.0f);
+        // (Room past the over takes no more: capped, the sums stay finite
+        // under the open sky.)
+        room[n] = std::min((cells_[kt].y - kCeilingClearance) - (cells_[kt].x + depth_[kt]), over);
+        taking[n] = true;
       }
-      takers += p[n] > 0.0f;
     }
-    for (int n = 0; n < 8; ++n) {
-      out[n] = p[n] / float(std::max(takers, 1));
-      if (full[n]) *hidden += out[n];
+    if (edges > 0) {
+      const float share = over / float(edges);
+      float left = over;
+      int seen = 0;
+      for (int n = 0; n < 8; ++n) {
+        if (code[n] != kCodeVoid) continue;
+        ++seen;
+        out[n] = seen == edges ? left : share;
+        left -= share;
+      }
+    } else {
+      // The level: drop the gaps that would take nothing until none is
+      // left to drop (L only falls, so a dropped gap stays dropped).
+      float level = 0.0f;
+      for (bool dropped = true; dropped;) {
+        float rooms = 0.0f;
+        int count = 0;
+        for (int n = 0; n < 8; ++n) {
+          if (!taking[n]) continue;
+          rooms += room[n];
+          ++count;
+        }
+        level = (over - rooms) / float(count + 1);
+        dropped = false;
+        for (int n = 0; n < 8; ++n) {
+          if (taking[n] && !(level + room[n] > 0.0f)) {
+            taking[n] = false;
+            dropped = true;
+          }
+        }
+      }
+      float free = 0.0f;  // the rooms, where they hold it all
+      for (int n = 0; n < 8; ++n) free += taking[n] ? std::max(room[n], 0.0f) : 0.0f;
+      for (int n = 0; n < 8; ++n) {
+        if (!taking[n]) continue;
+        out[n] = level > 0.0f ? level + room[n] : over * (std::max(room[n], 0.0f) / free);
+        if (!(room[n] > 0.0f)) *hidden += out[n];
+      }
     }
   }
   // A direction that moves nothing has no landing code.
@@ -967,14 +1004,19 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
       if (creep_route_due(settings_, schedule_, false)) {
         route_into(Routing::Creep, result);
         ++result.creep_routes;
-      } else if (drain_due(settings_, schedule_, residual_, residual_void_)) {
-        result.route_passes += route(nullptr, Routing::Drain);
-        ++result.drains;
-      } else if (pressed_snow_due(settings_, schedule_, residual_)) {
-        schedule_.pressed_looked_for();
-        if (pour_pressed() > 0) {
-          ++result.pours;
-          touch_all();
+      } else {
+        bool poured = false;
+        if (pressed_snow_due(settings_, schedule_, residual_)) {
+          schedule_.pressed_looked_for();
+          poured = pour_pressed() > 0;
+          if (poured) {
+            ++result.pours;
+            touch_all();
+          }
+        }
+        if (!poured && drain_due(settings_, schedule_, residual_, residual_void_)) {
+          result.route_passes += route(nullptr, Routing::Drain);
+          ++result.drains;
         }
       }
     }

@@ -1024,15 +1024,20 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
         route_into(Routing::Creep, sum_blocks().y * area, result);
         ++result.creep_routes;
         reset_tiles();  // the routing used the outflow textures
-      } else if (drain_due(settings, schedule, moves.x, moves.y)) {
-        result.route_passes += route(Routing::Drain);
-        ++result.drains;
-        reset_tiles();  // the routing used the outflow textures
-      } else if (pressed_snow_due(settings, schedule, moves.x)) {
-        schedule.pressed_looked_for();
-        if (pour_pressed()) {
-          ++result.pours;
-          reset_tiles();
+      } else {
+        bool poured = false;
+        if (pressed_snow_due(settings, schedule, moves.x)) {
+          schedule.pressed_looked_for();
+          poured = pour_pressed();
+          if (poured) {
+            ++result.pours;
+            reset_tiles();
+          }
+        }
+        if (!poured && drain_due(settings, schedule, moves.x, moves.y)) {
+          result.route_passes += route(Routing::Drain);
+          ++result.drains;
+          reset_tiles();  // the routing used the outflow textures
         }
       }
     }
