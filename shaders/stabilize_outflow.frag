@@ -125,11 +125,11 @@ void main() {
       // gaps taking end level (CpuStabilizer::outflow_texel); into a full
       // gap it is not a move the convergence test sees (kCodeFull).
       precise float room[8];  // no fused or reassociated arithmetic, as the CPU
-      bool taking[8];
+      bool is_gap[8], taking[8];
       int edges = 0;
       for (int n = 0; n < 8; ++n) {
         room[n] = 0.0;
-        taking[n] = false;
+        is_gap[n] = taking[n] = false;
         code[n] = kCodeNone;
         ivec2 nc = c + kDir[n];
         int gap = gap_at(nc, he);
@@ -141,7 +141,7 @@ void main() {
           vec4 tc = texelFetch(u_cells, ivec3(nc, gap), 0);
           room[n] = min((tc.y - kCeilingClearance) - (tc.x + texelFetch(u_depth, ivec3(nc, gap), 0).r),
                         over);  // room past the over takes no more
-          taking[n] = true;
+          is_gap[n] = taking[n] = true;
           if (!(room[n] > 0.0)) code[n] |= kCodeFull;  // it stays at its ceiling
         }
       }
@@ -174,11 +174,14 @@ void main() {
             }
           }
         }
-        precise float free = 0.0;
-        for (int n = 0; n < 8; ++n) free += taking[n] ? max(room[n], 0.0) : 0.0;
-        for (int n = 0; n < 8; ++n) {
-          if (!taking[n]) continue;
-          amount[n] = level > 0.0 ? level + room[n] : over * divide(max(room[n], 0.0), free);
+        if (level > 0.0) {
+          for (int n = 0; n < 8; ++n) amount[n] = taking[n] ? level + room[n] : 0.0;
+        } else {  // the rooms hold it all: filled in proportion to their room
+          precise float free = 0.0;
+          for (int n = 0; n < 8; ++n) free += is_gap[n] ? max(room[n], 0.0) : 0.0;
+          for (int n = 0; n < 8; ++n) {
+            if (is_gap[n] && room[n] > 0.0) amount[n] = over * divide(room[n], free);
+          }
         }
       }
     }

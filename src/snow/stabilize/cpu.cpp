@@ -479,23 +479,23 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
     // test sees (*hidden): pressure passed around in a closed full gap
     // would otherwise keep the stabilizer from ever resting.
     float room[8];
-    bool taking[8] = {};
+    bool gap[8] = {}, taking[8] = {};
     int edges = 0;
     for (int n = 0; n < 8; ++n) {
       room[n] = 0.0f;
       code[n] = kCodeNone;
       const int ni = i + kDirI[n], nj = j + kDirJ[n];
-      const int gap = gap_at(ni, nj, he);
-      if (gap == kLandVoid) {
+      const int nl = gap_at(ni, nj, he);
+      if (nl == kLandVoid) {
         code[n] = kCodeVoid;
         ++edges;
-      } else if (gap >= 0) {
-        code[n] = uint8_t(gap);
-        const size_t kt = index(gap, ni, nj);
+      } else if (nl >= 0) {
+        code[n] = uint8_t(nl);
+        const size_t kt = index(nl, ni, nj);
         // (Room past the over takes no more: capped, the sums stay finite
         // under the open sky.)
         room[n] = std::min((cells_[kt].y - kCeilingClearance) - (cells_[kt].x + depth_[kt]), over);
-        taking[n] = true;
+        gap[n] = taking[n] = true;
       }
     }
     if (edges > 0) {
@@ -529,12 +529,18 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
           }
         }
       }
-      float free = 0.0f;  // the rooms, where they hold it all
-      for (int n = 0; n < 8; ++n) free += taking[n] ? std::max(room[n], 0.0f) : 0.0f;
-      for (int n = 0; n < 8; ++n) {
-        if (!taking[n]) continue;
-        out[n] = level > 0.0f ? level + room[n] : over * (std::max(room[n], 0.0f) / free);
-        if (!(room[n] > 0.0f)) *hidden += out[n];
+      if (level > 0.0f) {
+        for (int n = 0; n < 8; ++n) {
+          if (!taking[n]) continue;
+          out[n] = level + room[n];
+          if (!(room[n] > 0.0f)) *hidden += out[n];
+        }
+      } else {  // the rooms hold it all: filled in proportion to their room
+        float free = 0.0f;
+        for (int n = 0; n < 8; ++n) free += gap[n] ? std::max(room[n], 0.0f) : 0.0f;
+        for (int n = 0; n < 8; ++n) {
+          if (gap[n] && room[n] > 0.0f) out[n] = over * (room[n] / free);
+        }
       }
     }
   }
