@@ -46,6 +46,21 @@ bool single_step_moves(ivec2 c, vec4 cell, float movable, float he, float over) 
   return wmax1 > 0.0 && min(movable, max(0.5 * wmax1, over)) >= u_min_move;
 }
 
+// Sends `total` into the `voids` directions whose code is kCodeVoid, in
+// equal shares, the last taking what rounding leaves. Mirrors the CPU's
+// fall_off (snow/stabilize/cpu.cpp).
+void fall_off(uint code[8], int voids, float total, inout float amount[8]) {
+  float share = divide(total, float(voids));
+  float left = total;
+  int seen = 0;
+  for (int n = 0; n < 8; ++n) {
+    if (code[n] != kCodeVoid) continue;
+    ++seen;
+    amount[n] = seen == voids ? left : share;
+    left -= share;
+  }
+}
+
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
   float amount[8];
@@ -105,15 +120,7 @@ void main() {
     if (voids > 0) {
       // An edge of the world: everything that moves falls off, shared by the
       // void directions.
-      float share = divide(movable, float(voids));
-      float left = movable;
-      int seen = 0;
-      for (int n = 0; n < 8; ++n) {
-        if (code[n] != kCodeVoid) continue;
-        ++seen;
-        amount[n] = seen == voids ? left : share;
-        left -= share;
-      }
+      fall_off(code, voids, movable, amount);
     } else if (wmax > 0.0) {
       float total = min(movable, max(0.5 * wmax, over));  // half the largest excess, split by excess
       if (total < u_min_move) total = 0.0;
@@ -146,15 +153,7 @@ void main() {
         }
       }
       if (edges > 0) {
-        float share = divide(over, float(edges));
-        float left = over;
-        int seen = 0;
-        for (int n = 0; n < 8; ++n) {
-          if (code[n] != kCodeVoid) continue;
-          ++seen;
-          amount[n] = seen == edges ? left : share;
-          left -= share;
-        }
+        fall_off(code, edges, over, amount);
       } else {
         precise float level = 0.0;
         for (bool dropped = true; dropped;) {

@@ -48,6 +48,21 @@ float held_snow(const glm::vec4& cell, float s, float cap) {
   return std::min(std::min(s, free_top(cell, s) - cell.x), cap);
 }
 
+// Sends `amount` into the `voids` directions whose code is kCodeVoid, in
+// equal shares, the last taking what rounding leaves (so out sums to it
+// exactly). Mirrors stabilize_outflow.frag fall_off.
+void fall_off(const uint8_t* code, int voids, float amount, float* out) {
+  const float share = amount / float(voids);
+  float left = amount;
+  int seen = 0;
+  for (int n = 0; n < 8; ++n) {
+    if (code[n] != kCodeVoid) continue;
+    ++seen;
+    out[n] = seen == voids ? left : share;
+    left -= share;
+  }
+}
+
 int log2_of(int stride) {
   int b = 0;
   while ((2 << b) <= stride) ++b;
@@ -444,15 +459,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
   if (voids > 0) {
     // An edge of the world: everything that moves falls off, shared by the
     // void directions.
-    const float share = movable / float(voids);
-    float left = movable;
-    int seen = 0;
-    for (int n = 0; n < 8; ++n) {
-      if (code[n] != kCodeVoid) continue;
-      ++seen;
-      out[n] = seen == voids ? left : share;
-      left -= share;
-    }
+    fall_off(code, voids, movable, out);
   } else if (wmax > 0.0f) {
     // Half the largest excess moves, split over the receivers by their
     // excess: a receiver rises by at most half its excess, so the pair
@@ -499,15 +506,7 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
       }
     }
     if (edges > 0) {
-      const float share = over / float(edges);
-      float left = over;
-      int seen = 0;
-      for (int n = 0; n < 8; ++n) {
-        if (code[n] != kCodeVoid) continue;
-        ++seen;
-        out[n] = seen == edges ? left : share;
-        left -= share;
-      }
+      fall_off(code, edges, over, out);
     } else {
       // The level: drop the gaps that would take nothing until none is
       // left to drop (L only falls, so a dropped gap stays dropped).
