@@ -210,8 +210,10 @@ int main(int argc, char** argv) {
     const double peel_s = seconds_since(t0);
     std::vector<float> depth(size_t(maps.layers) * maps.grid.texels(), 0.0f);
     if (o.with_coverage) {
-      // The snow of a one-step snowfall with the default coverage.
+      // The snow of a one-step snowfall with the default coverage, none
+      // under the bridges (as snowmodel's snowfall: mask_coverage).
       depth = compute_coverage(scene, maps, CoverageSettings{}, plan::current_gl());
+      mask_coverage(maps, {}, depth);
       for (float& d : depth) d *= snow_depth;
     } else {
       for (int j = 0; j < maps.grid.height; ++j) {
