@@ -111,7 +111,9 @@ void main() {
         ++voids;
       } else if (land_l >= 0) {
         code[n] = uint(land_l);
-        precise float e = he - top - dir_distance(n) * path_tan;  // not fused, as the CPU
+        // A receiver under a ceiling takes at most its room (as the CPU).
+        precise float room = (mc.y - kCeilingClearance) - top;
+        precise float e = min(he - top - dir_distance(n) * path_tan, room);  // not fused, as the CPU
         w[n] = max(e, 0.0);
         wsum += w[n];
         wmax = max(wmax, w[n]);

@@ -566,6 +566,70 @@ TEST(StabilizeReference, PressedSnowBesideSliversOfRoomComesToRest) {
   expect_rests_keeping_mass(maps, depth, 2000, 500);
 }
 
+// A cellar on a toy's scale: a slab 1 mm over the floor, on texels of
+// 0.05 mm, so that a step's repose drop (texel * tan) is less than the
+// ceiling's clearance. Its gap exactly full (snow up to the clearance), the
+// open floor around it under snow whose top lies just under the slab's
+// underside: above the gap's snow by more than a step's drop.
+SnowMaps fine_cellar_maps() {
+  return make_maps(48, 48, 5e-5f, 4, [](float x, float z) {
+    std::vector<Surface> s;
+    if (x > 0.4e-3f && x < 2e-3f && z > 0.4e-3f && z < 2e-3f) {
+      s.push_back({1.5e-3f, kUp});
+      s.push_back({1e-3f, kDown});
+    }
+    s.push_back({0.0f, kUp});
+    return s;
+  });
+}
+
+std::vector<float> full_fine_cellar_snow(const SnowMaps& maps) {
+  std::vector<float> depth(maps.ground.size(), 0.0f);
+  for (size_t k = 0; k < depth.size(); ++k) {
+    if (!std::isnan(maps.ground[k]) && maps.ground[k] == 0.0f) {
+      depth[k] = maps.ceiling[k] < 1.0f ? maps.ceiling[k] - kCeilingClearance
+                                        : 1e-3f - 0.1f * kCeilingClearance;
+    }
+  }
+  return depth;
+}
+
+// One relaxation pass alone (no routing).
+StabilizeSettings one_relaxation_pass() {
+  StabilizeSettings settings = loose_settings();
+  settings.route_steep = false;
+  settings.tolerance = 0.0f;
+  settings.max_iterations = 1;
+  return settings;
+}
+
+// No texel under the slab lies above its ceiling's clearance.
+void expect_none_pressed_under_the_slab(const SnowMaps& maps, const std::vector<float>& depth) {
+  float highest_over = -1.0f;
+  for (size_t k = 0; k < depth.size(); ++k) {
+    if (!std::isnan(maps.ground[k]) && maps.ceiling[k] < 1.0f) {
+      const float cap = maps.ceiling[k] - kCeilingClearance;
+      highest_over = std::max(highest_over, maps.ground[k] + depth[k] - cap);
+    }
+  }
+  EXPECT_LE(highest_over, 1e-9f);
+}
+
+// A full gap has no room: snow around it, higher than its snow, slides none
+// into it, and none is pressed there. Before, the slope pushed snow in over
+// the ceiling, the squeeze and the pours of pressed snow sent it back out,
+// and the slope pushed it in again: under a toy car at 2048 texels the passes
+// never rested.
+TEST(StabilizeReference, SlidingSnowTakesNoRoomAFullGapHasNot) {
+  const SnowMaps maps = fine_cellar_maps();
+  const std::vector<float> start = full_fine_cellar_snow(maps);
+  std::vector<float> depth = start;
+  const StabilizeResult r = stabilize_cpu(maps, depth, one_relaxation_pass());
+  expect_none_pressed_under_the_slab(maps, depth);
+  const double before = snow_volume(maps, start);  // (the map's border sheds into the void)
+  EXPECT_NEAR(snow_volume(maps, depth) + r.lost_volume, before, 1e-6 * before);
+}
+
 // The snow pressed out of the cellar's full gap (its over, 2 cm on each of
 // 1024 texels) poured by pour_pressed_snow's grouping, one pile from the
 // whole gap, and one pile per texel: both hold the volume exactly, the one
@@ -854,6 +918,16 @@ TEST(StabilizeGpu, PressedSnowBesideSliversOfRoomComesToRest) {
   REQUIRE_GL();
   const SnowMaps maps = closed_cavity_maps(24, 0.05f);
   expect_gpu_rests_as_cpu(maps, sliver_cavity_snow(maps, 2.0f * loose_settings().tolerance), 2000);
+}
+
+TEST(StabilizeGpu, SlidingSnowTakesNoRoomAFullGapHasNot) {
+  REQUIRE_GL();
+  const SnowMaps maps = fine_cellar_maps();
+  std::vector<float> gpu = full_fine_cellar_snow(maps), cpu = gpu;
+  stabilize(maps, gpu, one_relaxation_pass());
+  stabilize_cpu(maps, cpu, one_relaxation_pass());
+  expect_none_pressed_under_the_slab(maps, gpu);
+  expect_agree(maps, gpu, cpu);
 }
 
 TEST(StabilizeGpu, PressedSnowPoursMatchReference) {

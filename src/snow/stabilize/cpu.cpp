@@ -447,7 +447,11 @@ float CpuStabilizer::outflow_texel(int l, int i, int j, int stride, float* to_vo
       code[n] = uint8_t(land_l);
       const size_t kt = index(land_l, ni, nj);
       const float ht = cells_[kt].x + depth_[kt];
-      const float e = he - ht - distance_[n] * path_tan;
+      // A receiver under a ceiling takes at most its room: sliding snow never
+      // presses a full gap (what it pressed in there, the squeeze and the
+      // pours of pressed snow sent back out, to be pushed in again).
+      const float room = (cells_[kt].y - kCeilingClearance) - ht;
+      const float e = std::min(he - ht - distance_[n] * path_tan, room);
       w[n] = std::max(e, 0.0f);
       wsum += w[n];
       wmax = std::max(wmax, w[n]);
