@@ -633,8 +633,9 @@ TEST(StabilizeReference, SlidingSnowTakesNoRoomAFullGapHasNot) {
 // The snow pressed out of the cellar's full gap (its over, 2 cm on each of
 // 1024 texels) poured by pour_pressed_snow's grouping, one pile from the
 // whole gap, and one pile per texel: both hold the volume exactly, the one
-// pile with none over a ceiling and growing over a tenth of the texels or
-// fewer (each texel's own pile crosses the gap again).
+// pile with none over a ceiling and growing over a fifth of the texels the
+// lone piles cover or fewer (each texel's own pile crosses the gap again,
+// until the call's budget of growth runs out).
 TEST(StabilizeReference, PressedSnowOfOneGapIsPouredAsOnePile) {
   const SnowMaps maps = cellar_maps();
   const std::vector<glm::vec4> cells = stabilize_cells(maps, loose_settings());
@@ -676,7 +677,7 @@ TEST(StabilizeReference, PressedSnowOfOneGapIsPouredAsOnePile) {
   std::printf("pressed snow of one gap: one pile covers %zu texels, one per texel %zu\n",
               stats[0].covered, stats[1].covered);
   EXPECT_EQ(stats[0].groups, 1u);
-  EXPECT_LT(10 * stats[0].covered, stats[1].covered);
+  EXPECT_LT(5 * stats[0].covered, stats[1].covered);
 }
 
 // --- Shapes (CPU reference) --------------------------------------------------

@@ -19,7 +19,7 @@
 // creeping under an eave collects in a hollow there, a spike a metre high on
 // one texel, which the relaxation would spread a texel per pass). Texels that
 // snow would slide off into the void take none, a pile covers at most 2^20
-// texels, and the piles of one call at most 8 times the maps' layer texels
+// texels, and the piles of one call at most twice the maps' layer texels
 // (the terminals after that keep their snow, as before). Mass is exact: what
 // the cone does not place stays on the terminal.
 //

@@ -27,9 +27,11 @@ namespace {
 constexpr size_t kMaxPileTexels = size_t(1) << 20;
 /// All the piles of one call cover at most this many times the maps' layer
 /// texels (counting each growth); the terminals after that keep their snow
-/// as before, so that no scene makes the pouring outweigh the passes it
-/// saves.
-constexpr size_t kPouredPerLayerTexel = 8;
+/// as before, for the relaxation to spread. Covering a texel (a heap's
+/// push and pop) costs far more than a pass over it: this keeps the piles
+/// within about what the passes they save cost, where snow lies thousands
+/// of texels deep (tools/RESULTS.md, the depth in texels).
+constexpr size_t kPouredPerLayerTexel = 2;
 
 /// A min-heap of T in a 4-ary tree (half a binary heap's depth; a pop
 /// compares four children a level, in one cache line), its storage kept
