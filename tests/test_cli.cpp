@@ -779,7 +779,8 @@ TEST(Cli, WarnsWhenTheSnowIsOutOfScale) {
   EXPECT_NE(automatic.output.find("automatic side 110 texels"), std::string::npos)
       << automatic.output;
   EXPECT_NE(automatic.output.find("maps: 110 x 110 texels"), std::string::npos) << automatic.output;
-  EXPECT_EQ(automatic.output.find("may take very long"), std::string::npos) << automatic.output;
+  EXPECT_EQ(automatic.output.find("far finer than its shapes need"), std::string::npos)
+      << automatic.output;
 }
 
 // A run whose stabilizer stops at --max-iterations with the snow still

@@ -71,8 +71,9 @@ void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth) {
   const int suggested = plan::side_for_depth(side, maps.grid.texel, fall_depth);
   char line[300];
   std::snprintf(line, sizeof line,
-                "the snow is %.0f texels deep (%.3g m on %.3g m texels): stabilizing may take very "
-                "long; --max-side %d (or --texel %.3g) makes it %.0f texels deep",
+                "the snow is %.0f texels deep (%.3g m on %.3g m texels): the maps are far finer "
+                "than its shapes need, at a cost in time; --max-side %d (or --texel %.3g) makes "
+                "it %.0f texels deep",
                 double(texels), double(fall_depth), double(maps.grid.texel), suggested,
                 double(fall_depth / plan::kAimTexels), double(plan::kAimTexels));
   log_warn(line);

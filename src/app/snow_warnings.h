@@ -12,8 +12,7 @@ namespace snow::app {
 
 /// Warns when the fresh snow is deep against the scene's size. glTF units
 /// are metres; a model made in other units (a building tile 1 unit wide)
-/// gets snow out of scale, and stabilizing takes passes growing with the
-/// square of the snow's depth in texels.
+/// gets snow out of scale.
 void warn_if_out_of_scale(const Scene& scene, float fall_depth);
 
 /// Warns when the scene lies so far from the origin that 32-bit floats (as
@@ -23,8 +22,8 @@ void warn_if_out_of_scale(const Scene& scene, float fall_depth);
 void warn_if_imprecise(const Scene& scene, float fall_depth);
 
 /// Warns when the fresh snow is more than plan::kDeepTexels texels deep
-/// (such runs take very long); suggests the map side that makes it
-/// plan::kAimTexels deep.
+/// (maps far finer than its shapes need, at a cost in time); suggests the
+/// map side that makes it plan::kAimTexels deep.
 void warn_if_deep_in_texels(const SnowMaps& maps, float fall_depth);
 
 /// Warns when the last step's stabilizing stopped at --max-iterations with the

@@ -30,9 +30,10 @@ struct MachineInfo {
   bool reports_free_pages = false;
 };
 
-/// Fresh snow deeper than this many texels is slow to stabilize: piles
-/// about as wide as the snow is deep settle in passes growing with the
-/// square of that width.
+/// Fresh snow deeper than this many texels lies on maps far finer than its
+/// shapes need: pillows, cornices and repose slopes are about as wide as the
+/// snow is deep or wider, while every stage's time grows with the texel
+/// count (a small object under deep snow pays for texels that add nothing).
 constexpr float kDeepTexels = 64.0f;  // texels of snow depth
 /// The depth in texels the automatic map side and the warning aim at.
 constexpr float kAimTexels = 32.0f;  // texels of snow depth
