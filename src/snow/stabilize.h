@@ -326,16 +326,43 @@ inline float routed_excess_of(const StabilizeSettings& settings, Routing kind) {
 }
 /// Snow pressed above its ceilings is poured (snow::pour_pressed_snow) at a
 /// check where the snow creeps and still moves more than the tolerance, at
-/// most once per kPressedEvery passes (the caller then calls
-/// schedule.pressed_looked_for()), before a drain, which runs at that check
-/// only if nothing was poured (pressed snow squeezed into the void at an
-/// edge keeps drains due, which move none of it); where none lies more than
-/// the tolerance above its ceiling's clearance, nothing changes. Looking scans every layer
-/// texel, after a full readback on the GPU, hence not at every check. Shared
-/// by both stabilizers.
+/// most once per kPressedEvery passes (schedule.pressed_looked_for() then
+/// counts from there), before a drain, which runs at that check only if
+/// nothing was poured (pressed snow squeezed into the void at an edge keeps
+/// drains due, which move none of it); where none lies more than the
+/// tolerance above its ceiling's clearance, nothing changes. Looking scans
+/// every layer texel, after a full readback on the GPU, hence not at every
+/// check. Shared by both stabilizers.
 constexpr int kPressedEvery = 16;
 bool pressed_snow_due(const StabilizeSettings& settings, const StrideSchedule& schedule,
                       float residual);
+
+/// The routings a check runs once its moves are read, in the order above,
+/// for both stabilizers: the creep routing where due (creep_route_due, with
+/// `late`), else a pour of pressed snow where due, then a drain where due
+/// and nothing was poured. `residual` and `residual_void` are the check's
+/// largest moves (all, into the void). The backend's own steps: creep(),
+/// pour() (whether it moved snow) and drain(); the counts go to `result`.
+template <class Creep, class Pour, class Drain>
+void run_check_routings(const StabilizeSettings& settings, StrideSchedule& schedule, bool late,
+                        float residual, float residual_void, StabilizeResult& result, Creep creep,
+                        Pour pour, Drain drain) {
+  if (creep_route_due(settings, schedule, late)) {
+    creep();
+    ++result.creep_routes;
+    return;
+  }
+  bool poured = false;
+  if (pressed_snow_due(settings, schedule, residual)) {
+    schedule.pressed_looked_for();
+    poured = pour();
+    if (poured) ++result.pours;
+  }
+  if (!poured && drain_due(settings, schedule, residual, residual_void)) {
+    drain();
+    ++result.drains;
+  }
+}
 /// Layer texels per part of the sums over the maps (parallel_sum: the same
 /// bits on any number of cores).
 constexpr size_t kSumChunk = size_t(1) << 16;

@@ -1010,24 +1010,15 @@ StabilizeResult CpuStabilizer::iterate(int passes) {
         result.converged = true;
         break;
       }
-      if (creep_route_due(settings_, schedule_, false)) {
-        route_into(Routing::Creep, result);
-        ++result.creep_routes;
-      } else {
-        bool poured = false;
-        if (pressed_snow_due(settings_, schedule_, residual_)) {
-          schedule_.pressed_looked_for();
-          poured = pour_pressed() > 0;
-          if (poured) {
-            ++result.pours;
+      run_check_routings(
+          settings_, schedule_, false, residual_, residual_void_, result,
+          [&] { route_into(Routing::Creep, result); },
+          [&] {
+            if (pour_pressed() == 0) return false;
             touch_all();
-          }
-        }
-        if (!poured && drain_due(settings_, schedule_, residual_, residual_void_)) {
-          result.route_passes += route(nullptr, Routing::Drain);
-          ++result.drains;
-        }
-      }
+            return true;
+          },
+          [&] { result.route_passes += route(nullptr, Routing::Drain); });
     }
   }
   if (settings_.count_tiles && result.iterations > 0 && !surface_tiles_.empty()) {

@@ -1020,26 +1020,21 @@ StabilizeResult Stabilizer::Impl::iterate(int passes) {
         result.converged = true;
         break;
       }
-      if (creep_route_due(settings, schedule, async_checks)) {
-        route_into(Routing::Creep, sum_blocks().y * area, result);
-        ++result.creep_routes;
-        reset_tiles();  // the routing used the outflow textures
-      } else {
-        bool poured = false;
-        if (pressed_snow_due(settings, schedule, moves.x)) {
-          schedule.pressed_looked_for();
-          poured = pour_pressed();
-          if (poured) {
-            ++result.pours;
+      run_check_routings(
+          settings, schedule, async_checks, moves.x, moves.y, result,
+          [&] {
+            route_into(Routing::Creep, sum_blocks().y * area, result);
+            reset_tiles();  // the routing used the outflow textures
+          },
+          [&] {
+            if (!pour_pressed()) return false;
             reset_tiles();
-          }
-        }
-        if (!poured && drain_due(settings, schedule, moves.x, moves.y)) {
-          result.route_passes += route(Routing::Drain);
-          ++result.drains;
-          reset_tiles();  // the routing used the outflow textures
-        }
-      }
+            return true;
+          },
+          [&] {
+            result.route_passes += route(Routing::Drain);
+            reset_tiles();  // the routing used the outflow textures
+          });
     }
   }
   if (volume_sums) {
